@@ -1,0 +1,163 @@
+#pragma once
+/// @file
+/// The Cartesian impedance control law with nullspace joint impedance and a commanded wrench:
+///
+///   tau = J^T (-K e - D J dq) + N tau_0 + J^T F,   tau_0 = -K_ns (q - q_d) - D_ns dq,
+///   N = I - J^T (J J^T + lambda^2 I)^-1 J,          D = 2 Z^(1/2) sqrt(K) Z^(1/2),
+///
+/// with every commanded quantity low-pass filtered, saturated to user limits, the pose error
+/// clipped, and the torque limited in magnitude and rate. Setters validate and throw `Error`
+/// (a rejected command changes nothing); `update` is noexcept, allocates nothing, takes no lock and
+/// does no I/O. One controller serves one robot; it is not thread-safe (see the control loop for
+/// hand-off between threads).
+
+#include <optional>
+
+#include "cartesian_impedance/math.hpp"
+#include "cartesian_impedance/parameters.hpp"
+#include "cartesian_impedance/types.hpp"
+
+namespace cartesian_impedance {
+
+/// Outcome of one control cycle.
+enum class Status {
+  ok,                   ///< torque computed from the law
+  not_started,          ///< start() has not been called; torque is zero
+  invalid_dt,           ///< dt not finite or not positive; torque ramps toward zero
+  invalid_robot_state,  ///< non-finite or wrongly sized q, dq, pose or Jacobian; torque ramps to 0
+  numerical_error,      ///< the law produced a non-finite value; torque ramps toward zero
+};
+
+/// "ok", "not_started", ...
+const char* to_string(Status status) noexcept;
+
+/// The quantities the law is evaluated with: either as commanded or after filtering.
+struct Targets {
+  Pose pose;                         ///< reference pose T_base_ref
+  Matrix6d stiffness;                ///< K in the stiffness frame [N/m, Nm/rad]
+  Vector6d damping_ratio;            ///< zeta per axis of the stiffness frame [-]
+  JointVector nullspace_q;           ///< nullspace target q_d [rad]
+  JointVector nullspace_stiffness;   ///< K_ns per joint [Nm/rad]
+  double nullspace_damping_ratio{};  ///< zeta_ns [-]
+  Vector6d wrench;                   ///< F in the wrench frame [N, Nm]
+};
+
+/// Which limits shaped the last command. Command saturations are set when a setter clipped a
+/// value; the others describe the last cycle.
+struct ActiveLimits {
+  bool stiffness_saturated = false;
+  bool damping_ratio_saturated = false;
+  bool nullspace_stiffness_saturated = false;
+  bool wrench_saturated = false;
+  bool translation_error_clipped = false;
+  bool rotation_error_clipped = false;
+  bool joint_torque_saturated = false;
+  bool torque_rate_limited = false;
+};
+
+/// Snapshot written by every update().
+struct ControllerState {
+  Status status = Status::not_started;
+  Pose pose;                  ///< measured end-effector pose T_base_ee
+  Vector6d pose_error;        ///< e = [p - p_d; log(R R_d^T)], base frame, after clipping [m; rad]
+  Targets commanded;          ///< targets as last commanded (after validation and saturation)
+  Targets filtered;           ///< targets the law used this cycle
+  Matrix6d stiffness_base;    ///< filtered K in the base frame
+  Matrix6d damping_base;      ///< D in the base frame
+  Vector6d wrench_base;       ///< filtered F in the base frame
+  JointVector tau_cartesian;  ///< J^T (-K e - D J dq) [Nm]
+  JointVector tau_nullspace;  ///< N tau_0 [Nm]
+  JointVector tau_wrench;     ///< J^T F [Nm]
+  JointVector tau;            ///< commanded torque after torque and rate limits [Nm]
+  ActiveLimits limits;
+};
+
+class CartesianImpedanceController {
+ public:
+  /// @throws Error if num_joints is outside [1, kMaxJoints] or the parameters are invalid.
+  explicit CartesianImpedanceController(int num_joints, const Parameters& parameters = {});
+
+  int num_joints() const noexcept { return num_joints_; }
+
+  /// Current configuration. Diagonal setters below keep it up to date, so a read-modify-write
+  /// through set_parameters() preserves them.
+  const Parameters& parameters() const noexcept { return parameters_; }
+
+  /// Replaces the whole configuration, including the commanded stiffness (as a diagonal), damping
+  /// ratios, nullspace stiffness and damping, and wrench, which are then approached through their
+  /// filters. Commands are re-saturated to the new limits.
+  /// @throws Error naming the field, value and valid range; nothing changes then.
+  void set_parameters(const Parameters& parameters);
+
+  /// Starts (or restarts) from the measured state: reference pose = current pose, nullspace
+  /// target = current q, filtered stiffness and damping = commanded, filtered wrench = 0 (it
+  /// ramps in through its filter), previous torque = `tau_previous` (zero if not given), so the
+  /// first commands are continuous with what the robot already receives.
+  /// @throws Error if `robot` is wrongly sized or not finite.
+  void start(const RobotState& robot);
+  void start(const RobotState& robot, const Eigen::Ref<const Eigen::VectorXd>& tau_previous);
+  bool started() const noexcept { return started_; }
+
+  /// Reference pose T_base_ref. The quaternion must have unit norm (within 1e-3; it is then
+  /// normalised).
+  void set_reference_pose(const Pose& pose_base);
+  /// Diagonal stiffness [N/m x3, Nm/rad x3] in `frame` (default: the configured frame).
+  void set_stiffness(const Vector6d& diagonal, std::optional<Frame> frame = std::nullopt);
+  /// Full symmetric positive semi-definite stiffness [N/m, N/rad; N, Nm/rad] in `frame`.
+  void set_stiffness_matrix(const Matrix6d& stiffness, std::optional<Frame> frame = std::nullopt);
+  /// Damping ratio per axis of the stiffness frame [-].
+  void set_damping_ratio(const Vector6d& damping_ratio);
+  /// Nullspace target configuration q_d [rad], one value per joint.
+  void set_nullspace_target(const Eigen::Ref<const Eigen::VectorXd>& q_desired);
+  /// Nullspace stiffness [Nm/rad], one value for all joints or one per joint.
+  void set_nullspace_stiffness(const Eigen::Ref<const Eigen::VectorXd>& stiffness);
+  void set_nullspace_damping_ratio(double damping_ratio);
+  /// Commanded wrench [N; Nm] in `frame` (default: the configured frame).
+  void set_wrench(const Vector6d& wrench, std::optional<Frame> frame = std::nullopt);
+
+  /// One control cycle: filters the targets with the elapsed `dt` [s], evaluates the law at the
+  /// measured `robot` state and applies the limits. The result is torque() and state(). Never
+  /// throws and never allocates; on bad input it returns a status and ramps the torque toward zero
+  /// within the rate limit.
+  Status update(const RobotState& robot, double dt) noexcept;
+
+  /// Commanded joint torque of the last update() [Nm].
+  const JointVector& torque() const noexcept { return state_.tau; }
+  /// Snapshot of the last update().
+  const ControllerState& state() const noexcept { return state_; }
+
+ private:
+  struct FilterGains {
+    double dt = -1.0;
+    double pose = 1.0, stiffness = 1.0, nullspace = 1.0, wrench = 1.0;
+  };
+
+  void check_robot_state(const RobotState& robot) const;
+  bool robot_state_usable(const RobotState& robot) const noexcept;
+  void apply_saturation(Targets& commanded, ActiveLimits& limits) const;
+  void change_frames(Frame stiffness_frame, Frame wrench_frame);
+  void update_gains(double dt) noexcept;
+  void filter_targets() noexcept;
+  void compute_torque(const RobotState& robot) noexcept;
+  Status hold_safely(Status status, double dt) noexcept;
+
+  int num_joints_;
+  Parameters parameters_;
+  JointVector joint_torque_limit_;
+  JointVector joint_torque_rate_limit_;
+  bool started_ = false;
+  FilterGains gains_;
+  double last_valid_dt_ = 1e-3;
+  ControllerState state_;
+
+  // Per-cycle workspace, sized once.
+  JointVector tau_previous_;
+  JointVector max_step_;
+  JointVector tau_0_;
+  Matrix6d damping_frame_;
+  Matrix6d damped_stiffness_;  // filtered K the damping was last computed for
+  Vector6d damped_ratio_;      // filtered zeta the damping was last computed for
+  NullspaceProjector projector_;
+};
+
+}  // namespace cartesian_impedance

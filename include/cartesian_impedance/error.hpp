@@ -1,0 +1,19 @@
+#pragma once
+/// @file
+/// The one exception type the library throws. Only setters, loaders and constructors throw; the
+/// control cycle never does (it reports a status instead).
+
+#include <stdexcept>
+#include <string>
+
+namespace cartesian_impedance {
+
+/// Raised for every rejected input: the message names the field, the offending value and the
+/// valid range, e.g. `stiffness.translation.x = -5 N/m is outside [0, inf)`. A call that throws
+/// changes nothing.
+class Error : public std::runtime_error {
+ public:
+  explicit Error(const std::string& message) : std::runtime_error(message) {}
+};
+
+}  // namespace cartesian_impedance

@@ -1,0 +1,78 @@
+#pragma once
+/// @file
+/// The small pieces of mathematics the control law is made of, as free functions so that each can
+/// be tested on its own. All of them are noexcept and allocate nothing.
+
+#include <Eigen/Cholesky>
+
+#include "cartesian_impedance/types.hpp"
+
+namespace cartesian_impedance {
+
+/// Rotation vector of R R_d^T [rad], in the base frame: the axis times the angle by which the
+/// desired orientation must be turned (about base axes) to reach the current one. The quaternion
+/// sign is chosen for the short way, so q and -q give the same result; the angle is in [0, pi].
+Eigen::Vector3d orientation_error(const Eigen::Quaterniond& current,
+                                  const Eigen::Quaterniond& desired) noexcept;
+
+/// e = [p - p_d; log(R R_d^T)] in the base frame [m; rad].
+Vector6d pose_error(const Pose& current, const Pose& desired) noexcept;
+
+/// Gain `a` of the filter a_{k+1} = (1 - a) a_k + a a_d such that `fraction` of a step is applied
+/// after `time` seconds when called every `dt` seconds: a = 1 - (1 - fraction)^(dt / time). This
+/// holds for any (even varying) dt, so 250 Hz and 1 kHz give the same response. time <= 0 gives 1.
+double filter_gain(double dt, double time, double fraction) noexcept;
+
+/// Scales `vector` down to `max_norm` if it is longer, keeping its direction; true if it did.
+bool clip_norm(Eigen::Ref<Eigen::Vector3d> vector, double max_norm) noexcept;
+
+/// Limits each joint's change from `previous` to `max_step` (e.g. rate [Nm/s] * dt [s]) by scaling
+/// the whole change `tau - previous` by one factor, so its direction is kept. True if it limited.
+bool limit_rate(const JointVector& previous, const JointVector& max_step,
+                JointVector& tau) noexcept;
+
+/// Clamps each joint torque to [-max_torque, max_torque]; true if any was clamped.
+bool saturate_torque(const JointVector& max_torque, JointVector& tau) noexcept;
+
+/// Square root of a symmetric positive semi-definite matrix (negative round-off eigenvalues are
+/// treated as zero).
+Matrix6d matrix_sqrt(const Matrix6d& spd) noexcept;
+
+/// Damping D = 2 Z^(1/2) sqrt(K) Z^(1/2) with Z = diag(zeta): for a diagonal K this is
+/// d_i = 2 zeta_i sqrt(k_i); for a full K it stays symmetric positive semi-definite and shares the
+/// principal axes of K when zeta is uniform.
+Matrix6d damping_from_stiffness(const Matrix6d& stiffness, const Vector6d& damping_ratio) noexcept;
+
+/// Saturates a symmetric positive semi-definite 6x6 stiffness: the eigenvalues of its
+/// translational and rotational 3x3 blocks are clamped to the given ranges, and a coupling block
+/// is scaled by the same congruence so the result stays positive semi-definite. For a diagonal K
+/// this is a clamp of each diagonal value. Returns true if anything changed.
+bool saturate_stiffness(Matrix6d& stiffness, double translation_min, double translation_max,
+                        double rotation_min, double rotation_max) noexcept;
+
+/// blockdiag(R, R): maps 6-vectors [linear; angular] from a frame with orientation R to the base.
+Matrix6d block_rotation(const Eigen::Matrix3d& rotation) noexcept;
+
+/// Computes N tau_0 with N = I - J^T (J J^T + lambda^2 I)^-1 J without forming N and without an
+/// SVD: a 6x6 LDLT (or an n x n one when n < 6, via J^T J, which is the same matrix function).
+/// lambda = 0 gives the exact projector for a full-rank J. The workspace is sized once.
+class NullspaceProjector {
+ public:
+  /// Writes N tau_0 to `projected`; `tau_0` and `projected` may not alias.
+  void project(const Jacobian& jacobian, double lambda, const JointVector& tau_0,
+               JointVector& projected) noexcept;
+
+  /// The full n x n matrix N, for tests and diagnostics (not used by the control cycle).
+  JointMatrix matrix(const Jacobian& jacobian, double lambda) noexcept;
+
+ private:
+  Eigen::LDLT<Matrix6d> task_ldlt_;
+  Eigen::LDLT<JointMatrix> joint_ldlt_;
+  Matrix6d task_gram_;
+  JointMatrix joint_gram_;
+  Vector6d task_vector_;
+  Vector6d task_solution_;
+  JointVector joint_vector_;
+};
+
+}  // namespace cartesian_impedance

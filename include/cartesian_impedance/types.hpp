@@ -1,0 +1,55 @@
+#pragma once
+/// @file
+/// Fixed-size and bounded-size Eigen types shared by every layer, plus the plain structs that
+/// describe a pose and a measured robot state. Joint-sized objects have a compile-time maximum so
+/// that nothing on the control path allocates.
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace cartesian_impedance {
+
+/// Largest joint count the library supports; joint-sized storage is reserved for this many.
+inline constexpr int kMaxJoints = 12;
+
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+/// Joint-space vector, sized at run time (1..kMaxJoints) without heap storage.
+using JointVector = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, kMaxJoints, 1>;
+/// Joint-space square matrix (n x n) without heap storage.
+using JointMatrix =
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, kMaxJoints, kMaxJoints>;
+/// Geometric Jacobian, 6 x n: rows [linear; angular], reference point the end-effector origin,
+/// expressed in the base frame.
+using Jacobian = Eigen::Matrix<double, 6, Eigen::Dynamic, Eigen::ColMajor, 6, kMaxJoints>;
+
+/// A frame's position [m] and orientation (unit quaternion), both in the base frame.
+struct Pose {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();
+};
+
+/// Frame in which a stiffness or a wrench is given.
+enum class Frame {
+  base,         ///< the root link of the kinematic chain
+  end_effector  ///< the end-effector (tip) frame, rotated into the base frame every cycle
+};
+
+/// What the control cycle reads about the robot: measured joints and the kinematics at them.
+struct RobotState {
+  JointVector q;      ///< joint positions [rad or m]
+  JointVector dq;     ///< joint velocities [rad/s or m/s]
+  Pose pose;          ///< end-effector pose T_base_ee
+  Jacobian jacobian;  ///< geometric Jacobian at q, 6 x n, base frame
+};
+
+/// Returns a RobotState sized for `num_joints` with every value zero and an identity pose.
+inline RobotState make_robot_state(int num_joints) {
+  RobotState state;
+  state.q = JointVector::Zero(num_joints);
+  state.dq = JointVector::Zero(num_joints);
+  state.jacobian = Jacobian::Zero(6, num_joints);
+  return state;
+}
+
+}  // namespace cartesian_impedance

@@ -1,0 +1,174 @@
+#include "cartesian_impedance/config.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <fstream>
+#include <sstream>
+
+#include "cartesian_impedance/error.hpp"
+
+namespace cartesian_impedance {
+namespace {
+
+std::string where(std::string_view source, const YAML::Node& node) {
+  const YAML::Mark mark = node.Mark();
+  std::string text(source);
+  if (mark.line >= 0) text += ":" + std::to_string(mark.line + 1);
+  return text + ": ";
+}
+
+bool is_prefix_of_parameter(const std::string& path) {
+  const std::string prefix = path + ".";
+  for (const ParameterInfo& info : parameter_table()) {
+    if (info.name.substr(0, prefix.size()) == prefix) return true;
+  }
+  return false;
+}
+
+double read_number(const ParameterInfo& info, const std::string& element, const YAML::Node& node,
+                   std::string_view source) {
+  double value = 0.0;
+  if (!node.IsScalar() || !YAML::convert<double>::decode(node, value)) {
+    std::string shown = node.IsScalar() ? "'" + node.Scalar() + "'" : "a list or map";
+    throw Error(where(source, node) + element + " = " + shown + " is not a number" +
+                (info.unit.empty() || info.unit == "-" ? "" : " [" + std::string(info.unit) + "]"));
+  }
+  try {
+    info.check(element, value);
+  } catch (const Error& error) {
+    throw Error(where(source, node) + error.what());
+  }
+  return value;
+}
+
+void read_field(const ParameterInfo& info, const YAML::Node& node, Parameters& parameters,
+                std::string_view source) {
+  const std::string name(info.name);
+  const ParameterField field = info.in(parameters);
+  if (auto* value = std::get_if<double*>(&field)) {
+    **value = read_number(info, name, node, source);
+  } else if (auto* vector = std::get_if<Eigen::Vector3d*>(&field)) {
+    static constexpr const char* kAxis[3] = {".x", ".y", ".z"};
+    if (node.IsScalar()) {
+      (*vector)->setConstant(read_number(info, name, node, source));
+    } else if (node.IsSequence() && node.size() == 3) {
+      for (std::size_t i = 0; i < 3; ++i) {
+        (**vector)[static_cast<Eigen::Index>(i)] =
+            read_number(info, name + kAxis[i], node[i], source);
+      }
+    } else {
+      throw Error(where(source, node) + name + " must be 3 numbers [x, y, z] or one number" +
+                  (node.IsSequence() ? " (got " + std::to_string(node.size()) + ")" : ""));
+    }
+  } else if (auto* joints = std::get_if<JointVector*>(&field)) {
+    if (node.IsScalar()) {
+      **joints = JointVector::Constant(1, read_number(info, name, node, source));
+    } else if (node.IsSequence() && node.size() >= 1 && node.size() <= kMaxJoints) {
+      JointVector values(static_cast<Eigen::Index>(node.size()));
+      for (std::size_t i = 0; i < node.size(); ++i) {
+        values[static_cast<Eigen::Index>(i)] =
+            read_number(info, name + "[" + std::to_string(i) + "]", node[i], source);
+      }
+      **joints = values;
+    } else {
+      throw Error(where(source, node) + name + " must be one number or a list of 1 to " +
+                  std::to_string(kMaxJoints) + " numbers (one per joint)");
+    }
+  } else if (auto* frame = std::get_if<Frame*>(&field)) {
+    if (!node.IsScalar()) throw Error(where(source, node) + name + " must be base or end_effector");
+    try {
+      **frame = frame_from_name(name, node.Scalar());
+    } catch (const Error& error) {
+      throw Error(where(source, node) + error.what());
+    }
+  }
+}
+
+void read_map(const YAML::Node& map, const std::string& prefix, Parameters& parameters,
+              std::string_view source) {
+  for (const auto& entry : map) {
+    const std::string key = entry.first.as<std::string>();
+    const std::string path = prefix.empty() ? key : prefix + "." + key;
+    const YAML::Node& value = entry.second;
+    if (value.IsMap()) {
+      if (!is_prefix_of_parameter(path)) {
+        throw Error(where(source, entry.first) + "unknown parameter '" + path + "'");
+      }
+      read_map(value, path, parameters, source);
+      continue;
+    }
+    const ParameterInfo* info = nullptr;
+    for (const ParameterInfo& row : parameter_table()) {
+      if (row.name == path) info = &row;
+    }
+    if (info == nullptr) {
+      throw Error(where(source, entry.first) + "unknown parameter '" + path + "'" +
+                  (is_prefix_of_parameter(path) ? " (it is a group; give its members)" : ""));
+    }
+    read_field(*info, value, parameters, source);
+  }
+}
+
+}  // namespace
+
+Parameters parameters_from_yaml(const std::string& yaml, std::string_view source) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml);
+  } catch (const YAML::Exception& error) {
+    throw Error(std::string(source) + ": malformed YAML: " + error.what());
+  }
+  Parameters parameters;
+  if (root.IsNull()) return parameters;
+  if (!root.IsMap()) throw Error(where(source, root) + "the top level must be a map of parameters");
+  read_map(root, "", parameters, source);
+  try {
+    validate(parameters);
+  } catch (const Error& error) {
+    throw Error(std::string(source) + ": " + error.what());
+  }
+  return parameters;
+}
+
+Parameters load_parameters(const std::string& path) {
+  std::ifstream file(path);
+  if (!file) throw Error("cannot open parameter file '" + path + "'");
+  std::stringstream text;
+  text << file.rdbuf();
+  return parameters_from_yaml(text.str(), path);
+}
+
+std::string parameters_to_yaml(const Parameters& parameters) {
+  YAML::Node root;
+  for (const ParameterInfo& info : parameter_table()) {
+    // Walk to the parent map of the leaf, creating groups on the way.
+    std::vector<std::string> parts;
+    std::string_view name = info.name;
+    for (std::size_t dot; (dot = name.find('.')) != std::string_view::npos;) {
+      parts.emplace_back(name.substr(0, dot));
+      name.remove_prefix(dot + 1);
+    }
+    YAML::Node node = root;
+    for (const std::string& part : parts) node.reset(node[part]);
+    YAML::Node leaf;
+    const ParameterField field = info.in(const_cast<Parameters&>(parameters));
+    if (auto* value = std::get_if<double*>(&field)) {
+      leaf = **value;
+    } else if (auto* vector = std::get_if<Eigen::Vector3d*>(&field)) {
+      for (int i = 0; i < 3; ++i) leaf.push_back((**vector)[i]);
+      leaf.SetStyle(YAML::EmitterStyle::Flow);
+    } else if (auto* joints = std::get_if<JointVector*>(&field)) {
+      for (Eigen::Index i = 0; i < (*joints)->size(); ++i) leaf.push_back((**joints)[i]);
+      leaf.SetStyle(YAML::EmitterStyle::Flow);
+    } else if (auto* frame = std::get_if<Frame*>(&field)) {
+      leaf = std::string(frame_name(**frame));
+    }
+    node[std::string(name)] = leaf;
+  }
+  YAML::Emitter out;
+  out.SetDoublePrecision(17);
+  out << root;
+  return std::string(out.c_str()) + "\n";
+}
+
+}  // namespace cartesian_impedance

@@ -1,0 +1,504 @@
+#include "cartesian_impedance/controller.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "cartesian_impedance/error.hpp"
+
+namespace cartesian_impedance {
+namespace {
+
+// Quaternions given as four numbers are accepted if their norm is this close to one; a message
+// that rounds to a few digits still passes, a zero or garbage quaternion does not.
+constexpr double kQuaternionNormTolerance = 1e-3;
+
+std::string indexed(std::string_view name, Eigen::Index i) {
+  return std::string(name) + "[" + std::to_string(i) + "]";
+}
+
+void check_finite(std::string_view name, double value, std::string_view unit = "") {
+  if (!std::isfinite(value)) {
+    throw Error(std::string(name) + " = " + format_number(value) +
+                (unit.empty() ? "" : " " + std::string(unit)) + " is not finite");
+  }
+}
+
+void check_size(std::string_view name, Eigen::Index size, Eigen::Index expected) {
+  if (size != expected) {
+    throw Error(std::string(name) + " has " + std::to_string(size) + " values; expected " +
+                std::to_string(expected));
+  }
+}
+
+Eigen::Quaterniond checked_unit_quaternion(std::string_view name, const Eigen::Quaterniond& q) {
+  for (int i = 0; i < 4; ++i) {
+    static constexpr const char* kComponent[4] = {".x", ".y", ".z", ".w"};
+    check_finite(std::string(name) + kComponent[i], q.coeffs()[i]);
+  }
+  const double norm = q.norm();
+  if (std::abs(norm - 1.0) > kQuaternionNormTolerance) {
+    throw Error(std::string(name) + " (x, y, z, w) = (" + format_number(q.x()) + ", " +
+                format_number(q.y()) + ", " + format_number(q.z()) + ", " + format_number(q.w()) +
+                ") has norm " + format_number(norm) + "; a unit quaternion is required (within " +
+                format_number(kQuaternionNormTolerance) + ")");
+  }
+  return q.normalized();
+}
+
+void check_axes(const ParameterInfo& info, const Eigen::Ref<const Eigen::Vector3d>& values) {
+  static constexpr const char* kAxis[3] = {".x", ".y", ".z"};
+  for (int i = 0; i < 3; ++i) info.check(std::string(info.name) + kAxis[i], values[i]);
+}
+
+bool clamp_each(Eigen::Ref<Eigen::VectorXd> values, const Range& range) {
+  bool clamped = false;
+  for (Eigen::Index i = 0; i < values.size(); ++i) {
+    const double value = std::clamp(values[i], range.min, range.max);
+    clamped |= value != values[i];
+    values[i] = value;
+  }
+  return clamped;
+}
+
+// Diagonal stiffness/damping from the [translation; rotation] halves of the parameters.
+Vector6d stacked(const Eigen::Vector3d& translation, const Eigen::Vector3d& rotation) {
+  Vector6d result;
+  result << translation, rotation;
+  return result;
+}
+
+void rotate_six(const Eigen::Matrix3d& rotation, const Vector6d& in, Vector6d& out) {
+  out.head<3>().noalias() = rotation * in.head<3>();
+  out.tail<3>().noalias() = rotation * in.tail<3>();
+}
+
+void rotate_six_inverse(const Eigen::Matrix3d& rotation, const Vector6d& in, Vector6d& out) {
+  out.head<3>().noalias() = rotation.transpose() * in.head<3>();
+  out.tail<3>().noalias() = rotation.transpose() * in.tail<3>();
+}
+
+}  // namespace
+
+const char* to_string(Status status) noexcept {
+  switch (status) {
+    case Status::ok:
+      return "ok";
+    case Status::not_started:
+      return "not_started";
+    case Status::invalid_dt:
+      return "invalid_dt";
+    case Status::invalid_robot_state:
+      return "invalid_robot_state";
+    case Status::numerical_error:
+      return "numerical_error";
+  }
+  return "unknown";
+}
+
+CartesianImpedanceController::CartesianImpedanceController(int num_joints,
+                                                           const Parameters& parameters)
+    : num_joints_(num_joints) {
+  if (num_joints < 1 || num_joints > kMaxJoints) {
+    throw Error("num_joints = " + std::to_string(num_joints) + " is outside [1, " +
+                std::to_string(kMaxJoints) + "]");
+  }
+  const Eigen::Index n = num_joints;
+  Targets& commanded = state_.commanded;
+  commanded.stiffness.setZero();
+  commanded.damping_ratio.setZero();
+  commanded.nullspace_q = JointVector::Zero(n);
+  commanded.nullspace_stiffness = JointVector::Zero(n);
+  commanded.wrench.setZero();
+  state_.filtered = commanded;
+  state_.pose_error.setZero();
+  state_.stiffness_base.setZero();
+  state_.damping_base.setZero();
+  state_.wrench_base.setZero();
+  state_.tau_cartesian = JointVector::Zero(n);
+  state_.tau_nullspace = JointVector::Zero(n);
+  state_.tau_wrench = JointVector::Zero(n);
+  state_.tau = JointVector::Zero(n);
+  tau_previous_ = JointVector::Zero(n);
+  max_step_ = JointVector::Zero(n);
+  tau_0_ = JointVector::Zero(n);
+  damping_frame_.setZero();
+  damped_stiffness_.setConstant(std::nan(""));
+  damped_ratio_.setConstant(std::nan(""));
+  set_parameters(parameters);
+}
+
+void CartesianImpedanceController::apply_saturation(Targets& commanded,
+                                                    ActiveLimits& limits) const {
+  const LimitParameters& l = parameters_.limits;
+  limits.stiffness_saturated = saturate_stiffness(
+      commanded.stiffness, l.stiffness.translation.min, l.stiffness.translation.max,
+      l.stiffness.rotation.min, l.stiffness.rotation.max);
+  limits.damping_ratio_saturated = clamp_each(commanded.damping_ratio, l.damping_ratio);
+  Eigen::Matrix<double, 1, 1> nullspace_zeta(commanded.nullspace_damping_ratio);
+  limits.damping_ratio_saturated |= clamp_each(nullspace_zeta, l.damping_ratio);
+  commanded.nullspace_damping_ratio = nullspace_zeta[0];
+  limits.nullspace_stiffness_saturated =
+      clamp_each(commanded.nullspace_stiffness, l.nullspace_stiffness);
+  const bool force_clipped = clip_norm(commanded.wrench.head<3>(), l.wrench.force);
+  const bool torque_clipped = clip_norm(commanded.wrench.tail<3>(), l.wrench.torque);
+  limits.wrench_saturated = force_clipped || torque_clipped;
+}
+
+void CartesianImpedanceController::change_frames(Frame stiffness_frame, Frame wrench_frame) {
+  // The filtered values live in the frame they were commanded in; when the frame changes they
+  // are re-expressed in the new one (with the last measured orientation) so the filter carries
+  // on from where the robot is instead of jumping.
+  if (!started_) return;
+  const Eigen::Matrix3d rotation = state_.pose.orientation.toRotationMatrix();
+  const Matrix6d rotation6 = block_rotation(rotation);
+  Targets& filtered = state_.filtered;
+  if (stiffness_frame != parameters_.stiffness.frame) {
+    filtered.stiffness = stiffness_frame == Frame::base
+                             ? Matrix6d(rotation6 * filtered.stiffness * rotation6.transpose())
+                             : Matrix6d(rotation6.transpose() * filtered.stiffness * rotation6);
+  }
+  if (wrench_frame != parameters_.wrench.frame) {
+    const Vector6d wrench = filtered.wrench;
+    if (wrench_frame == Frame::base) {
+      rotate_six(rotation, wrench, filtered.wrench);
+    } else {
+      rotate_six_inverse(rotation, wrench, filtered.wrench);
+    }
+  }
+}
+
+void CartesianImpedanceController::set_parameters(const Parameters& parameters) {
+  validate(parameters, num_joints_);
+  Targets commanded = state_.commanded;
+  commanded.stiffness =
+      stacked(parameters.stiffness.translation, parameters.stiffness.rotation).asDiagonal();
+  commanded.damping_ratio =
+      stacked(parameters.damping_ratio.translation, parameters.damping_ratio.rotation);
+  commanded.nullspace_stiffness = per_joint(parameters.nullspace.stiffness, num_joints_);
+  commanded.nullspace_damping_ratio = parameters.nullspace.damping_ratio;
+  commanded.wrench << parameters.wrench.force, parameters.wrench.torque;
+
+  // Nothing below throws: validation is complete.
+  change_frames(parameters.stiffness.frame, parameters.wrench.frame);
+  parameters_ = parameters;
+  apply_saturation(commanded, state_.limits);
+  state_.commanded = commanded;
+  joint_torque_limit_ = per_joint(parameters.limits.joint_torque, num_joints_);
+  joint_torque_rate_limit_ = per_joint(parameters.limits.joint_torque_rate, num_joints_);
+  gains_.dt = -1.0;
+  if (!started_) state_.filtered = state_.commanded;
+}
+
+void CartesianImpedanceController::check_robot_state(const RobotState& robot) const {
+  check_size("robot.q", robot.q.size(), num_joints_);
+  check_size("robot.dq", robot.dq.size(), num_joints_);
+  check_size("robot.jacobian columns", robot.jacobian.cols(), num_joints_);
+  for (Eigen::Index i = 0; i < num_joints_; ++i) {
+    check_finite(indexed("robot.q", i), robot.q[i]);
+    check_finite(indexed("robot.dq", i), robot.dq[i]);
+  }
+  for (Eigen::Index i = 0; i < robot.jacobian.size(); ++i) {
+    check_finite(indexed("robot.jacobian", i), robot.jacobian.data()[i]);
+  }
+  static constexpr const char* kAxis[3] = {".x", ".y", ".z"};
+  for (int i = 0; i < 3; ++i) {
+    check_finite(std::string("robot.pose.position") + kAxis[i], robot.pose.position[i], "m");
+  }
+  checked_unit_quaternion("robot.pose.orientation", robot.pose.orientation);
+}
+
+bool CartesianImpedanceController::robot_state_usable(const RobotState& robot) const noexcept {
+  return robot.q.size() == num_joints_ && robot.dq.size() == num_joints_ &&
+         robot.jacobian.cols() == num_joints_ && robot.q.allFinite() && robot.dq.allFinite() &&
+         robot.jacobian.allFinite() && robot.pose.position.allFinite() &&
+         robot.pose.orientation.coeffs().allFinite() &&
+         std::abs(robot.pose.orientation.norm() - 1.0) <= kQuaternionNormTolerance;
+}
+
+void CartesianImpedanceController::start(const RobotState& robot) {
+  start(robot, Eigen::VectorXd::Zero(num_joints_));
+}
+
+void CartesianImpedanceController::start(const RobotState& robot,
+                                         const Eigen::Ref<const Eigen::VectorXd>& tau_previous) {
+  check_robot_state(robot);
+  check_size("tau_previous", tau_previous.size(), num_joints_);
+  for (Eigen::Index i = 0; i < num_joints_; ++i) {
+    check_finite(indexed("tau_previous", i), tau_previous[i], "Nm");
+  }
+  const Pose pose{robot.pose.position, robot.pose.orientation.normalized()};
+  Targets& commanded = state_.commanded;
+  commanded.pose = pose;
+  commanded.nullspace_q = robot.q;
+  state_.filtered = commanded;
+  state_.filtered.wrench.setZero();
+  state_.pose = pose;
+  state_.tau = tau_previous;
+  tau_previous_ = tau_previous;
+  state_.tau_cartesian.setZero();
+  state_.tau_nullspace.setZero();
+  state_.tau_wrench.setZero();
+  state_.status = Status::ok;
+  gains_.dt = -1.0;
+  started_ = true;
+}
+
+void CartesianImpedanceController::set_reference_pose(const Pose& pose_base) {
+  static constexpr const char* kAxis[3] = {".x", ".y", ".z"};
+  for (int i = 0; i < 3; ++i) {
+    check_finite(std::string("reference_pose.position") + kAxis[i], pose_base.position[i], "m");
+  }
+  const Eigen::Quaterniond orientation =
+      checked_unit_quaternion("reference_pose.orientation", pose_base.orientation);
+  state_.commanded.pose = Pose{pose_base.position, orientation};
+}
+
+void CartesianImpedanceController::set_stiffness(const Vector6d& diagonal,
+                                                 std::optional<Frame> frame) {
+  check_axes(parameter_info("stiffness.translation"), diagonal.head<3>());
+  check_axes(parameter_info("stiffness.rotation"), diagonal.tail<3>());
+  Parameters parameters = parameters_;
+  parameters.stiffness.translation = diagonal.head<3>();
+  parameters.stiffness.rotation = diagonal.tail<3>();
+  parameters.stiffness.frame = frame.value_or(parameters_.stiffness.frame);
+  Targets commanded = state_.commanded;
+  commanded.stiffness = diagonal.asDiagonal();
+  change_frames(parameters.stiffness.frame, parameters.wrench.frame);
+  parameters_ = parameters;
+  apply_saturation(commanded, state_.limits);
+  state_.commanded = commanded;
+}
+
+void CartesianImpedanceController::set_stiffness_matrix(const Matrix6d& stiffness,
+                                                        std::optional<Frame> frame) {
+  for (int row = 0; row < 6; ++row) {
+    for (int col = 0; col < 6; ++col) {
+      check_finite("stiffness(" + std::to_string(row) + ", " + std::to_string(col) + ")",
+                   stiffness(row, col));
+    }
+  }
+  const double scale = std::max(1.0, stiffness.cwiseAbs().maxCoeff());
+  for (int row = 0; row < 6; ++row) {
+    for (int col = row + 1; col < 6; ++col) {
+      if (std::abs(stiffness(row, col) - stiffness(col, row)) > 1e-9 * scale) {
+        throw Error("stiffness is not symmetric: stiffness(" + std::to_string(row) + ", " +
+                    std::to_string(col) + ") = " + format_number(stiffness(row, col)) +
+                    " but stiffness(" + std::to_string(col) + ", " + std::to_string(row) +
+                    ") = " + format_number(stiffness(col, row)));
+      }
+    }
+  }
+  const Matrix6d symmetric = 0.5 * (stiffness + stiffness.transpose());
+  const double smallest = Eigen::SelfAdjointEigenSolver<Matrix6d>(symmetric).eigenvalues()[0];
+  if (smallest < -1e-9 * scale) {
+    throw Error("stiffness is not positive semi-definite: smallest eigenvalue " +
+                format_number(smallest) + " is below 0");
+  }
+  const Frame new_frame = frame.value_or(parameters_.stiffness.frame);
+  Targets commanded = state_.commanded;
+  commanded.stiffness = symmetric;
+  change_frames(new_frame, parameters_.wrench.frame);
+  parameters_.stiffness.translation = symmetric.diagonal().head<3>();
+  parameters_.stiffness.rotation = symmetric.diagonal().tail<3>();
+  parameters_.stiffness.frame = new_frame;
+  apply_saturation(commanded, state_.limits);
+  state_.commanded = commanded;
+}
+
+void CartesianImpedanceController::set_damping_ratio(const Vector6d& damping_ratio) {
+  check_axes(parameter_info("damping_ratio.translation"), damping_ratio.head<3>());
+  check_axes(parameter_info("damping_ratio.rotation"), damping_ratio.tail<3>());
+  parameters_.damping_ratio.translation = damping_ratio.head<3>();
+  parameters_.damping_ratio.rotation = damping_ratio.tail<3>();
+  Targets commanded = state_.commanded;
+  commanded.damping_ratio = damping_ratio;
+  apply_saturation(commanded, state_.limits);
+  state_.commanded = commanded;
+}
+
+void CartesianImpedanceController::set_nullspace_target(
+    const Eigen::Ref<const Eigen::VectorXd>& q_desired) {
+  check_size("nullspace_target", q_desired.size(), num_joints_);
+  for (Eigen::Index i = 0; i < q_desired.size(); ++i) {
+    check_finite(indexed("nullspace_target", i), q_desired[i], "rad");
+  }
+  state_.commanded.nullspace_q = q_desired;
+}
+
+void CartesianImpedanceController::set_nullspace_stiffness(
+    const Eigen::Ref<const Eigen::VectorXd>& stiffness) {
+  const ParameterInfo& info = parameter_info("nullspace.stiffness");
+  if (stiffness.size() != 1 && stiffness.size() != num_joints_) {
+    throw Error("nullspace.stiffness has " + std::to_string(stiffness.size()) +
+                " values; expected 1 (all joints) or " + std::to_string(num_joints_));
+  }
+  for (Eigen::Index i = 0; i < stiffness.size(); ++i)
+    info.check(indexed(info.name, i), stiffness[i]);
+  parameters_.nullspace.stiffness = stiffness;
+  Targets commanded = state_.commanded;
+  commanded.nullspace_stiffness = per_joint(parameters_.nullspace.stiffness, num_joints_);
+  apply_saturation(commanded, state_.limits);
+  state_.commanded = commanded;
+}
+
+void CartesianImpedanceController::set_nullspace_damping_ratio(double damping_ratio) {
+  parameter_info("nullspace.damping_ratio").check("nullspace.damping_ratio", damping_ratio);
+  parameters_.nullspace.damping_ratio = damping_ratio;
+  Targets commanded = state_.commanded;
+  commanded.nullspace_damping_ratio = damping_ratio;
+  apply_saturation(commanded, state_.limits);
+  state_.commanded = commanded;
+}
+
+void CartesianImpedanceController::set_wrench(const Vector6d& wrench, std::optional<Frame> frame) {
+  check_axes(parameter_info("wrench.force"), wrench.head<3>());
+  check_axes(parameter_info("wrench.torque"), wrench.tail<3>());
+  const Frame new_frame = frame.value_or(parameters_.wrench.frame);
+  Targets commanded = state_.commanded;
+  commanded.wrench = wrench;
+  change_frames(parameters_.stiffness.frame, new_frame);
+  parameters_.wrench.force = wrench.head<3>();
+  parameters_.wrench.torque = wrench.tail<3>();
+  parameters_.wrench.frame = new_frame;
+  apply_saturation(commanded, state_.limits);
+  state_.commanded = commanded;
+}
+
+void CartesianImpedanceController::update_gains(double dt) noexcept {
+  if (dt == gains_.dt) return;
+  const FilterParameters& filter = parameters_.filter;
+  gains_.dt = dt;
+  gains_.pose = filter_gain(dt, filter.pose.time, filter.pose.fraction);
+  gains_.stiffness = filter_gain(dt, filter.stiffness.time, filter.stiffness.fraction);
+  gains_.nullspace = filter_gain(dt, filter.nullspace.time, filter.nullspace.fraction);
+  gains_.wrench = filter_gain(dt, filter.wrench.time, filter.wrench.fraction);
+}
+
+void CartesianImpedanceController::filter_targets() noexcept {
+  // a_{k+1} = (1 - a) a_k + a a_d, written in this form so that a = 1 lands exactly on a_d.
+  const Targets& commanded = state_.commanded;
+  Targets& filtered = state_.filtered;
+  const double a_pose = gains_.pose;
+  filtered.pose.position =
+      (1.0 - a_pose) * filtered.pose.position + a_pose * commanded.pose.position;
+  filtered.pose.orientation =
+      filtered.pose.orientation.slerp(a_pose, commanded.pose.orientation).normalized();
+  const double a_stiffness = gains_.stiffness;
+  filtered.stiffness = (1.0 - a_stiffness) * filtered.stiffness + a_stiffness * commanded.stiffness;
+  filtered.damping_ratio =
+      (1.0 - a_stiffness) * filtered.damping_ratio + a_stiffness * commanded.damping_ratio;
+  const double a_nullspace = gains_.nullspace;
+  filtered.nullspace_q =
+      (1.0 - a_nullspace) * filtered.nullspace_q + a_nullspace * commanded.nullspace_q;
+  filtered.nullspace_stiffness = (1.0 - a_nullspace) * filtered.nullspace_stiffness +
+                                 a_nullspace * commanded.nullspace_stiffness;
+  filtered.nullspace_damping_ratio = (1.0 - a_nullspace) * filtered.nullspace_damping_ratio +
+                                     a_nullspace * commanded.nullspace_damping_ratio;
+  const double a_wrench = gains_.wrench;
+  filtered.wrench = (1.0 - a_wrench) * filtered.wrench + a_wrench * commanded.wrench;
+}
+
+void CartesianImpedanceController::compute_torque(const RobotState& robot) noexcept {
+  const Targets& filtered = state_.filtered;
+  const Jacobian& jacobian = robot.jacobian;
+  state_.pose.position = robot.pose.position;
+  state_.pose.orientation = robot.pose.orientation.normalized();
+  const Eigen::Matrix3d rotation = state_.pose.orientation.toRotationMatrix();
+
+  // Pose error, clipped so that a far reference pulls no harder than a near one.
+  Vector6d& error = state_.pose_error;
+  error = pose_error(state_.pose, filtered.pose);
+  ActiveLimits& limits = state_.limits;
+  limits.translation_error_clipped =
+      clip_norm(error.head<3>(), parameters_.limits.pose_error.translation);
+  limits.rotation_error_clipped =
+      clip_norm(error.tail<3>(), parameters_.limits.pose_error.rotation);
+
+  // D = 2 Z^1/2 sqrt(K) Z^1/2 follows the filtered K; recomputed only when K or zeta moved.
+  if (filtered.stiffness != damped_stiffness_ || filtered.damping_ratio != damped_ratio_) {
+    damping_frame_ = damping_from_stiffness(filtered.stiffness, filtered.damping_ratio);
+    damped_stiffness_ = filtered.stiffness;
+    damped_ratio_ = filtered.damping_ratio;
+  }
+
+  Vector6d velocity;
+  velocity.noalias() = jacobian * robot.dq;
+  Vector6d force;
+  if (parameters_.stiffness.frame == Frame::base) {
+    force.noalias() = -filtered.stiffness * error;
+    force.noalias() -= damping_frame_ * velocity;
+    state_.stiffness_base = filtered.stiffness;
+    state_.damping_base = damping_frame_;
+  } else {
+    // Evaluate the spring in the end-effector frame and rotate the resulting wrench back.
+    Vector6d error_frame, velocity_frame, force_frame;
+    rotate_six_inverse(rotation, error, error_frame);
+    rotate_six_inverse(rotation, velocity, velocity_frame);
+    force_frame.noalias() = -filtered.stiffness * error_frame;
+    force_frame.noalias() -= damping_frame_ * velocity_frame;
+    rotate_six(rotation, force_frame, force);
+    const Matrix6d rotation6 = block_rotation(rotation);
+    state_.stiffness_base.noalias() = rotation6 * filtered.stiffness * rotation6.transpose();
+    state_.damping_base.noalias() = rotation6 * damping_frame_ * rotation6.transpose();
+  }
+  state_.tau_cartesian.noalias() = jacobian.transpose() * force;
+
+  // Nullspace joint impedance, projected so that it does not disturb the end effector.
+  const JointVector& stiffness_ns = filtered.nullspace_stiffness;
+  tau_0_ =
+      -stiffness_ns.cwiseProduct(robot.q - filtered.nullspace_q) -
+      (2.0 * filtered.nullspace_damping_ratio) * stiffness_ns.cwiseSqrt().cwiseProduct(robot.dq);
+  projector_.project(jacobian, parameters_.nullspace.pseudo_inverse_damping, tau_0_,
+                     state_.tau_nullspace);
+
+  // Commanded wrench.
+  if (parameters_.wrench.frame == Frame::base) {
+    state_.wrench_base = filtered.wrench;
+  } else {
+    rotate_six(rotation, filtered.wrench, state_.wrench_base);
+  }
+  state_.tau_wrench.noalias() = jacobian.transpose() * state_.wrench_base;
+
+  state_.tau = state_.tau_cartesian + state_.tau_nullspace + state_.tau_wrench;
+}
+
+Status CartesianImpedanceController::hold_safely(Status status, double dt) noexcept {
+  // No trustworthy law output: ramp the last command toward zero as fast as the rate limit allows.
+  max_step_ = joint_torque_rate_limit_ * dt;
+  state_.tau.setZero();
+  state_.limits.torque_rate_limited = limit_rate(tau_previous_, max_step_, state_.tau);
+  state_.limits.joint_torque_saturated = false;
+  state_.tau_cartesian.setZero();
+  state_.tau_nullspace.setZero();
+  state_.tau_wrench.setZero();
+  tau_previous_ = state_.tau;
+  state_.status = status;
+  return status;
+}
+
+Status CartesianImpedanceController::update(const RobotState& robot, double dt) noexcept {
+  if (!started_) {
+    state_.tau.setZero();
+    state_.status = Status::not_started;
+    return state_.status;
+  }
+  if (!(dt > 0.0) || !std::isfinite(dt)) return hold_safely(Status::invalid_dt, last_valid_dt_);
+  if (!robot_state_usable(robot)) return hold_safely(Status::invalid_robot_state, dt);
+  last_valid_dt_ = dt;
+
+  update_gains(dt);
+  filter_targets();
+  compute_torque(robot);
+  if (!state_.tau.allFinite()) return hold_safely(Status::numerical_error, dt);
+
+  state_.limits.joint_torque_saturated = saturate_torque(joint_torque_limit_, state_.tau);
+  max_step_ = joint_torque_rate_limit_ * dt;
+  state_.limits.torque_rate_limited = limit_rate(tau_previous_, max_step_, state_.tau);
+  tau_previous_ = state_.tau;
+  state_.status = Status::ok;
+  return state_.status;
+}
+
+}  // namespace cartesian_impedance
