@@ -69,12 +69,12 @@ Vector6d stacked(const Eigen::Vector3d& translation, const Eigen::Vector3d& rota
   return result;
 }
 
-void rotate_six(const Eigen::Matrix3d& rotation, const Vector6d& in, Vector6d& out) {
+inline void rotate_six(const Eigen::Matrix3d& rotation, const Vector6d& in, Vector6d& out) {
   out.head<3>().noalias() = rotation * in.head<3>();
   out.tail<3>().noalias() = rotation * in.tail<3>();
 }
 
-void rotate_six_inverse(const Eigen::Matrix3d& rotation, const Vector6d& in, Vector6d& out) {
+inline void rotate_six_inverse(const Eigen::Matrix3d& rotation, const Vector6d& in, Vector6d& out) {
   out.head<3>().noalias() = rotation.transpose() * in.head<3>();
   out.tail<3>().noalias() = rotation.transpose() * in.tail<3>();
 }
@@ -97,6 +97,23 @@ const char* to_string(Status status) noexcept {
   return "unknown";
 }
 
+namespace {
+Matrix6d in_base(const Matrix6d& matrix, Frame frame, const Eigen::Quaterniond& orientation) {
+  if (frame == Frame::base) return matrix;
+  const Matrix6d rotation6 = block_rotation(orientation.toRotationMatrix());
+  return rotation6 * matrix * rotation6.transpose();
+}
+}  // namespace
+
+Matrix6d ControllerState::stiffness_base() const noexcept {
+  return in_base(filtered.stiffness, stiffness_frame, pose.orientation);
+}
+
+Matrix6d ControllerState::damping_base() const noexcept {
+  return in_base(damping_from_stiffness(filtered.stiffness, filtered.damping_ratio),
+                 stiffness_frame, pose.orientation);
+}
+
 CartesianImpedanceController::CartesianImpedanceController(int num_joints,
                                                            const Parameters& parameters)
     : num_joints_(num_joints) {
@@ -113,8 +130,6 @@ CartesianImpedanceController::CartesianImpedanceController(int num_joints,
   commanded.wrench.setZero();
   state_.filtered = commanded;
   state_.pose_error.setZero();
-  state_.stiffness_base.setZero();
-  state_.damping_base.setZero();
   state_.wrench_base.setZero();
   state_.tau_cartesian = JointVector::Zero(n);
   state_.tau_nullspace = JointVector::Zero(n);
@@ -130,7 +145,7 @@ CartesianImpedanceController::CartesianImpedanceController(int num_joints,
 }
 
 void CartesianImpedanceController::apply_saturation(Targets& commanded,
-                                                    ActiveLimits& limits) const {
+                                                    ActiveLimits& limits) const noexcept {
   const LimitParameters& l = parameters_.limits;
   limits.stiffness_saturated = saturate_stiffness(
       commanded.stiffness, l.stiffness.translation.min, l.stiffness.translation.max,
@@ -146,7 +161,8 @@ void CartesianImpedanceController::apply_saturation(Targets& commanded,
   limits.wrench_saturated = force_clipped || torque_clipped;
 }
 
-void CartesianImpedanceController::change_frames(Frame stiffness_frame, Frame wrench_frame) {
+void CartesianImpedanceController::change_frames(Frame stiffness_frame,
+                                                 Frame wrench_frame) noexcept {
   // The filtered values live in the frame they were commanded in; when the frame changes they
   // are re-expressed in the new one (with the last measured orientation) so the filter carries
   // on from where the robot is instead of jumping.
@@ -169,6 +185,31 @@ void CartesianImpedanceController::change_frames(Frame stiffness_frame, Frame wr
   }
 }
 
+void CartesianImpedanceController::commit(const Parameters& parameters,
+                                          Targets commanded) noexcept {
+  // Callers have validated everything; from here on nothing can fail, so a rejected command
+  // never leaves a half-applied change behind.
+  change_frames(parameters.stiffness.frame, parameters.wrench.frame);
+  parameters_ = parameters;
+  state_.stiffness_frame = parameters.stiffness.frame;
+  state_.wrench_frame = parameters.wrench.frame;
+  apply_saturation(commanded, state_.limits);
+  state_.commanded = commanded;
+  if (!started_) state_.filtered = state_.commanded;
+  refresh_damping_mode();
+  joint_torque_limit_ = per_joint(parameters.limits.joint_torque, num_joints_);
+  joint_torque_rate_limit_ = per_joint(parameters.limits.joint_torque_rate, num_joints_);
+  gains_.dt = -1.0;
+}
+
+void CartesianImpedanceController::refresh_damping_mode() noexcept {
+  // The filter blends commanded and filtered K, so it stays diagonal while both are.
+  stiffness_diagonal_ =
+      is_diagonal(state_.commanded.stiffness) && is_diagonal(state_.filtered.stiffness);
+  if (stiffness_diagonal_) damping_frame_.setZero();
+  damped_stiffness_.setConstant(std::nan(""));
+}
+
 void CartesianImpedanceController::set_parameters(const Parameters& parameters) {
   validate(parameters, num_joints_);
   Targets commanded = state_.commanded;
@@ -179,16 +220,7 @@ void CartesianImpedanceController::set_parameters(const Parameters& parameters) 
   commanded.nullspace_stiffness = per_joint(parameters.nullspace.stiffness, num_joints_);
   commanded.nullspace_damping_ratio = parameters.nullspace.damping_ratio;
   commanded.wrench << parameters.wrench.force, parameters.wrench.torque;
-
-  // Nothing below throws: validation is complete.
-  change_frames(parameters.stiffness.frame, parameters.wrench.frame);
-  parameters_ = parameters;
-  apply_saturation(commanded, state_.limits);
-  state_.commanded = commanded;
-  joint_torque_limit_ = per_joint(parameters.limits.joint_torque, num_joints_);
-  joint_torque_rate_limit_ = per_joint(parameters.limits.joint_torque_rate, num_joints_);
-  gains_.dt = -1.0;
-  if (!started_) state_.filtered = state_.commanded;
+  commit(parameters, commanded);
 }
 
 void CartesianImpedanceController::check_robot_state(const RobotState& robot) const {
@@ -210,10 +242,15 @@ void CartesianImpedanceController::check_robot_state(const RobotState& robot) co
 }
 
 bool CartesianImpedanceController::robot_state_usable(const RobotState& robot) const noexcept {
-  return robot.q.size() == num_joints_ && robot.dq.size() == num_joints_ &&
-         robot.jacobian.cols() == num_joints_ && robot.q.allFinite() && robot.dq.allFinite() &&
-         robot.jacobian.allFinite() && robot.pose.position.allFinite() &&
-         robot.pose.orientation.coeffs().allFinite() &&
+  if (robot.q.size() != num_joints_ || robot.dq.size() != num_joints_ ||
+      robot.jacobian.cols() != num_joints_) {
+    return false;
+  }
+  // A NaN or an infinity anywhere makes the sum NaN or infinite (inf - inf is NaN), so one sum
+  // checks every value; finite values large enough to overflow it are not usable either.
+  const double sum = robot.q.sum() + robot.dq.sum() + robot.jacobian.sum() +
+                     robot.pose.position.sum() + robot.pose.orientation.coeffs().sum();
+  return std::isfinite(sum) &&
          std::abs(robot.pose.orientation.norm() - 1.0) <= kQuaternionNormTolerance;
 }
 
@@ -234,6 +271,7 @@ void CartesianImpedanceController::start(const RobotState& robot,
   commanded.nullspace_q = robot.q;
   state_.filtered = commanded;
   state_.filtered.wrench.setZero();
+  refresh_damping_mode();
   state_.pose = pose;
   state_.tau = tau_previous;
   tau_previous_ = tau_previous;
@@ -265,10 +303,7 @@ void CartesianImpedanceController::set_stiffness(const Vector6d& diagonal,
   parameters.stiffness.frame = frame.value_or(parameters_.stiffness.frame);
   Targets commanded = state_.commanded;
   commanded.stiffness = diagonal.asDiagonal();
-  change_frames(parameters.stiffness.frame, parameters.wrench.frame);
-  parameters_ = parameters;
-  apply_saturation(commanded, state_.limits);
-  state_.commanded = commanded;
+  commit(parameters, commanded);
 }
 
 void CartesianImpedanceController::set_stiffness_matrix(const Matrix6d& stiffness,
@@ -296,26 +331,25 @@ void CartesianImpedanceController::set_stiffness_matrix(const Matrix6d& stiffnes
     throw Error("stiffness is not positive semi-definite: smallest eigenvalue " +
                 format_number(smallest) + " is below 0");
   }
-  const Frame new_frame = frame.value_or(parameters_.stiffness.frame);
+  // parameters() keeps the diagonal; the full matrix lives in the commanded targets.
+  Parameters parameters = parameters_;
+  parameters.stiffness.translation = symmetric.diagonal().head<3>();
+  parameters.stiffness.rotation = symmetric.diagonal().tail<3>();
+  parameters.stiffness.frame = frame.value_or(parameters_.stiffness.frame);
   Targets commanded = state_.commanded;
   commanded.stiffness = symmetric;
-  change_frames(new_frame, parameters_.wrench.frame);
-  parameters_.stiffness.translation = symmetric.diagonal().head<3>();
-  parameters_.stiffness.rotation = symmetric.diagonal().tail<3>();
-  parameters_.stiffness.frame = new_frame;
-  apply_saturation(commanded, state_.limits);
-  state_.commanded = commanded;
+  commit(parameters, commanded);
 }
 
 void CartesianImpedanceController::set_damping_ratio(const Vector6d& damping_ratio) {
   check_axes(parameter_info("damping_ratio.translation"), damping_ratio.head<3>());
   check_axes(parameter_info("damping_ratio.rotation"), damping_ratio.tail<3>());
-  parameters_.damping_ratio.translation = damping_ratio.head<3>();
-  parameters_.damping_ratio.rotation = damping_ratio.tail<3>();
+  Parameters parameters = parameters_;
+  parameters.damping_ratio.translation = damping_ratio.head<3>();
+  parameters.damping_ratio.rotation = damping_ratio.tail<3>();
   Targets commanded = state_.commanded;
   commanded.damping_ratio = damping_ratio;
-  apply_saturation(commanded, state_.limits);
-  state_.commanded = commanded;
+  commit(parameters, commanded);
 }
 
 void CartesianImpedanceController::set_nullspace_target(
@@ -334,36 +368,35 @@ void CartesianImpedanceController::set_nullspace_stiffness(
     throw Error("nullspace.stiffness has " + std::to_string(stiffness.size()) +
                 " values; expected 1 (all joints) or " + std::to_string(num_joints_));
   }
-  for (Eigen::Index i = 0; i < stiffness.size(); ++i)
+  for (Eigen::Index i = 0; i < stiffness.size(); ++i) {
     info.check(indexed(info.name, i), stiffness[i]);
-  parameters_.nullspace.stiffness = stiffness;
+  }
+  Parameters parameters = parameters_;
+  parameters.nullspace.stiffness = stiffness;
   Targets commanded = state_.commanded;
-  commanded.nullspace_stiffness = per_joint(parameters_.nullspace.stiffness, num_joints_);
-  apply_saturation(commanded, state_.limits);
-  state_.commanded = commanded;
+  commanded.nullspace_stiffness = per_joint(parameters.nullspace.stiffness, num_joints_);
+  commit(parameters, commanded);
 }
 
 void CartesianImpedanceController::set_nullspace_damping_ratio(double damping_ratio) {
   parameter_info("nullspace.damping_ratio").check("nullspace.damping_ratio", damping_ratio);
-  parameters_.nullspace.damping_ratio = damping_ratio;
+  Parameters parameters = parameters_;
+  parameters.nullspace.damping_ratio = damping_ratio;
   Targets commanded = state_.commanded;
   commanded.nullspace_damping_ratio = damping_ratio;
-  apply_saturation(commanded, state_.limits);
-  state_.commanded = commanded;
+  commit(parameters, commanded);
 }
 
 void CartesianImpedanceController::set_wrench(const Vector6d& wrench, std::optional<Frame> frame) {
   check_axes(parameter_info("wrench.force"), wrench.head<3>());
   check_axes(parameter_info("wrench.torque"), wrench.tail<3>());
-  const Frame new_frame = frame.value_or(parameters_.wrench.frame);
+  Parameters parameters = parameters_;
+  parameters.wrench.force = wrench.head<3>();
+  parameters.wrench.torque = wrench.tail<3>();
+  parameters.wrench.frame = frame.value_or(parameters_.wrench.frame);
   Targets commanded = state_.commanded;
   commanded.wrench = wrench;
-  change_frames(parameters_.stiffness.frame, new_frame);
-  parameters_.wrench.force = wrench.head<3>();
-  parameters_.wrench.torque = wrench.tail<3>();
-  parameters_.wrench.frame = new_frame;
-  apply_saturation(commanded, state_.limits);
-  state_.commanded = commanded;
+  commit(parameters, commanded);
 }
 
 void CartesianImpedanceController::update_gains(double dt) noexcept {
@@ -386,7 +419,13 @@ void CartesianImpedanceController::filter_targets() noexcept {
   filtered.pose.orientation =
       filtered.pose.orientation.slerp(a_pose, commanded.pose.orientation).normalized();
   const double a_stiffness = gains_.stiffness;
-  filtered.stiffness = (1.0 - a_stiffness) * filtered.stiffness + a_stiffness * commanded.stiffness;
+  if (stiffness_diagonal_) {
+    filtered.stiffness.diagonal() = (1.0 - a_stiffness) * filtered.stiffness.diagonal() +
+                                    a_stiffness * commanded.stiffness.diagonal();
+  } else {
+    filtered.stiffness =
+        (1.0 - a_stiffness) * filtered.stiffness + a_stiffness * commanded.stiffness;
+  }
   filtered.damping_ratio =
       (1.0 - a_stiffness) * filtered.damping_ratio + a_stiffness * commanded.damping_ratio;
   const double a_nullspace = gains_.nullspace;
@@ -416,8 +455,12 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
   limits.rotation_error_clipped =
       clip_norm(error.tail<3>(), parameters_.limits.pose_error.rotation);
 
-  // D = 2 Z^1/2 sqrt(K) Z^1/2 follows the filtered K; recomputed only when K or zeta moved.
-  if (filtered.stiffness != damped_stiffness_ || filtered.damping_ratio != damped_ratio_) {
+  // D = 2 Z^1/2 sqrt(K) Z^1/2 follows the filtered K. A diagonal K (the common case) needs six
+  // square roots; a full one a 6x6 eigen-decomposition, done only while K or zeta move.
+  if (stiffness_diagonal_) {
+    damping_frame_.diagonal() =
+        2.0 * filtered.damping_ratio.cwiseProduct(filtered.stiffness.diagonal().cwiseSqrt());
+  } else if (filtered.stiffness != damped_stiffness_ || filtered.damping_ratio != damped_ratio_) {
     damping_frame_ = damping_from_stiffness(filtered.stiffness, filtered.damping_ratio);
     damped_stiffness_ = filtered.stiffness;
     damped_ratio_ = filtered.damping_ratio;
@@ -425,23 +468,29 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
 
   Vector6d velocity;
   velocity.noalias() = jacobian * robot.dq;
-  Vector6d force;
-  if (parameters_.stiffness.frame == Frame::base) {
-    force.noalias() = -filtered.stiffness * error;
-    force.noalias() -= damping_frame_ * velocity;
-    state_.stiffness_base = filtered.stiffness;
-    state_.damping_base = damping_frame_;
+  // Spring and damper in the stiffness frame; in the end-effector frame the error and velocity
+  // are rotated in and the resulting wrench back out.
+  const bool in_base = parameters_.stiffness.frame == Frame::base;
+  Vector6d error_frame, velocity_frame, force_frame;
+  if (in_base) {
+    error_frame = error;
+    velocity_frame = velocity;
   } else {
-    // Evaluate the spring in the end-effector frame and rotate the resulting wrench back.
-    Vector6d error_frame, velocity_frame, force_frame;
     rotate_six_inverse(rotation, error, error_frame);
     rotate_six_inverse(rotation, velocity, velocity_frame);
+  }
+  if (stiffness_diagonal_) {
+    force_frame = -filtered.stiffness.diagonal().cwiseProduct(error_frame) -
+                  damping_frame_.diagonal().cwiseProduct(velocity_frame);
+  } else {
     force_frame.noalias() = -filtered.stiffness * error_frame;
     force_frame.noalias() -= damping_frame_ * velocity_frame;
+  }
+  Vector6d force;
+  if (in_base) {
+    force = force_frame;
+  } else {
     rotate_six(rotation, force_frame, force);
-    const Matrix6d rotation6 = block_rotation(rotation);
-    state_.stiffness_base.noalias() = rotation6 * filtered.stiffness * rotation6.transpose();
-    state_.damping_base.noalias() = rotation6 * damping_frame_ * rotation6.transpose();
   }
   state_.tau_cartesian.noalias() = jacobian.transpose() * force;
 

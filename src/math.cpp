@@ -31,9 +31,10 @@ double filter_gain(double dt, double time, double fraction) noexcept {
 }
 
 bool clip_norm(Eigen::Ref<Eigen::Vector3d> vector, double max_norm) noexcept {
-  const double norm = vector.norm();
-  if (norm <= max_norm) return false;
-  vector *= max_norm / norm;
+  // Squared norms first: the common, unclipped case needs no square root.
+  const double squared_norm = vector.squaredNorm();
+  if (squared_norm <= max_norm * max_norm) return false;
+  vector *= max_norm / std::sqrt(squared_norm);
   return true;
 }
 
@@ -70,11 +71,14 @@ Matrix6d matrix_sqrt(const Matrix6d& spd) noexcept {
   return solver.eigenvectors() * roots.asDiagonal() * solver.eigenvectors().transpose();
 }
 
-namespace {
-bool is_diagonal(const Matrix6d& matrix) {
-  return (matrix - Matrix6d(matrix.diagonal().asDiagonal())).isZero(0.0);
+bool is_diagonal(const Matrix6d& matrix) noexcept {
+  for (int col = 0; col < 6; ++col) {
+    for (int row = 0; row < 6; ++row) {
+      if (row != col && matrix(row, col) != 0.0) return false;
+    }
+  }
+  return true;
 }
-}  // namespace
 
 Matrix6d damping_from_stiffness(const Matrix6d& stiffness, const Vector6d& damping_ratio) noexcept {
   if (is_diagonal(stiffness)) {
@@ -142,25 +146,78 @@ Matrix6d block_rotation(const Eigen::Matrix3d& rotation) noexcept {
   return result;
 }
 
+namespace {
+
+// Solves A x = b in place for a symmetric positive definite 6x6 A (only its lower triangle is
+// read, and overwritten by the Cholesky factor). Written out because at this size Eigen's LLT
+// spends most of its time in the set-up of its general blocked triangular solver; this is the
+// same algorithm in fixed-size loops the compiler unrolls. False if A is not positive definite.
+bool cholesky_solve(Matrix6d& a, Vector6d& b) noexcept {
+  // The reciprocals of the diagonal of L turn every later division into a multiplication, which
+  // shortens the dependency chain of sqrt/div latencies that dominates at this size.
+  Vector6d inverse_diagonal;
+  for (int j = 0; j < 6; ++j) {
+    double pivot = a(j, j);
+    for (int k = 0; k < j; ++k) pivot -= a(j, k) * a(j, k);
+    if (!(pivot > 0.0)) return false;
+    inverse_diagonal[j] = 1.0 / std::sqrt(pivot);
+    for (int i = j + 1; i < 6; ++i) {
+      double value = a(i, j);
+      for (int k = 0; k < j; ++k) value -= a(i, k) * a(j, k);
+      a(i, j) = value * inverse_diagonal[j];
+    }
+  }
+  for (int i = 0; i < 6; ++i) {  // L y = b
+    for (int k = 0; k < i; ++k) b[i] -= a(i, k) * b[k];
+    b[i] *= inverse_diagonal[i];
+  }
+  for (int i = 5; i >= 0; --i) {  // L^T x = y
+    for (int k = i + 1; k < 6; ++k) b[i] -= a(k, i) * b[k];
+    b[i] *= inverse_diagonal[i];
+  }
+  return true;
+}
+
+}  // namespace
+
 void NullspaceProjector::project(const Jacobian& jacobian, double lambda, const JointVector& tau_0,
                                  JointVector& projected) noexcept {
   const Eigen::Index n = jacobian.cols();
   const double lambda_squared = lambda * lambda;
   if (n >= 6) {
     // N tau_0 = tau_0 - J^T (J J^T + lambda^2 I)^-1 (J tau_0): O(6n) beyond the 6x6 factorisation.
-    task_gram_.noalias() = jacobian * jacobian.transpose();
+    // J J^T as a sum of fixed-size outer products: vectorises, where the dynamic inner
+    // dimension of jacobian * jacobian.transpose() does not.
+    task_gram_.setZero();
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const Vector6d column = jacobian.col(i);
+      task_gram_.noalias() += column * column.transpose();
+    }
     task_gram_.diagonal().array() += lambda_squared;
-    task_ldlt_.compute(task_gram_);
     task_vector_.noalias() = jacobian * tau_0;
-    task_solution_ = task_ldlt_.solve(task_vector_);
+    // Cholesky is the fast path; a singular J with lambda = 0 makes the matrix only
+    // semi-definite, and the pivoting LDLT then still returns a finite least-squares answer.
+    task_factor_ = task_gram_;
+    task_solution_ = task_vector_;
+    if (!cholesky_solve(task_factor_, task_solution_)) {
+      task_ldlt_.compute(task_gram_);
+      task_solution_ = task_ldlt_.solve(task_vector_);
+    }
     projected = tau_0;
     projected.noalias() -= jacobian.transpose() * task_solution_;
   } else {
     // Push-through identity: J^T (J J^T + l^2 I)^-1 J = J^T J (J^T J + l^2 I)^-1, an n x n system,
     // which stays regular when n < 6 makes J J^T singular.
     joint_gram_.noalias() = jacobian.transpose() * jacobian;
-    joint_ldlt_.compute(joint_gram_ + lambda_squared * JointMatrix::Identity(n, n));
-    joint_vector_ = joint_ldlt_.solve(tau_0);
+    joint_system_ = joint_gram_;
+    joint_system_.diagonal().array() += lambda_squared;
+    joint_llt_.compute(joint_system_);
+    if (joint_llt_.info() == Eigen::Success) {
+      joint_vector_ = joint_llt_.solve(tau_0);
+    } else {
+      joint_ldlt_.compute(joint_system_);
+      joint_vector_ = joint_ldlt_.solve(tau_0);
+    }
     projected = tau_0;
     projected.noalias() -= joint_gram_ * joint_vector_;
   }

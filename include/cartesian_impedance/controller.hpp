@@ -58,18 +58,23 @@ struct ActiveLimits {
 /// Snapshot written by every update().
 struct ControllerState {
   Status status = Status::not_started;
-  Pose pose;                  ///< measured end-effector pose T_base_ee
-  Vector6d pose_error;        ///< e = [p - p_d; log(R R_d^T)], base frame, after clipping [m; rad]
-  Targets commanded;          ///< targets as last commanded (after validation and saturation)
-  Targets filtered;           ///< targets the law used this cycle
-  Matrix6d stiffness_base;    ///< filtered K in the base frame
-  Matrix6d damping_base;      ///< D in the base frame
-  Vector6d wrench_base;       ///< filtered F in the base frame
-  JointVector tau_cartesian;  ///< J^T (-K e - D J dq) [Nm]
-  JointVector tau_nullspace;  ///< N tau_0 [Nm]
-  JointVector tau_wrench;     ///< J^T F [Nm]
-  JointVector tau;            ///< commanded torque after torque and rate limits [Nm]
+  Pose pose;            ///< measured end-effector pose T_base_ee
+  Vector6d pose_error;  ///< e = [p - p_d; log(R R_d^T)], base frame, after clipping [m; rad]
+  Targets commanded;    ///< targets as last commanded (after validation and saturation)
+  Targets filtered;     ///< targets the law used this cycle
+  Frame stiffness_frame = Frame::base;  ///< frame of the stiffness and damping targets
+  Frame wrench_frame = Frame::base;     ///< frame of the wrench targets
+  Vector6d wrench_base;                 ///< filtered F in the base frame
+  JointVector tau_cartesian;            ///< J^T (-K e - D J dq) [Nm]
+  JointVector tau_nullspace;            ///< N tau_0 [Nm]
+  JointVector tau_wrench;               ///< J^T F [Nm]
+  JointVector tau;                      ///< commanded torque after torque and rate limits [Nm]
   ActiveLimits limits;
+
+  /// Filtered K, and D = 2 Z^(1/2) sqrt(K) Z^(1/2), in the base frame (computed on request; the
+  /// cycle itself works in the stiffness frame).
+  Matrix6d stiffness_base() const noexcept;
+  Matrix6d damping_base() const noexcept;
 };
 
 class CartesianImpedanceController {
@@ -134,8 +139,10 @@ class CartesianImpedanceController {
 
   void check_robot_state(const RobotState& robot) const;
   bool robot_state_usable(const RobotState& robot) const noexcept;
-  void apply_saturation(Targets& commanded, ActiveLimits& limits) const;
-  void change_frames(Frame stiffness_frame, Frame wrench_frame);
+  void apply_saturation(Targets& commanded, ActiveLimits& limits) const noexcept;
+  void commit(const Parameters& parameters, Targets commanded) noexcept;
+  void refresh_damping_mode() noexcept;
+  void change_frames(Frame stiffness_frame, Frame wrench_frame) noexcept;
   void update_gains(double dt) noexcept;
   void filter_targets() noexcept;
   void compute_torque(const RobotState& robot) noexcept;
@@ -155,6 +162,7 @@ class CartesianImpedanceController {
   JointVector max_step_;
   JointVector tau_0_;
   Matrix6d damping_frame_;
+  bool stiffness_diagonal_ = true;
   Matrix6d damped_stiffness_;  // filtered K the damping was last computed for
   Vector6d damped_ratio_;      // filtered zeta the damping was last computed for
   NullspaceProjector projector_;

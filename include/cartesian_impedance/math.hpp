@@ -50,11 +50,15 @@ Matrix6d damping_from_stiffness(const Matrix6d& stiffness, const Vector6d& dampi
 bool saturate_stiffness(Matrix6d& stiffness, double translation_min, double translation_max,
                         double rotation_min, double rotation_max) noexcept;
 
+/// True if every off-diagonal element is exactly zero.
+bool is_diagonal(const Matrix6d& matrix) noexcept;
+
 /// blockdiag(R, R): maps 6-vectors [linear; angular] from a frame with orientation R to the base.
 Matrix6d block_rotation(const Eigen::Matrix3d& rotation) noexcept;
 
 /// Computes N tau_0 with N = I - J^T (J J^T + lambda^2 I)^-1 J without forming N and without an
-/// SVD: a 6x6 LDLT (or an n x n one when n < 6, via J^T J, which is the same matrix function).
+/// SVD: a 6x6 Cholesky (or an n x n one when n < 6, via J^T J, which is the same matrix
+/// function), with a pivoting LDLT as fallback when the matrix is only semi-definite.
 /// lambda = 0 gives the exact projector for a full-rank J. The workspace is sized once.
 class NullspaceProjector {
  public:
@@ -67,9 +71,12 @@ class NullspaceProjector {
 
  private:
   Eigen::LDLT<Matrix6d> task_ldlt_;
+  Eigen::LLT<JointMatrix> joint_llt_;
   Eigen::LDLT<JointMatrix> joint_ldlt_;
   Matrix6d task_gram_;
+  Matrix6d task_factor_;
   JointMatrix joint_gram_;
+  JointMatrix joint_system_;
   Vector6d task_vector_;
   Vector6d task_solution_;
   JointVector joint_vector_;

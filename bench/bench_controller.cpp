@@ -1,0 +1,150 @@
+// Cost of one control cycle at 7 joints with every feature on, against a plainly written
+// dynamic-size SVD implementation of the same law (tests/support/reference_controller.hpp).
+// Reports ns per cycle (mean, and worst case over 100,000 individually timed cycles) and heap
+// allocations per cycle.
+
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <chrono>
+#include <random>
+#include <vector>
+
+#include "cartesian_impedance/controller.hpp"
+#include "support/allocation_counter.hpp"
+#include "support/random_cases.hpp"
+#include "support/reference_controller.hpp"
+
+namespace ci = cartesian_impedance;
+using namespace random_cases;
+
+namespace {
+
+constexpr int kJoints = 7;
+
+// Every feature on: filters still moving (long filter times), stiffness and wrench in the
+// end-effector frame, damped nullspace projection, pose-error clipping, torque and rate limits.
+ci::Parameters busy_parameters() {
+  ci::Parameters parameters;
+  parameters.stiffness.frame = ci::Frame::end_effector;
+  parameters.wrench.frame = ci::Frame::end_effector;
+  parameters.filter.pose.time = 1000.0;
+  parameters.filter.stiffness.time = 1000.0;
+  parameters.filter.nullspace.time = 1000.0;
+  parameters.filter.wrench.time = 1000.0;
+  parameters.nullspace.pseudo_inverse_damping = 0.05;
+  parameters.limits.pose_error = {0.05, 0.2};
+  parameters.limits.joint_torque = ci::JointVector::Constant(1, 10.0);
+  parameters.limits.joint_torque_rate = ci::JointVector::Constant(1, 100.0);
+  return parameters;
+}
+
+struct Setup {
+  std::mt19937 rng{42};
+  ci::RobotState robot = random_robot_state(kJoints, rng);
+  ci::Pose reference{robot.pose.position + Eigen::Vector3d(0.1, 0.0, -0.05),
+                     Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY())) *
+                         robot.pose.orientation};
+  ci::JointVector q_desired = robot.q + random_joints(kJoints, rng, 0.2);
+  ci::Vector6d wrench = (ci::Vector6d() << 5, 0, -3, 0, 0.2, 0).finished();
+  ci::Matrix6d full_stiffness = random_stiffness(rng);
+};
+
+ci::CartesianImpedanceController make_controller(const Setup& setup, bool full_stiffness) {
+  ci::CartesianImpedanceController controller(kJoints, busy_parameters());
+  controller.start(setup.robot);
+  controller.set_reference_pose(setup.reference);
+  controller.set_nullspace_target(setup.q_desired);
+  controller.set_wrench(setup.wrench);
+  if (full_stiffness) {
+    controller.set_stiffness_matrix(setup.full_stiffness);
+  } else {
+    controller.set_stiffness((ci::Vector6d() << 800, 600, 400, 40, 30, 20).finished());
+  }
+  return controller;
+}
+
+void report_allocations(benchmark::State& state, long allocations) {
+  state.counters["allocs_per_cycle"] =
+      static_cast<double>(allocations) / static_cast<double>(state.iterations());
+}
+
+// Diagonal stiffness being filtered: the common case.
+void BM_Update(benchmark::State& state) {
+  Setup setup;
+  ci::CartesianImpedanceController controller = make_controller(setup, false);
+  ci::RobotState robot = setup.robot;
+  allocation_counter::Scope allocations;
+  for (auto _ : state) {
+    robot.q[0] += 1e-9;
+    benchmark::DoNotOptimize(controller.update(robot, 0.001));
+    benchmark::DoNotOptimize(controller.torque().data());
+  }
+  report_allocations(state, allocations.allocations());
+}
+BENCHMARK(BM_Update);
+
+// A full (coupled) stiffness being filtered: damping needs a 6x6 eigen-decomposition each cycle,
+// the most expensive path of the cycle.
+void BM_UpdateFullStiffnessFiltering(benchmark::State& state) {
+  Setup setup;
+  ci::CartesianImpedanceController controller = make_controller(setup, true);
+  ci::RobotState robot = setup.robot;
+  allocation_counter::Scope allocations;
+  for (auto _ : state) {
+    robot.q[0] += 1e-9;
+    benchmark::DoNotOptimize(controller.update(robot, 0.001));
+    benchmark::DoNotOptimize(controller.torque().data());
+  }
+  report_allocations(state, allocations.allocations());
+}
+BENCHMARK(BM_UpdateFullStiffnessFiltering);
+
+// The same law written plainly with dynamic matrices and SVDs.
+void BM_ReferenceSvd(benchmark::State& state) {
+  Setup setup;
+  reference::Controller controller(kJoints, busy_parameters());
+  controller.start(setup.robot.q, setup.robot.pose.position, setup.robot.pose.orientation);
+  controller.commanded().position = setup.reference.position;
+  controller.commanded().orientation = setup.reference.orientation;
+  controller.commanded().nullspace_q = setup.q_desired;
+  controller.commanded().wrench = setup.wrench;
+  const Eigen::VectorXd q0 = setup.robot.q, dq = setup.robot.dq;
+  const Eigen::MatrixXd jacobian = setup.robot.jacobian;
+  Eigen::VectorXd q = q0;
+  allocation_counter::Scope allocations;
+  for (auto _ : state) {
+    q[0] += 1e-9;
+    benchmark::DoNotOptimize(controller.update(q, dq, setup.robot.pose.position,
+                                               setup.robot.pose.orientation, jacobian, 0.001));
+  }
+  report_allocations(state, allocations.allocations());
+}
+BENCHMARK(BM_ReferenceSvd);
+
+// Worst case: 100,000 cycles timed one by one (clock overhead of ~20-30 ns included).
+void BM_UpdateWorstCase(benchmark::State& state) {
+  Setup setup;
+  ci::CartesianImpedanceController controller = make_controller(setup, state.range(0) != 0);
+  ci::RobotState robot = setup.robot;
+  std::vector<double> durations(100000);
+  for (auto _ : state) {
+    for (double& duration : durations) {
+      robot.q[0] += 1e-9;
+      const auto begin = std::chrono::steady_clock::now();
+      controller.update(robot, 0.001);
+      const auto end = std::chrono::steady_clock::now();
+      duration = std::chrono::duration<double, std::nano>(end - begin).count();
+    }
+  }
+  std::sort(durations.begin(), durations.end());
+  state.counters["median_ns"] = durations[durations.size() / 2];
+  state.counters["p99_ns"] = durations[durations.size() * 99 / 100];
+  state.counters["p99.9_ns"] = durations[durations.size() * 999 / 1000];
+  state.counters["max_ns"] = durations.back();
+}
+BENCHMARK(BM_UpdateWorstCase)->Arg(0)->Arg(1)->Iterations(1)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();

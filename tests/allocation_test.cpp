@@ -1,0 +1,88 @@
+// The control cycle allocates nothing: malloc and operator new are counted (support/
+// allocation_counter) over 10,000 cycles with every feature on.
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "cartesian_impedance/controller.hpp"
+#include "support/allocation_counter.hpp"
+#include "support/random_cases.hpp"
+
+namespace ci = cartesian_impedance;
+using namespace random_cases;
+
+namespace {
+
+// Every feature that costs something in the cycle: filters running, a full stiffness matrix in
+// the end-effector frame (damping from a matrix square root while it is filtered), a wrench in
+// the end-effector frame, damped nullspace projection, clipping, saturation and rate limiting.
+ci::CartesianImpedanceController busy_controller(int n, std::mt19937& rng,
+                                                 const ci::RobotState& robot) {
+  ci::Parameters parameters;
+  parameters.stiffness.frame = ci::Frame::end_effector;
+  parameters.wrench.frame = ci::Frame::end_effector;
+  parameters.filter.stiffness.time = 20.0;  // still moving after 10,000 cycles at 1 kHz
+  parameters.filter.pose.time = 20.0;
+  parameters.nullspace.pseudo_inverse_damping = 0.05;
+  parameters.limits.pose_error = {0.02, 0.05};
+  parameters.limits.joint_torque = ci::JointVector::Constant(1, 5.0);
+  parameters.limits.joint_torque_rate = ci::JointVector::Constant(1, 100.0);
+  ci::CartesianImpedanceController controller(n, parameters);
+  controller.start(robot);
+  controller.set_stiffness_matrix(random_stiffness(rng));
+  controller.set_wrench((ci::Vector6d() << 5, 0, -3, 0, 0.2, 0).finished());
+  controller.set_reference_pose(
+      {robot.pose.position + Eigen::Vector3d(0.1, 0, 0),
+       Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY())) *
+           robot.pose.orientation});
+  controller.set_nullspace_target(robot.q + random_joints(n, rng, 0.2));
+  return controller;
+}
+
+}  // namespace
+
+// The counter itself must see each kind of allocation (volatile keeps the compiler from eliding
+// the pairs, which the language allows).
+TEST(Allocation, CounterSeesMallocAndNew) {
+  allocation_counter::Scope scope;
+  void* volatile block = std::malloc(16);
+  std::free(block);
+  int* volatile number = new int(3);
+  delete number;
+  Eigen::VectorXd dynamic(100);
+  dynamic.setZero();
+  EXPECT_EQ(scope.allocations(), 3);
+}
+
+class AllocationFree : public ::testing::TestWithParam<int> {};
+
+TEST_P(AllocationFree, UpdateAllocatesNothingWithEveryFeatureOn) {
+  const int n = GetParam();
+  std::mt19937 rng(21);
+  ci::RobotState robot = random_robot_state(n, rng);
+  ci::CartesianImpedanceController controller = busy_controller(n, rng, robot);
+  ci::JointVector dq_step = random_joints(n, rng, 1e-4);
+  bool rate_limited = false, saturated = false, clipped = false;
+  allocation_counter::Scope scope;
+  for (int k = 0; k < 10000; ++k) {
+    robot.q += dq_step;
+    robot.dq = 1000.0 * dq_step;
+    robot.pose.position.x() += 1e-6;
+    const ci::Status status = controller.update(robot, k % 2 ? 0.001 : 0.0011);
+    if (status != ci::Status::ok) FAIL() << "status " << ci::to_string(status);
+    rate_limited |= controller.state().limits.torque_rate_limited;
+    saturated |= controller.state().limits.joint_torque_saturated;
+    clipped |= controller.state().limits.translation_error_clipped;
+  }
+  // Bad input takes the safe path, which must not allocate either.
+  robot.q[0] = std::nan("");
+  for (int k = 0; k < 100; ++k) controller.update(robot, 0.001);
+  controller.update(robot, -1.0);
+  EXPECT_EQ(scope.allocations(), 0);
+  EXPECT_TRUE(rate_limited && saturated && clipped) << "every limit should have been exercised";
+  EXPECT_NE(controller.state().filtered.stiffness, controller.state().commanded.stiffness)
+      << "the stiffness filter should still be moving (matrix square root every cycle)";
+}
+
+INSTANTIATE_TEST_SUITE_P(Joints, AllocationFree, ::testing::Values(6, 7));
