@@ -2,6 +2,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -84,28 +85,27 @@ void read_field(const ParameterInfo& info, const YAML::Node& node, Parameters& p
   }
 }
 
+const ParameterInfo* find_row(const std::string& path) {
+  for (const ParameterInfo& row : parameter_table()) {
+    if (row.name == path) return &row;
+  }
+  return nullptr;
+}
+
 void read_map(const YAML::Node& map, const std::string& prefix, Parameters& parameters,
               std::string_view source) {
   for (const auto& entry : map) {
     const std::string key = entry.first.as<std::string>();
     const std::string path = prefix.empty() ? key : prefix + "." + key;
     const YAML::Node& value = entry.second;
-    if (value.IsMap()) {
-      if (!is_prefix_of_parameter(path)) {
-        throw Error(where(source, entry.first) + "unknown parameter '" + path + "'");
-      }
+    if (const ParameterInfo* info = find_row(path)) {
+      read_field(*info, value, parameters, source);  // a map here is reported as a shape error
+    } else if (value.IsMap() && is_prefix_of_parameter(path)) {
       read_map(value, path, parameters, source);
-      continue;
-    }
-    const ParameterInfo* info = nullptr;
-    for (const ParameterInfo& row : parameter_table()) {
-      if (row.name == path) info = &row;
-    }
-    if (info == nullptr) {
+    } else {
       throw Error(where(source, entry.first) + "unknown parameter '" + path + "'" +
                   (is_prefix_of_parameter(path) ? " (it is a group; give its members)" : ""));
     }
-    read_field(*info, value, parameters, source);
   }
 }
 
@@ -131,6 +131,10 @@ Parameters parameters_from_yaml(const std::string& yaml, std::string_view source
 }
 
 Parameters load_parameters(const std::string& path) {
+  std::error_code error;
+  if (std::filesystem::is_directory(path, error)) {
+    throw Error("parameter file '" + path + "' is a directory");
+  }
   std::ifstream file(path);
   if (!file) throw Error("cannot open parameter file '" + path + "'");
   std::stringstream text;
@@ -139,35 +143,43 @@ Parameters load_parameters(const std::string& path) {
 }
 
 std::string parameters_to_yaml(const Parameters& parameters) {
-  YAML::Node root;
+  // The table lists the members of each group together, so one pass with a stack of open groups
+  // writes the nested maps in table order.
+  YAML::Emitter out;
+  out.SetDoublePrecision(17);
+  out << YAML::BeginMap;
+  std::vector<std::string> open;
   for (const ParameterInfo& info : parameter_table()) {
-    // Walk to the parent map of the leaf, creating groups on the way.
     std::vector<std::string> parts;
     std::string_view name = info.name;
     for (std::size_t dot; (dot = name.find('.')) != std::string_view::npos;) {
       parts.emplace_back(name.substr(0, dot));
       name.remove_prefix(dot + 1);
     }
-    YAML::Node node = root;
-    for (const std::string& part : parts) node.reset(node[part]);
-    YAML::Node leaf;
+    std::size_t shared = 0;
+    while (shared < open.size() && shared < parts.size() && open[shared] == parts[shared]) ++shared;
+    for (; open.size() > shared; open.pop_back()) out << YAML::EndMap;
+    for (std::size_t i = shared; i < parts.size(); ++i) {
+      out << YAML::Key << parts[i] << YAML::Value << YAML::BeginMap;
+      open.push_back(parts[i]);
+    }
+    out << YAML::Key << std::string(name) << YAML::Value;
     const ParameterField field = info.in(const_cast<Parameters&>(parameters));
     if (auto* value = std::get_if<double*>(&field)) {
-      leaf = **value;
+      out << **value;
     } else if (auto* vector = std::get_if<Eigen::Vector3d*>(&field)) {
-      for (int i = 0; i < 3; ++i) leaf.push_back((**vector)[i]);
-      leaf.SetStyle(YAML::EmitterStyle::Flow);
+      out << YAML::Flow << YAML::BeginSeq << (**vector)[0] << (**vector)[1] << (**vector)[2]
+          << YAML::EndSeq;
     } else if (auto* joints = std::get_if<JointVector*>(&field)) {
-      for (Eigen::Index i = 0; i < (*joints)->size(); ++i) leaf.push_back((**joints)[i]);
-      leaf.SetStyle(YAML::EmitterStyle::Flow);
+      out << YAML::Flow << YAML::BeginSeq;
+      for (Eigen::Index i = 0; i < (*joints)->size(); ++i) out << (**joints)[i];
+      out << YAML::EndSeq;
     } else if (auto* frame = std::get_if<Frame*>(&field)) {
-      leaf = std::string(frame_name(**frame));
+      out << std::string(frame_name(**frame));
     }
-    node[std::string(name)] = leaf;
   }
-  YAML::Emitter out;
-  out.SetDoublePrecision(17);
-  out << root;
+  for (; !open.empty(); open.pop_back()) out << YAML::EndMap;
+  out << YAML::EndMap;
   return std::string(out.c_str()) + "\n";
 }
 

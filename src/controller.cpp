@@ -6,51 +6,10 @@
 #include <string>
 
 #include "cartesian_impedance/error.hpp"
+#include "checks.hpp"
 
 namespace cartesian_impedance {
 namespace {
-
-// Quaternions given as four numbers are accepted if their norm is this close to one; a message
-// that rounds to a few digits still passes, a zero or garbage quaternion does not.
-constexpr double kQuaternionNormTolerance = 1e-3;
-
-std::string indexed(std::string_view name, Eigen::Index i) {
-  return std::string(name) + "[" + std::to_string(i) + "]";
-}
-
-void check_finite(std::string_view name, double value, std::string_view unit = "") {
-  if (!std::isfinite(value)) {
-    throw Error(std::string(name) + " = " + format_number(value) +
-                (unit.empty() ? "" : " " + std::string(unit)) + " is not finite");
-  }
-}
-
-void check_size(std::string_view name, Eigen::Index size, Eigen::Index expected) {
-  if (size != expected) {
-    throw Error(std::string(name) + " has " + std::to_string(size) + " values; expected " +
-                std::to_string(expected));
-  }
-}
-
-Eigen::Quaterniond checked_unit_quaternion(std::string_view name, const Eigen::Quaterniond& q) {
-  for (int i = 0; i < 4; ++i) {
-    static constexpr const char* kComponent[4] = {".x", ".y", ".z", ".w"};
-    check_finite(std::string(name) + kComponent[i], q.coeffs()[i]);
-  }
-  const double norm = q.norm();
-  if (std::abs(norm - 1.0) > kQuaternionNormTolerance) {
-    throw Error(std::string(name) + " (x, y, z, w) = (" + format_number(q.x()) + ", " +
-                format_number(q.y()) + ", " + format_number(q.z()) + ", " + format_number(q.w()) +
-                ") has norm " + format_number(norm) + "; a unit quaternion is required (within " +
-                format_number(kQuaternionNormTolerance) + ")");
-  }
-  return q.normalized();
-}
-
-void check_axes(const ParameterInfo& info, const Eigen::Ref<const Eigen::Vector3d>& values) {
-  static constexpr const char* kAxis[3] = {".x", ".y", ".z"};
-  for (int i = 0; i < 3; ++i) info.check(std::string(info.name) + kAxis[i], values[i]);
-}
 
 bool clamp_each(Eigen::Ref<Eigen::VectorXd> values, const Range& range) {
   bool clamped = false;
@@ -211,34 +170,19 @@ void CartesianImpedanceController::refresh_damping_mode() noexcept {
 }
 
 void CartesianImpedanceController::set_parameters(const Parameters& parameters) {
-  validate(parameters, num_joints_);
-  Targets commanded = state_.commanded;
-  commanded.stiffness =
-      stacked(parameters.stiffness.translation, parameters.stiffness.rotation).asDiagonal();
-  commanded.damping_ratio =
-      stacked(parameters.damping_ratio.translation, parameters.damping_ratio.rotation);
-  commanded.nullspace_stiffness = per_joint(parameters.nullspace.stiffness, num_joints_);
-  commanded.nullspace_damping_ratio = parameters.nullspace.damping_ratio;
-  commanded.wrench << parameters.wrench.force, parameters.wrench.torque;
-  commit(parameters, commanded);
+  apply(Command::parameters(parameters, num_joints_));
 }
 
 void CartesianImpedanceController::check_robot_state(const RobotState& robot) const {
-  check_size("robot.q", robot.q.size(), num_joints_);
-  check_size("robot.dq", robot.dq.size(), num_joints_);
-  check_size("robot.jacobian columns", robot.jacobian.cols(), num_joints_);
-  for (Eigen::Index i = 0; i < num_joints_; ++i) {
-    check_finite(indexed("robot.q", i), robot.q[i]);
-    check_finite(indexed("robot.dq", i), robot.dq[i]);
-  }
+  checks::size("robot.q", robot.q.size(), num_joints_);
+  checks::size("robot.dq", robot.dq.size(), num_joints_);
+  checks::size("robot.jacobian columns", robot.jacobian.cols(), num_joints_);
+  checks::finite_vector("robot.q", robot.q);
+  checks::finite_vector("robot.dq", robot.dq);
   for (Eigen::Index i = 0; i < robot.jacobian.size(); ++i) {
-    check_finite(indexed("robot.jacobian", i), robot.jacobian.data()[i]);
+    checks::finite(checks::indexed("robot.jacobian", i), robot.jacobian.data()[i]);
   }
-  static constexpr const char* kAxis[3] = {".x", ".y", ".z"};
-  for (int i = 0; i < 3; ++i) {
-    check_finite(std::string("robot.pose.position") + kAxis[i], robot.pose.position[i], "m");
-  }
-  checked_unit_quaternion("robot.pose.orientation", robot.pose.orientation);
+  checks::pose("robot.pose", robot.pose);
 }
 
 bool CartesianImpedanceController::robot_state_usable(const RobotState& robot) const noexcept {
@@ -251,7 +195,7 @@ bool CartesianImpedanceController::robot_state_usable(const RobotState& robot) c
   const double sum = robot.q.sum() + robot.dq.sum() + robot.jacobian.sum() +
                      robot.pose.position.sum() + robot.pose.orientation.coeffs().sum();
   return std::isfinite(sum) &&
-         std::abs(robot.pose.orientation.norm() - 1.0) <= kQuaternionNormTolerance;
+         std::abs(robot.pose.orientation.norm() - 1.0) <= checks::kQuaternionNormTolerance;
 }
 
 void CartesianImpedanceController::start(const RobotState& robot) {
@@ -261,10 +205,8 @@ void CartesianImpedanceController::start(const RobotState& robot) {
 void CartesianImpedanceController::start(const RobotState& robot,
                                          const Eigen::Ref<const Eigen::VectorXd>& tau_previous) {
   check_robot_state(robot);
-  check_size("tau_previous", tau_previous.size(), num_joints_);
-  for (Eigen::Index i = 0; i < num_joints_; ++i) {
-    check_finite(indexed("tau_previous", i), tau_previous[i], "Nm");
-  }
+  checks::size("tau_previous", tau_previous.size(), num_joints_);
+  checks::finite_vector("tau_previous", tau_previous, "Nm");
   const Pose pose{robot.pose.position, robot.pose.orientation.normalized()};
   Targets& commanded = state_.commanded;
   commanded.pose = pose;
@@ -284,119 +226,91 @@ void CartesianImpedanceController::start(const RobotState& robot,
 }
 
 void CartesianImpedanceController::set_reference_pose(const Pose& pose_base) {
-  static constexpr const char* kAxis[3] = {".x", ".y", ".z"};
-  for (int i = 0; i < 3; ++i) {
-    check_finite(std::string("reference_pose.position") + kAxis[i], pose_base.position[i], "m");
-  }
-  const Eigen::Quaterniond orientation =
-      checked_unit_quaternion("reference_pose.orientation", pose_base.orientation);
-  state_.commanded.pose = Pose{pose_base.position, orientation};
+  apply(Command::reference_pose(pose_base));
 }
 
 void CartesianImpedanceController::set_stiffness(const Vector6d& diagonal,
                                                  std::optional<Frame> frame) {
-  check_axes(parameter_info("stiffness.translation"), diagonal.head<3>());
-  check_axes(parameter_info("stiffness.rotation"), diagonal.tail<3>());
-  Parameters parameters = parameters_;
-  parameters.stiffness.translation = diagonal.head<3>();
-  parameters.stiffness.rotation = diagonal.tail<3>();
-  parameters.stiffness.frame = frame.value_or(parameters_.stiffness.frame);
-  Targets commanded = state_.commanded;
-  commanded.stiffness = diagonal.asDiagonal();
-  commit(parameters, commanded);
+  apply(Command::stiffness(diagonal, frame));
 }
 
 void CartesianImpedanceController::set_stiffness_matrix(const Matrix6d& stiffness,
                                                         std::optional<Frame> frame) {
-  for (int row = 0; row < 6; ++row) {
-    for (int col = 0; col < 6; ++col) {
-      check_finite("stiffness(" + std::to_string(row) + ", " + std::to_string(col) + ")",
-                   stiffness(row, col));
-    }
-  }
-  const double scale = std::max(1.0, stiffness.cwiseAbs().maxCoeff());
-  for (int row = 0; row < 6; ++row) {
-    for (int col = row + 1; col < 6; ++col) {
-      if (std::abs(stiffness(row, col) - stiffness(col, row)) > 1e-9 * scale) {
-        throw Error("stiffness is not symmetric: stiffness(" + std::to_string(row) + ", " +
-                    std::to_string(col) + ") = " + format_number(stiffness(row, col)) +
-                    " but stiffness(" + std::to_string(col) + ", " + std::to_string(row) +
-                    ") = " + format_number(stiffness(col, row)));
-      }
-    }
-  }
-  const Matrix6d symmetric = 0.5 * (stiffness + stiffness.transpose());
-  const double smallest = Eigen::SelfAdjointEigenSolver<Matrix6d>(symmetric).eigenvalues()[0];
-  if (smallest < -1e-9 * scale) {
-    throw Error("stiffness is not positive semi-definite: smallest eigenvalue " +
-                format_number(smallest) + " is below 0");
-  }
-  // parameters() keeps the diagonal; the full matrix lives in the commanded targets.
-  Parameters parameters = parameters_;
-  parameters.stiffness.translation = symmetric.diagonal().head<3>();
-  parameters.stiffness.rotation = symmetric.diagonal().tail<3>();
-  parameters.stiffness.frame = frame.value_or(parameters_.stiffness.frame);
-  Targets commanded = state_.commanded;
-  commanded.stiffness = symmetric;
-  commit(parameters, commanded);
+  apply(Command::stiffness_matrix(stiffness, frame));
 }
 
 void CartesianImpedanceController::set_damping_ratio(const Vector6d& damping_ratio) {
-  check_axes(parameter_info("damping_ratio.translation"), damping_ratio.head<3>());
-  check_axes(parameter_info("damping_ratio.rotation"), damping_ratio.tail<3>());
-  Parameters parameters = parameters_;
-  parameters.damping_ratio.translation = damping_ratio.head<3>();
-  parameters.damping_ratio.rotation = damping_ratio.tail<3>();
-  Targets commanded = state_.commanded;
-  commanded.damping_ratio = damping_ratio;
-  commit(parameters, commanded);
+  apply(Command::damping_ratio(damping_ratio));
 }
 
 void CartesianImpedanceController::set_nullspace_target(
     const Eigen::Ref<const Eigen::VectorXd>& q_desired) {
-  check_size("nullspace_target", q_desired.size(), num_joints_);
-  for (Eigen::Index i = 0; i < q_desired.size(); ++i) {
-    check_finite(indexed("nullspace_target", i), q_desired[i], "rad");
-  }
-  state_.commanded.nullspace_q = q_desired;
+  apply(Command::nullspace_target(q_desired, num_joints_));
 }
 
 void CartesianImpedanceController::set_nullspace_stiffness(
     const Eigen::Ref<const Eigen::VectorXd>& stiffness) {
-  const ParameterInfo& info = parameter_info("nullspace.stiffness");
-  if (stiffness.size() != 1 && stiffness.size() != num_joints_) {
-    throw Error("nullspace.stiffness has " + std::to_string(stiffness.size()) +
-                " values; expected 1 (all joints) or " + std::to_string(num_joints_));
-  }
-  for (Eigen::Index i = 0; i < stiffness.size(); ++i) {
-    info.check(indexed(info.name, i), stiffness[i]);
-  }
-  Parameters parameters = parameters_;
-  parameters.nullspace.stiffness = stiffness;
-  Targets commanded = state_.commanded;
-  commanded.nullspace_stiffness = per_joint(parameters.nullspace.stiffness, num_joints_);
-  commit(parameters, commanded);
+  apply(Command::nullspace_stiffness(stiffness, num_joints_));
 }
 
 void CartesianImpedanceController::set_nullspace_damping_ratio(double damping_ratio) {
-  parameter_info("nullspace.damping_ratio").check("nullspace.damping_ratio", damping_ratio);
-  Parameters parameters = parameters_;
-  parameters.nullspace.damping_ratio = damping_ratio;
-  Targets commanded = state_.commanded;
-  commanded.nullspace_damping_ratio = damping_ratio;
-  commit(parameters, commanded);
+  apply(Command::nullspace_damping_ratio(damping_ratio));
 }
 
 void CartesianImpedanceController::set_wrench(const Vector6d& wrench, std::optional<Frame> frame) {
-  check_axes(parameter_info("wrench.force"), wrench.head<3>());
-  check_axes(parameter_info("wrench.torque"), wrench.tail<3>());
+  apply(Command::wrench(wrench, frame));
+}
+
+bool CartesianImpedanceController::apply(const Command& command) noexcept {
+  if (command.num_joints() != 0 && command.num_joints() != num_joints_) return false;
   Parameters parameters = parameters_;
-  parameters.wrench.force = wrench.head<3>();
-  parameters.wrench.torque = wrench.tail<3>();
-  parameters.wrench.frame = frame.value_or(parameters_.wrench.frame);
   Targets commanded = state_.commanded;
-  commanded.wrench = wrench;
+  switch (command.kind()) {
+    case Command::Kind::reference_pose:
+      state_.commanded.pose = command.pose_;
+      return true;
+    case Command::Kind::nullspace_target:
+      state_.commanded.nullspace_q = command.joints_;
+      return true;
+    case Command::Kind::stiffness:
+      // parameters() keeps the diagonal; a full matrix lives in the commanded targets.
+      parameters.stiffness.translation = command.matrix_.diagonal().head<3>();
+      parameters.stiffness.rotation = command.matrix_.diagonal().tail<3>();
+      parameters.stiffness.frame = command.frame_.value_or(parameters_.stiffness.frame);
+      commanded.stiffness = command.matrix_;
+      break;
+    case Command::Kind::damping_ratio:
+      parameters.damping_ratio.translation = command.vector_.head<3>();
+      parameters.damping_ratio.rotation = command.vector_.tail<3>();
+      commanded.damping_ratio = command.vector_;
+      break;
+    case Command::Kind::nullspace_stiffness:
+      parameters.nullspace.stiffness = command.joints_;
+      commanded.nullspace_stiffness = per_joint(command.joints_, num_joints_);
+      break;
+    case Command::Kind::nullspace_damping_ratio:
+      parameters.nullspace.damping_ratio = command.scalar_;
+      commanded.nullspace_damping_ratio = command.scalar_;
+      break;
+    case Command::Kind::wrench:
+      parameters.wrench.force = command.vector_.head<3>();
+      parameters.wrench.torque = command.vector_.tail<3>();
+      parameters.wrench.frame = command.frame_.value_or(parameters_.wrench.frame);
+      commanded.wrench = command.vector_;
+      break;
+    case Command::Kind::parameters:
+      parameters = command.parameters_;
+      commanded.stiffness =
+          stacked(parameters.stiffness.translation, parameters.stiffness.rotation).asDiagonal();
+      commanded.damping_ratio =
+          stacked(parameters.damping_ratio.translation, parameters.damping_ratio.rotation);
+      commanded.nullspace_stiffness = per_joint(parameters.nullspace.stiffness, num_joints_);
+      commanded.nullspace_damping_ratio = parameters.nullspace.damping_ratio;
+      commanded.wrench << parameters.wrench.force, parameters.wrench.torque;
+      break;
+  }
   commit(parameters, commanded);
+  return true;
 }
 
 void CartesianImpedanceController::update_gains(double dt) noexcept {

@@ -13,6 +13,7 @@
 
 #include <optional>
 
+#include "cartesian_impedance/command.hpp"
 #include "cartesian_impedance/math.hpp"
 #include "cartesian_impedance/parameters.hpp"
 #include "cartesian_impedance/types.hpp"
@@ -119,6 +120,12 @@ class CartesianImpedanceController {
   void set_nullspace_damping_ratio(double damping_ratio);
   /// Commanded wrench [N; Nm] in `frame` (default: the configured frame).
   void set_wrench(const Vector6d& wrench, std::optional<Frame> frame = std::nullopt);
+
+  /// Applies a validated command (see command.hpp): noexcept and allocation-free, so a control
+  /// loop can apply commands handed over from other threads inside its cycle. The setters above
+  /// are this with the validation in front. Returns false (and changes nothing) if the command
+  /// was validated for a different joint count.
+  bool apply(const Command& command) noexcept;
 
   /// One control cycle: filters the targets with the elapsed `dt` [s], evaluates the law at the
   /// measured `robot` state and applies the limits. The result is torque() and state(). Never

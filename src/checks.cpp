@@ -1,0 +1,56 @@
+#include "checks.hpp"
+
+#include <cmath>
+
+namespace cartesian_impedance::checks {
+
+std::string indexed(std::string_view name, Eigen::Index i) {
+  return std::string(name) + "[" + std::to_string(i) + "]";
+}
+
+void finite(std::string_view name, double value, std::string_view unit) {
+  if (!std::isfinite(value)) {
+    throw Error(std::string(name) + " = " + format_number(value) +
+                (unit.empty() ? "" : " " + std::string(unit)) + " is not finite");
+  }
+}
+
+void size(std::string_view name, Eigen::Index size, Eigen::Index expected) {
+  if (size != expected) {
+    throw Error(std::string(name) + " has " + std::to_string(size) + " values; expected " +
+                std::to_string(expected));
+  }
+}
+
+void finite_vector(std::string_view name, const Eigen::Ref<const Eigen::VectorXd>& values,
+                   std::string_view unit) {
+  for (Eigen::Index i = 0; i < values.size(); ++i) finite(indexed(name, i), values[i], unit);
+}
+
+Eigen::Quaterniond unit_quaternion(std::string_view name, const Eigen::Quaterniond& q) {
+  static constexpr const char* kComponent[4] = {".x", ".y", ".z", ".w"};
+  for (int i = 0; i < 4; ++i) finite(std::string(name) + kComponent[i], q.coeffs()[i]);
+  const double norm = q.norm();
+  if (std::abs(norm - 1.0) > kQuaternionNormTolerance) {
+    throw Error(std::string(name) + " (x, y, z, w) = (" + format_number(q.x()) + ", " +
+                format_number(q.y()) + ", " + format_number(q.z()) + ", " + format_number(q.w()) +
+                ") has norm " + format_number(norm) + "; a unit quaternion is required (within " +
+                format_number(kQuaternionNormTolerance) + ")");
+  }
+  return q.normalized();
+}
+
+Pose pose(std::string_view name, const Pose& pose) {
+  static constexpr const char* kAxis[3] = {".x", ".y", ".z"};
+  for (int i = 0; i < 3; ++i) {
+    finite(std::string(name) + ".position" + kAxis[i], pose.position[i], "m");
+  }
+  return Pose{pose.position, unit_quaternion(std::string(name) + ".orientation", pose.orientation)};
+}
+
+void axes(const ParameterInfo& info, const Eigen::Ref<const Eigen::Vector3d>& values) {
+  static constexpr const char* kAxis[3] = {".x", ".y", ".z"};
+  for (int i = 0; i < 3; ++i) info.check(std::string(info.name) + kAxis[i], values[i]);
+}
+
+}  // namespace cartesian_impedance::checks

@@ -1,0 +1,31 @@
+#pragma once
+// Validation helpers shared by the library's boundary code (commands, start, loaders). Each throws
+// Error with a message naming the field, the value and what was expected. Not for the cycle.
+
+#include <string>
+#include <string_view>
+
+#include "cartesian_impedance/error.hpp"
+#include "cartesian_impedance/parameters.hpp"
+#include "cartesian_impedance/types.hpp"
+
+namespace cartesian_impedance::checks {
+
+/// Quaternions given as four numbers are accepted if their norm is this close to one: a message
+/// that rounds to a few digits still passes, a zero or garbage quaternion does not.
+inline constexpr double kQuaternionNormTolerance = 1e-3;
+
+std::string indexed(std::string_view name, Eigen::Index i);
+void finite(std::string_view name, double value, std::string_view unit = "");
+void size(std::string_view name, Eigen::Index size, Eigen::Index expected);
+/// Every element finite; elements named name[i].
+void finite_vector(std::string_view name, const Eigen::Ref<const Eigen::VectorXd>& values,
+                   std::string_view unit = "");
+/// Finite, unit norm within kQuaternionNormTolerance; returns it normalised.
+Eigen::Quaterniond unit_quaternion(std::string_view name, const Eigen::Quaterniond& q);
+/// Finite position and unit quaternion; returns the pose with the quaternion normalised.
+Pose pose(std::string_view name, const Pose& pose);
+/// Each of x, y, z within the table row's range (names "row.x", ...).
+void axes(const ParameterInfo& info, const Eigen::Ref<const Eigen::Vector3d>& values);
+
+}  // namespace cartesian_impedance::checks
