@@ -146,5 +146,3 @@ void BM_UpdateWorstCase(benchmark::State& state) {
 BENCHMARK(BM_UpdateWorstCase)->Arg(0)->Arg(1)->Iterations(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace
-
-BENCHMARK_MAIN();

@@ -75,6 +75,14 @@ void read_field(const ParameterInfo& info, const YAML::Node& node, Parameters& p
       throw Error(where(source, node) + name + " must be one number or a list of 1 to " +
                   std::to_string(kMaxJoints) + " numbers (one per joint)");
     }
+  } else if (auto* flag = std::get_if<bool*>(&field)) {
+    bool value = false;
+    if (!node.IsScalar() || !YAML::convert<bool>::decode(node, value)) {
+      throw Error(where(source, node) + name + " = " +
+                  (node.IsScalar() ? "'" + node.Scalar() + "'" : std::string("a list or map")) +
+                  " is not true or false");
+    }
+    **flag = value;
   } else if (auto* frame = std::get_if<Frame*>(&field)) {
     if (!node.IsScalar()) throw Error(where(source, node) + name + " must be base or end_effector");
     try {
@@ -98,13 +106,18 @@ void read_map(const YAML::Node& map, const std::string& prefix, Parameters& para
     const std::string key = entry.first.as<std::string>();
     const std::string path = prefix.empty() ? key : prefix + "." + key;
     const YAML::Node& value = entry.second;
+    const bool group = is_prefix_of_parameter(path);
+    if (value.IsNull() && group) continue;  // a group with every member commented out
+    if (value.IsNull() && find_row(path) != nullptr) {
+      throw Error(where(source, entry.first) + path + " has no value");
+    }
     if (const ParameterInfo* info = find_row(path)) {
       read_field(*info, value, parameters, source);  // a map here is reported as a shape error
-    } else if (value.IsMap() && is_prefix_of_parameter(path)) {
+    } else if (value.IsMap() && group) {
       read_map(value, path, parameters, source);
     } else {
       throw Error(where(source, entry.first) + "unknown parameter '" + path + "'" +
-                  (is_prefix_of_parameter(path) ? " (it is a group; give its members)" : ""));
+                  (group ? " (it is a group; give its members)" : ""));
     }
   }
 }
@@ -176,6 +189,8 @@ std::string parameters_to_yaml(const Parameters& parameters) {
       out << YAML::EndSeq;
     } else if (auto* frame = std::get_if<Frame*>(&field)) {
       out << std::string(frame_name(**frame));
+    } else if (auto* flag = std::get_if<bool*>(&field)) {
+      out << **flag;
     }
   }
   for (; !open.empty(); open.pop_back()) out << YAML::EndMap;

@@ -52,6 +52,8 @@ const char* to_string(Status status) noexcept {
       return "invalid_robot_state";
     case Status::numerical_error:
       return "numerical_error";
+    case Status::missing_dynamics:
+      return "missing_dynamics";
   }
   return "unknown";
 }
@@ -87,12 +89,15 @@ CartesianImpedanceController::CartesianImpedanceController(int num_joints,
   commanded.nullspace_q = JointVector::Zero(n);
   commanded.nullspace_stiffness = JointVector::Zero(n);
   commanded.wrench.setZero();
+  commanded.twist.setZero();
+  commanded.nullspace_dq = JointVector::Zero(n);
   state_.filtered = commanded;
   state_.pose_error.setZero();
   state_.wrench_base.setZero();
   state_.tau_cartesian = JointVector::Zero(n);
   state_.tau_nullspace = JointVector::Zero(n);
   state_.tau_wrench = JointVector::Zero(n);
+  state_.tau_gravity = JointVector::Zero(n);
   state_.tau = JointVector::Zero(n);
   tau_previous_ = JointVector::Zero(n);
   max_step_ = JointVector::Zero(n);
@@ -194,7 +199,14 @@ bool CartesianImpedanceController::robot_state_usable(const RobotState& robot) c
   // checks every value; finite values large enough to overflow it are not usable either.
   const double sum = robot.q.sum() + robot.dq.sum() + robot.jacobian.sum() +
                      robot.pose.position.sum() + robot.pose.orientation.coeffs().sum();
-  return std::isfinite(sum) &&
+  // Optional terms: absent (size 0) or complete and finite.
+  const bool mass_ok = robot.mass.size() == 0 ||
+                       (robot.mass.rows() == num_joints_ && robot.mass.cols() == num_joints_);
+  const bool gravity_ok = robot.gravity.size() == 0 || robot.gravity.size() == num_joints_;
+  const bool extra_ok =
+      robot.nullspace_torque.size() == 0 || robot.nullspace_torque.size() == num_joints_;
+  const double optional_sum = robot.mass.sum() + robot.gravity.sum() + robot.nullspace_torque.sum();
+  return mass_ok && gravity_ok && extra_ok && std::isfinite(sum) && std::isfinite(optional_sum) &&
          std::abs(robot.pose.orientation.norm() - 1.0) <= checks::kQuaternionNormTolerance;
 }
 
@@ -211,6 +223,8 @@ void CartesianImpedanceController::start(const RobotState& robot,
   Targets& commanded = state_.commanded;
   commanded.pose = pose;
   commanded.nullspace_q = robot.q;
+  commanded.twist.setZero();
+  commanded.nullspace_dq.setZero();
   state_.filtered = commanded;
   state_.filtered.wrench.setZero();
   refresh_damping_mode();
@@ -349,6 +363,8 @@ void CartesianImpedanceController::filter_targets() noexcept {
                                  a_nullspace * commanded.nullspace_stiffness;
   filtered.nullspace_damping_ratio = (1.0 - a_nullspace) * filtered.nullspace_damping_ratio +
                                      a_nullspace * commanded.nullspace_damping_ratio;
+  filtered.twist = commanded.twist;
+  filtered.nullspace_dq = commanded.nullspace_dq;
   const double a_wrench = gains_.wrench;
   filtered.wrench = (1.0 - a_wrench) * filtered.wrench + a_wrench * commanded.wrench;
 }
@@ -369,9 +385,27 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
   limits.rotation_error_clipped =
       clip_norm(error.tail<3>(), parameters_.limits.pose_error.rotation);
 
+  const bool in_base = parameters_.stiffness.frame == Frame::base;
+  const DynamicsParameters& dynamics = parameters_.dynamics;
   // D = 2 Z^1/2 sqrt(K) Z^1/2 follows the filtered K. A diagonal K (the common case) needs six
-  // square roots; a full one a 6x6 eigen-decomposition, done only while K or zeta move.
-  if (stiffness_diagonal_) {
+  // square roots; a full one a 6x6 eigen-decomposition, done only while K or zeta move. Shaped
+  // by the task-space inertia, it changes with q and is computed every cycle.
+  bool damping_diagonal = stiffness_diagonal_;
+  if (dynamics.inertia_shaped_damping) {
+    Matrix6d inertia;
+    if (!task_space_inertia(jacobian, robot.mass, parameters_.nullspace.pseudo_inverse_damping,
+                            inertia)) {
+      state_.tau.setConstant(std::nan(""));  // reported as a numerical error by update()
+      return;
+    }
+    if (!in_base) {
+      const Matrix6d rotation6 = block_rotation(rotation);
+      inertia = rotation6.transpose() * inertia * rotation6;
+    }
+    damping_frame_ = inertia_shaped_damping(filtered.stiffness, filtered.damping_ratio, inertia);
+    damped_stiffness_.setConstant(std::nan(""));
+    damping_diagonal = false;
+  } else if (stiffness_diagonal_) {
     damping_frame_.diagonal() =
         2.0 * filtered.damping_ratio.cwiseProduct(filtered.stiffness.diagonal().cwiseSqrt());
   } else if (filtered.stiffness != damped_stiffness_ || filtered.damping_ratio != damped_ratio_) {
@@ -380,11 +414,11 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
     damped_ratio_ = filtered.damping_ratio;
   }
 
-  Vector6d velocity;
-  velocity.noalias() = jacobian * robot.dq;
+  // The damper acts on the velocity relative to the reference's (zero unless tracking).
+  Vector6d velocity = -filtered.twist;
+  velocity.noalias() += jacobian * robot.dq;
   // Spring and damper in the stiffness frame; in the end-effector frame the error and velocity
   // are rotated in and the resulting wrench back out.
-  const bool in_base = parameters_.stiffness.frame == Frame::base;
   Vector6d error_frame, velocity_frame, force_frame;
   if (in_base) {
     error_frame = error;
@@ -393,7 +427,7 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
     rotate_six_inverse(rotation, error, error_frame);
     rotate_six_inverse(rotation, velocity, velocity_frame);
   }
-  if (stiffness_diagonal_) {
+  if (damping_diagonal) {
     force_frame = -filtered.stiffness.diagonal().cwiseProduct(error_frame) -
                   damping_frame_.diagonal().cwiseProduct(velocity_frame);
   } else {
@@ -410,11 +444,19 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
 
   // Nullspace joint impedance, projected so that it does not disturb the end effector.
   const JointVector& stiffness_ns = filtered.nullspace_stiffness;
-  tau_0_ =
-      -stiffness_ns.cwiseProduct(robot.q - filtered.nullspace_q) -
-      (2.0 * filtered.nullspace_damping_ratio) * stiffness_ns.cwiseSqrt().cwiseProduct(robot.dq);
-  projector_.project(jacobian, parameters_.nullspace.pseudo_inverse_damping, tau_0_,
-                     state_.tau_nullspace);
+  tau_0_ = -stiffness_ns.cwiseProduct(robot.q - filtered.nullspace_q) -
+           (2.0 * filtered.nullspace_damping_ratio) *
+               stiffness_ns.cwiseSqrt().cwiseProduct(robot.dq - filtered.nullspace_dq);
+  if (robot.nullspace_torque.size() == num_joints_) tau_0_ += robot.nullspace_torque;
+  const double lambda = parameters_.nullspace.pseudo_inverse_damping;
+  if (dynamics.dynamically_consistent_nullspace) {
+    if (!projector_.project_dynamic(jacobian, robot.mass, lambda, tau_0_, state_.tau_nullspace)) {
+      state_.tau.setConstant(std::nan(""));
+      return;
+    }
+  } else {
+    projector_.project(jacobian, lambda, tau_0_, state_.tau_nullspace);
+  }
 
   // Commanded wrench.
   if (parameters_.wrench.frame == Frame::base) {
@@ -424,13 +466,36 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
   }
   state_.tau_wrench.noalias() = jacobian.transpose() * state_.wrench_base;
 
-  state_.tau = state_.tau_cartesian + state_.tau_nullspace + state_.tau_wrench;
+  if (dynamics.gravity_compensation) {
+    state_.tau_gravity = robot.gravity;
+  } else {
+    state_.tau_gravity.setZero();
+  }
+  state_.tau = state_.tau_cartesian + state_.tau_nullspace + state_.tau_wrench + state_.tau_gravity;
+}
+
+void CartesianImpedanceController::track(const Pose& pose_base, const Vector6d& twist_base,
+                                         const JointVector& q_desired,
+                                         const JointVector& dq_desired) noexcept {
+  for (Targets* targets : {&state_.commanded, &state_.filtered}) {
+    targets->pose = pose_base;
+    targets->twist = twist_base;
+    targets->nullspace_q = q_desired;
+    targets->nullspace_dq = dq_desired;
+  }
+}
+
+void CartesianImpedanceController::stop_tracking() noexcept {
+  state_.commanded.twist.setZero();
+  state_.commanded.nullspace_dq.setZero();
 }
 
 Status CartesianImpedanceController::hold_safely(Status status, double dt) noexcept {
-  // No trustworthy law output: ramp the last command toward zero as fast as the rate limit allows.
+  // No trustworthy law output: ramp the last command as fast as the rate limit allows toward
+  // zero, or toward the last gravity torque when the law compensates gravity (zero would drop
+  // the arm).
   max_step_ = joint_torque_rate_limit_ * dt;
-  state_.tau.setZero();
+  state_.tau = state_.tau_gravity;
   state_.limits.torque_rate_limited = limit_rate(tau_previous_, max_step_, state_.tau);
   state_.limits.joint_torque_saturated = false;
   state_.tau_cartesian.setZero();
@@ -449,6 +514,12 @@ Status CartesianImpedanceController::update(const RobotState& robot, double dt) 
   }
   if (!(dt > 0.0) || !std::isfinite(dt)) return hold_safely(Status::invalid_dt, last_valid_dt_);
   if (!robot_state_usable(robot)) return hold_safely(Status::invalid_robot_state, dt);
+  const DynamicsParameters& dynamics = parameters_.dynamics;
+  if (((dynamics.inertia_shaped_damping || dynamics.dynamically_consistent_nullspace) &&
+       robot.mass.rows() != num_joints_) ||
+      (dynamics.gravity_compensation && robot.gravity.size() != num_joints_)) {
+    return hold_safely(Status::missing_dynamics, dt);
+  }
   last_valid_dt_ = dt;
 
   update_gains(dt);

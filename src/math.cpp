@@ -223,6 +223,84 @@ void NullspaceProjector::project(const Jacobian& jacobian, double lambda, const 
   }
 }
 
+bool NullspaceProjector::project_dynamic(const Jacobian& jacobian, const JointMatrix& mass,
+                                         double lambda, const JointVector& tau_0,
+                                         JointVector& projected) noexcept {
+  const Eigen::Index n = jacobian.cols();
+  mass_llt_.compute(mass);
+  if (mass_llt_.info() != Eigen::Success) return false;
+  mass_inverse_jt_ = mass_llt_.solve(jacobian.transpose());  // M^-1 J^T, n x 6
+  joint_vector_ = mass_llt_.solve(tau_0);                    // M^-1 tau_0
+  if (n >= 6) {
+    // tau_0 - J^T (J M^-1 J^T + l^2 I)^-1 J M^-1 tau_0
+    task_gram_.noalias() = jacobian * mass_inverse_jt_;
+    task_gram_.diagonal().array() += lambda * lambda;
+    task_vector_.noalias() = jacobian * joint_vector_;
+    task_factor_ = task_gram_;
+    task_solution_ = task_vector_;
+    if (!cholesky_solve(task_factor_, task_solution_)) {
+      task_ldlt_.compute(task_gram_);
+      task_solution_ = task_ldlt_.solve(task_vector_);
+    }
+    projected = tau_0;
+    projected.noalias() -= jacobian.transpose() * task_solution_;
+  } else {
+    // Push-through as in project(): J^T (J W J^T + l^2 I)^-1 J W = J^T J (W J^T J + l^2 I)^-1 W
+    // with W = M^-1; the n x n matrix is not symmetric, hence LU.
+    joint_gram_.noalias() = jacobian.transpose() * jacobian;
+    joint_system_.noalias() = mass_inverse_jt_ * jacobian;
+    joint_system_.diagonal().array() += lambda * lambda;
+    joint_lu_.compute(joint_system_);
+    JointVector solved = joint_lu_.solve(joint_vector_);
+    projected = tau_0;
+    projected.noalias() -= joint_gram_ * solved;
+  }
+  return true;
+}
+
+bool task_space_inertia(const Jacobian& jacobian, const JointMatrix& mass, double lambda,
+                        Matrix6d& inertia) noexcept {
+  const Eigen::LLT<JointMatrix> mass_llt(mass);
+  if (mass_llt.info() != Eigen::Success) return false;
+  const Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::ColMajor, kMaxJoints, 6> x =
+      mass_llt.solve(jacobian.transpose());
+  Matrix6d inverse_inertia = jacobian * x;
+  inverse_inertia.diagonal().array() += lambda * lambda;
+  const Eigen::LLT<Matrix6d> llt(inverse_inertia);
+  if (llt.info() != Eigen::Success) return false;
+  inertia = llt.solve(Matrix6d::Identity());
+  return inertia.allFinite();
+}
+
+Matrix6d inertia_shaped_damping(const Matrix6d& stiffness, const Vector6d& damping_ratio,
+                                const Matrix6d& inertia) noexcept {
+  const Eigen::LLT<Matrix6d> llt(0.5 * (inertia + inertia.transpose()));
+  const Matrix6d lower = llt.matrixL();
+  // K in coordinates where the inertia is the identity: L^-1 K L^-T.
+  Matrix6d normalised = lower.triangularView<Eigen::Lower>().solve(stiffness);
+  normalised = lower.triangularView<Eigen::Lower>().solve(normalised.transpose()).transpose();
+  const Vector6d zeta_root = damping_ratio.cwiseSqrt();
+  const Matrix6d inner = 2.0 * zeta_root.asDiagonal() *
+                         matrix_sqrt(0.5 * (normalised + normalised.transpose())) *
+                         zeta_root.asDiagonal();
+  return lower * inner * lower.transpose();
+}
+
+JointMatrix NullspaceProjector::matrix(const Jacobian& jacobian, const JointMatrix& mass,
+                                       double lambda) noexcept {
+  const Eigen::Index n = jacobian.cols();
+  JointMatrix result(n, n);
+  JointVector column(n);
+  JointVector unit = JointVector::Zero(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    unit.setZero();
+    unit[i] = 1.0;
+    project_dynamic(jacobian, mass, lambda, unit, column);
+    result.col(i) = column;
+  }
+  return result;
+}
+
 JointMatrix NullspaceProjector::matrix(const Jacobian& jacobian, double lambda) noexcept {
   const Eigen::Index n = jacobian.cols();
   JointMatrix result(n, n);

@@ -111,6 +111,29 @@ std::vector<ParameterInfo> make_table() {
       {"limits.joint_torque_rate", "Nm/s", 0, kInf, true,
        "rate of change of the commanded torque per joint; the change keeps its direction",
        [](Parameters& p) { return field_of(&p.limits.joint_torque_rate); }},
+      {"dynamics.gravity_compensation", "", 0, 0, false,
+       "add g(q) to the command, for robots that do not compensate gravity themselves "
+       "(needs the model: the control loop provides it)",
+       [](Parameters& p) { return field_of(&p.dynamics.gravity_compensation); }},
+      {"dynamics.inertia_shaped_damping", "", 0, 0, false,
+       "shape the Cartesian damping with the task-space inertia, d = 2 zeta sqrt(m k) per mode, "
+       "instead of D = 2 zeta sqrt(K) (needs the model)",
+       [](Parameters& p) { return field_of(&p.dynamics.inertia_shaped_damping); }},
+      {"dynamics.dynamically_consistent_nullspace", "", 0, 0, false,
+       "project the nullspace torque with N = I - J^T Lambda J M^-1 (needs the model)",
+       [](Parameters& p) { return field_of(&p.dynamics.dynamically_consistent_nullspace); }},
+      {"joint_limit_avoidance.margin", "rad", 0, kInf, false,
+       "distance from a joint's position limit where the nullspace push away from it starts",
+       [](Parameters& p) { return field_of(&p.joint_limit_avoidance.margin); }},
+      {"joint_limit_avoidance.stiffness", "Nm/rad", 0, kInf, false,
+       "stiffness of that push (inside the margin, in the nullspace); 0 switches it off",
+       [](Parameters& p) { return field_of(&p.joint_limit_avoidance.stiffness); }},
+      {"trajectory.goal_tolerance", "rad", 0, kInf, true,
+       "every joint within this of the last point reports a trajectory finished",
+       [](Parameters& p) { return field_of(&p.trajectory.goal_tolerance); }},
+      {"trajectory.goal_time_tolerance", "s", 0, kInf, false,
+       "time after the last point within which the goal must be reached, else aborted",
+       [](Parameters& p) { return field_of(&p.trajectory.goal_time_tolerance); }},
   };
 }
 
@@ -244,6 +267,8 @@ std::string value_text(const Parameters& parameters, const ParameterInfo& info) 
     }
   } else if (auto* frame = std::get_if<Frame*>(&field)) {
     text << frame_name(**frame);
+  } else if (auto* flag = std::get_if<bool*>(&field)) {
+    text << (**flag ? "true" : "false");
   }
   return text.str();
 }
@@ -256,10 +281,13 @@ std::string parameter_table_markdown() {
   for (const ParameterInfo& info : parameter_table()) {
     const ParameterField field = info.in(const_cast<Parameters&>(defaults));
     const bool is_frame = std::holds_alternative<Frame*>(field);
+    const bool is_switch = std::holds_alternative<bool*>(field);
     text << "| `" << info.name << "` | " << (info.unit.empty() ? "" : info.unit) << " | "
          << value_text(defaults, info) << " | "
-         << (is_frame ? "base, end_effector" : info.range_text()) << " | " << info.description
-         << " |\n";
+         << (is_frame    ? "base, end_effector"
+             : is_switch ? "true, false"
+                         : info.range_text())
+         << " | " << info.description << " |\n";
   }
   return text.str();
 }

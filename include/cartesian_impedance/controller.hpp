@@ -27,6 +27,7 @@ enum class Status {
   invalid_dt,           ///< dt not finite or not positive; torque ramps toward zero
   invalid_robot_state,  ///< non-finite or wrongly sized q, dq, pose or Jacobian; torque ramps to 0
   numerical_error,      ///< the law produced a non-finite value; torque ramps toward zero
+  missing_dynamics,     ///< an option needs robot.mass or robot.gravity, which were not given
 };
 
 /// "ok", "not_started", ...
@@ -41,6 +42,9 @@ struct Targets {
   JointVector nullspace_stiffness;   ///< K_ns per joint [Nm/rad]
   double nullspace_damping_ratio{};  ///< zeta_ns [-]
   Vector6d wrench;                   ///< F in the wrench frame [N, Nm]
+  /// Velocity feed-forward of a tracked reference (not filtered; zero unless track() is used):
+  Vector6d twist;            ///< reference twist [m/s; rad/s], base frame
+  JointVector nullspace_dq;  ///< nullspace target velocity [rad/s]
 };
 
 /// Which limits shaped the last command. Command saturations are set when a setter clipped a
@@ -69,6 +73,7 @@ struct ControllerState {
   JointVector tau_cartesian;            ///< J^T (-K e - D J dq) [Nm]
   JointVector tau_nullspace;            ///< N tau_0 [Nm]
   JointVector tau_wrench;               ///< J^T F [Nm]
+  JointVector tau_gravity;              ///< g(q) if dynamics.gravity_compensation, else 0 [Nm]
   JointVector tau;                      ///< commanded torque after torque and rate limits [Nm]
   ActiveLimits limits;
 
@@ -126,6 +131,16 @@ class CartesianImpedanceController {
   /// are this with the validation in front. Returns false (and changes nothing) if the command
   /// was validated for a different joint count.
   bool apply(const Command& command) noexcept;
+
+  /// Drives the reference directly, bypassing the pose and nullspace filters, for a caller that
+  /// already produces a smooth reference (trajectory execution): reference pose and twist
+  /// [m/s; rad/s] in the base frame, nullspace target and its velocity. The twist and joint
+  /// velocity are feed-forward: the damping acts on J dq - twist and dq - dq_desired. noexcept,
+  /// no allocation; the caller guarantees finite values of the right size.
+  void track(const Pose& pose_base, const Vector6d& twist_base, const JointVector& q_desired,
+             const JointVector& dq_desired) noexcept;
+  /// Ends tracking: the reference stays where it is, the feed-forward velocities become zero.
+  void stop_tracking() noexcept;
 
   /// One control cycle: filters the targets with the elapsed `dt` [s], evaluates the law at the
   /// measured `robot` state and applies the limits. The result is torque() and state(). Never

@@ -4,6 +4,7 @@
 /// be tested on its own. All of them are noexcept and allocate nothing.
 
 #include <Eigen/Cholesky>
+#include <Eigen/LU>
 
 #include "cartesian_impedance/types.hpp"
 
@@ -50,6 +51,18 @@ Matrix6d damping_from_stiffness(const Matrix6d& stiffness, const Vector6d& dampi
 bool saturate_stiffness(Matrix6d& stiffness, double translation_min, double translation_max,
                         double rotation_min, double rotation_max) noexcept;
 
+/// Task-space inertia Lambda = (J M^-1 J^T + lambda^2 I)^-1 [kg, kg m^2]; false if M is not
+/// positive definite. `lambda` keeps it finite at singular configurations.
+bool task_space_inertia(const Jacobian& jacobian, const JointMatrix& mass, double lambda,
+                        Matrix6d& inertia) noexcept;
+
+/// Damping shaped by the task-space inertia: D = L (2 Z^1/2 sqrt(L^-1 K L^-T) Z^1/2) L^T with
+/// Lambda = L L^T, so that each mode of the mass-spring system M x'' + D x' + K x = 0 has damping
+/// ratio zeta (for a uniform zeta): d = 2 zeta sqrt(m k) in one dimension. Symmetric positive
+/// semi-definite by construction. All matrices in the same frame.
+Matrix6d inertia_shaped_damping(const Matrix6d& stiffness, const Vector6d& damping_ratio,
+                                const Matrix6d& inertia) noexcept;
+
 /// True if every off-diagonal element is exactly zero.
 bool is_diagonal(const Matrix6d& matrix) noexcept;
 
@@ -66,13 +79,24 @@ class NullspaceProjector {
   void project(const Jacobian& jacobian, double lambda, const JointVector& tau_0,
                JointVector& projected) noexcept;
 
-  /// The full n x n matrix N, for tests and diagnostics (not used by the control cycle).
+  /// Dynamically consistent projection N tau_0 with N = I - J^T Lambda J M^-1 and
+  /// Lambda = (J M^-1 J^T + lambda^2 I)^-1: tau_0 then causes no end-effector acceleration (for
+  /// lambda = 0), also while the arm moves. Returns false if M is not positive definite.
+  bool project_dynamic(const Jacobian& jacobian, const JointMatrix& mass, double lambda,
+                       const JointVector& tau_0, JointVector& projected) noexcept;
+
+  /// The full n x n matrix N, for tests and diagnostics (not used by the control cycle). With a
+  /// mass matrix, the dynamically consistent one.
   JointMatrix matrix(const Jacobian& jacobian, double lambda) noexcept;
+  JointMatrix matrix(const Jacobian& jacobian, const JointMatrix& mass, double lambda) noexcept;
 
  private:
   Eigen::LDLT<Matrix6d> task_ldlt_;
   Eigen::LLT<JointMatrix> joint_llt_;
   Eigen::LDLT<JointMatrix> joint_ldlt_;
+  Eigen::LLT<JointMatrix> mass_llt_;
+  Eigen::PartialPivLU<JointMatrix> joint_lu_;
+  Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::ColMajor, kMaxJoints, 6> mass_inverse_jt_;
   Matrix6d task_gram_;
   Matrix6d task_factor_;
   JointMatrix joint_gram_;

@@ -45,6 +45,29 @@ struct NullspaceParameters {
   double pseudo_inverse_damping = 0.01;
 };
 
+/// Options that need a dynamics model; the control loop provides M(q) and g(q) for them.
+struct DynamicsParameters {
+  /// Add g(q) to the command, for robots that do not compensate gravity themselves.
+  bool gravity_compensation = false;
+  /// Shape the Cartesian damping with the task-space inertia (d = 2 zeta sqrt(m k) per mode)
+  /// instead of D = 2 zeta sqrt(K).
+  bool inertia_shaped_damping = false;
+  /// Use the dynamically consistent projector N = I - J^T Lambda J M^-1.
+  bool dynamically_consistent_nullspace = false;
+};
+
+/// Nullspace torques that push joints away from their position limits.
+struct JointLimitAvoidanceParameters {
+  double margin = 0.1;      ///< [rad or m] distance from a limit where the push starts
+  double stiffness = 20.0;  ///< [Nm/rad] spring pushing out of the margin; 0 switches it off
+};
+
+/// Execution of joint trajectories.
+struct TrajectoryParameters {
+  double goal_tolerance = 0.01;      ///< [rad or m] per joint, to report a trajectory finished
+  double goal_time_tolerance = 1.0;  ///< [s] after the end before an unreached goal aborts
+};
+
 struct WrenchParameters {
   Eigen::Vector3d force = Eigen::Vector3d::Zero();   ///< [N]
   Eigen::Vector3d torque = Eigen::Vector3d::Zero();  ///< [Nm]
@@ -93,15 +116,18 @@ struct Parameters {
   WrenchParameters wrench;
   FilterParameters filter;
   LimitParameters limits;
+  DynamicsParameters dynamics;
+  JointLimitAvoidanceParameters joint_limit_avoidance;
+  TrajectoryParameters trajectory;
 };
 
 /// Pointer to the storage of one parameter inside a Parameters object.
-using ParameterField = std::variant<double*, Eigen::Vector3d*, JointVector*, Frame*>;
+using ParameterField = std::variant<double*, Eigen::Vector3d*, JointVector*, Frame*, bool*>;
 
 /// Description of one parameter: the single definition everything else is served from.
 struct ParameterInfo {
   std::string_view name;         ///< dotted path, as in YAML: "stiffness.translation"
-  std::string_view unit;         ///< SI unit, "-" if dimensionless, "" for frames
+  std::string_view unit;         ///< SI unit, "-" if dimensionless, "" for frames and switches
   double min;                    ///< smallest valid value of each element
   double max;                    ///< largest valid value of each element
   bool min_exclusive;            ///< true if `min` itself is not valid

@@ -41,6 +41,12 @@ struct RobotState {
   JointVector dq;     ///< joint velocities [rad/s or m/s]
   Pose pose;          ///< end-effector pose T_base_ee
   Jacobian jacobian;  ///< geometric Jacobian at q, 6 x n, base frame
+
+  // Optional model terms, left empty (size 0) when the caller has no dynamics model; a control
+  // loop with a model fills them as its options require.
+  JointMatrix mass;              ///< M(q) [kg m^2], for the dynamic options of the law
+  JointVector gravity;           ///< g(q) [Nm], added when gravity_compensation is on
+  JointVector nullspace_torque;  ///< extra tau_0 term [Nm] (e.g. joint-limit avoidance)
 };
 
 /// Returns a RobotState sized for `num_joints` with every value zero and an identity pose.

@@ -1,0 +1,170 @@
+#pragma once
+/// @file
+/// The object every integration drives (simulation, ROS, Python, a user's own robot driver): a
+/// robot model, a controller and a trajectory executor behind one `step(q, dq, dt) -> tau`.
+///
+/// Threads: one thread runs start()/step() (the cycle). Any thread may send commands (the
+/// setters, execute_trajectory(), cancel_trajectory()) and read latest_state(). Commands are
+/// validated by the sender (which gets the Error), copied whole into a lock-free inbox and applied
+/// at the beginning of the next step; the state leaves through a lock-free outbox. Nothing a
+/// sender or reader does can block the cycle, and step() itself is noexcept, allocates nothing
+/// and takes no lock. Several loops, each with its own model, can run side by side.
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "cartesian_impedance/command.hpp"
+#include "cartesian_impedance/controller.hpp"
+#include "cartesian_impedance/mailbox.hpp"
+#include "cartesian_impedance/robot_model.hpp"
+#include "cartesian_impedance/trajectory.hpp"
+
+namespace cartesian_impedance {
+
+/// Where trajectory execution stands.
+enum class TrajectoryState {
+  idle,       ///< no trajectory has run yet
+  executing,  ///< following the trajectory (also while settling within goal_time_tolerance)
+  finished,   ///< the end was reached and every joint came within trajectory.goal_tolerance
+  aborted,    ///< the goal was not reached within trajectory.goal_time_tolerance after the end
+  cancelled,  ///< cancel_trajectory(), or a reference pose / nullspace target command, stopped it
+};
+
+const char* to_string(TrajectoryState state) noexcept;
+
+struct TrajectoryProgress {
+  TrajectoryState state = TrajectoryState::idle;
+  std::uint64_t id = 0;     ///< id returned by execute_trajectory() of the one reported here
+  double time = 0.0;        ///< [s] since it started
+  double duration = 0.0;    ///< [s] of its last point
+  double goal_error = 0.0;  ///< [rad or m] largest |q - q_goal| (once past the end)
+};
+
+/// What one step leaves in the outbox.
+struct LoopState {
+  ControllerState controller;  ///< the law's snapshot: errors, targets, torque parts, limits
+  JointVector q;               ///< measured joint positions [rad or m]
+  JointVector dq;              ///< measured joint velocities [rad/s or m/s]
+  TrajectoryProgress trajectory;
+  std::uint64_t cycle = 0;             ///< steps since start()
+  double time = 0.0;                   ///< [s] sum of dt since start()
+  std::uint64_t commands_applied = 0;  ///< commands taken from the inbox since construction
+};
+
+/// Sizes fixed at construction.
+struct LoopCapacity {
+  int commands = 64;              ///< inbox slots; a full inbox makes senders throw
+  int trajectory_points = 10000;  ///< largest trajectory accepted
+};
+
+class ControlLoop {
+ public:
+  /// @throws Error if the parameters are invalid for the model's joint count.
+  explicit ControlLoop(const RobotModel& model, const Parameters& parameters = {},
+                       LoopCapacity capacity = {});
+  ~ControlLoop();
+  ControlLoop(const ControlLoop&) = delete;
+  ControlLoop& operator=(const ControlLoop&) = delete;
+
+  const RobotModel& model() const noexcept;
+  int num_joints() const noexcept;
+
+  // ---- the cycle: one thread -----------------------------------------------------------------
+
+  /// Starts (or restarts) from the measured state: reference pose = current pose, nullspace
+  /// target = q. The previous torque is taken as g(q) when dynamics.gravity_compensation is on
+  /// (that is what the robot needs to hold still), else zero, unless `tau_previous` is given.
+  /// @throws Error for wrongly sized or non-finite q, dq, tau_previous.
+  void start(const Eigen::Ref<const Eigen::VectorXd>& q,
+             const Eigen::Ref<const Eigen::VectorXd>& dq);
+  void start(const Eigen::Ref<const Eigen::VectorXd>& q,
+             const Eigen::Ref<const Eigen::VectorXd>& dq,
+             const Eigen::Ref<const Eigen::VectorXd>& tau_previous);
+
+  /// One control cycle: applies queued commands, advances the trajectory, computes the model at
+  /// q, evaluates the law and publishes the state. Returns the joint torque to command [Nm].
+  /// noexcept, no allocation, no lock; bad q/dq/dt give a status (state().controller.status) and a
+  /// torque that ramps toward zero (or toward gravity compensation) within the rate limit.
+  const JointVector& step(const JointVector& q, const JointVector& dq, double dt) noexcept;
+
+  /// The state after the last step (cycle thread only; other threads use latest_state()).
+  const LoopState& state() const noexcept { return state_; }
+  /// The controller, for inspection from the cycle thread.
+  const CartesianImpedanceController& controller() const noexcept { return controller_; }
+
+  // ---- commands: any thread ------------------------------------------------------------------
+  // Each validates (throwing Error on bad input, which queues nothing) and queues the command for
+  // the next step. They throw Error too if the inbox is full.
+
+  void send(const Command& command);
+  void set_parameters(const Parameters& parameters);
+  void set_reference_pose(const Pose& pose_base);
+  void set_stiffness(const Vector6d& diagonal, std::optional<Frame> frame = std::nullopt);
+  void set_stiffness_matrix(const Matrix6d& stiffness, std::optional<Frame> frame = std::nullopt);
+  void set_damping_ratio(const Vector6d& damping_ratio);
+  void set_nullspace_target(const Eigen::Ref<const Eigen::VectorXd>& q_desired);
+  void set_nullspace_stiffness(const Eigen::Ref<const Eigen::VectorXd>& stiffness);
+  void set_nullspace_damping_ratio(double damping_ratio);
+  void set_wrench(const Vector6d& wrench, std::optional<Frame> frame = std::nullopt);
+  /// Kinesthetic teaching (hand guiding): zero Cartesian stiffness, and zero nullspace stiffness
+  /// unless `keep_nullspace` is true. The arm then only feels its damping and friction and stays
+  /// where it is left. Any later stiffness command ends it; the changes are filtered.
+  void start_teaching(bool keep_nullspace = false);
+
+  /// Validates `trajectory` against the model (names, sizes, times, position limits), copies it
+  /// into preallocated storage and queues it. It starts at the next step from the current
+  /// state (or from where the running trajectory is, which it preempts, so nothing jumps).
+  /// Returns its id, as reported in LoopState::trajectory.
+  /// @throws Error on a bad trajectory, or if all trajectory buffers are in use.
+  std::uint64_t execute_trajectory(const JointTrajectory& trajectory);
+  /// Stops a running trajectory; the robot holds where it is.
+  void cancel_trajectory();
+
+  /// A copy of the newest published state (any thread).
+  LoopState latest_state() const;
+  /// Parameters in force as of the last step (any thread).
+  Parameters latest_parameters() const;
+
+ private:
+  struct Message {
+    enum class Kind { command, trajectory, cancel_trajectory } kind = Kind::command;
+    std::optional<Command> command;
+    int buffer = -1;
+    std::uint64_t trajectory_id = 0;
+  };
+  struct Slot;
+
+  void enqueue(const Message& message);
+  void apply_messages() noexcept;
+  void begin_trajectory(int buffer, std::uint64_t id) noexcept;
+  void end_trajectory(TrajectoryState state, bool hold_measured) noexcept;
+  void advance_trajectory(double dt) noexcept;
+  void joint_limit_torque() noexcept;
+
+  RobotModel model_;
+  ModelWorkspace workspace_;
+  ModelWorkspace reference_workspace_;
+  CartesianImpedanceController controller_;
+  Kinematics kinematics_;
+  Kinematics reference_kinematics_;
+  RobotState robot_;
+  LoopState state_;
+
+  CommandQueue<Message> inbox_;
+  SnapshotBuffer<LoopState, 4> outbox_;
+  SnapshotBuffer<Parameters, 4> parameters_outbox_;
+
+  // Trajectory buffers: a sender claims a free one, fills it, and queues its index; the cycle
+  // releases it when another replaces it. Only atomics change hands, so the cycle never frees.
+  std::vector<std::unique_ptr<Slot>> buffers_;
+  std::atomic<std::uint64_t> next_trajectory_id_{1};
+  int active_buffer_ = -1;
+  JointVector trajectory_q_, trajectory_dq_;
+  JointVector lower_limits_, upper_limits_;
+  std::uint64_t commands_applied_ = 0;
+};
+
+}  // namespace cartesian_impedance

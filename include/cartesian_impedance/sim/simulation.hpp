@@ -1,0 +1,175 @@
+#pragma once
+/// @file
+/// MuJoCo simulation of a torque-controlled arm: joint torques in, joint positions and velocities
+/// out, with gravity compensation done the way Panda and iiwa firmware do it, external pushes,
+/// static boxes (tables, walls) to touch, contact wrenches and offscreen rendering.
+///
+/// This header does not include MuJoCo; users need only Eigen. Loaders and setters validate and
+/// throw `cartesian_impedance::Error`; `step()` is noexcept and allocates nothing.
+///
+/// Frames: every pose, force and wrench here is in MuJoCo's world frame. For the project's robot
+/// files the robot base sits at the world origin, so world = base frame of the controller.
+/// Wrenches are ordered `[force; torque]` [N; Nm].
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cartesian_impedance/types.hpp"
+
+namespace cartesian_impedance::sim {
+
+/// How a model is turned into a simulation. Fixed at construction.
+struct SimulationOptions {
+  /// Integration step [s]; replaces the model's own (MuJoCo's default for URDF is 2 ms).
+  double timestep = 0.001;
+  /// Like the Panda and iiwa firmware: each exchanged joint receives tau + g(q), where g(q) is the
+  /// gravity part of MuJoCo's bias force (no Coriolis), recomputed every step at the current q.
+  /// It is applied through qfrc_applied, so it is not limited by the actuator range.
+  bool gravity_compensation = true;
+  /// Reset to this keyframe if the model has one of that name; otherwise (or "") the model's
+  /// default qpos (q = 0 for the project's robots, which violates the Panda's joint-4 range).
+  std::string keyframe = "ready";
+  /// Order in which q, dq and tau are exchanged, matched to MuJoCo joints by name. Empty: the
+  /// model's hinge and slide joints in model order.
+  std::vector<std::string> joint_names;
+  /// MuJoCo's multi-point convex collision detection (mjENBL_MULTICCD, "experimental" in 2.2):
+  /// a flat face resting on a flat face (the flange on a table) gets several contact points
+  /// instead of one that jumps across the face, which makes the contact force steady (measured:
+  /// Panda flange pressed on a table with 20 N, +-1.5 % instead of +-12 % step to step). About
+  /// doubles the cost of a step while in contact; no cost without contact.
+  bool multi_point_contacts = true;
+};
+
+/// A simulated robot. Movable, not copyable, not thread-safe (one thread drives it). Loading and
+/// the first render_png() briefly replace MuJoCo's process-wide error handler (so that MuJoCo
+/// errors become `Error` instead of ending the process): do those from one thread at a time.
+class Simulation {
+ public:
+  /// Loads an MJCF file. Each exchanged joint is driven by the `<motor>` acting on it (matched
+  /// through its transmission, not its name; the torque is converted with the motor's gear and
+  /// gain and limited to its ctrlrange/forcerange), or, if no actuator acts on it, through
+  /// MuJoCo's `qfrc_applied`.
+  /// @throw Error if the file does not exist or does not compile, a joint name is unknown or not
+  ///        a hinge/slide joint, an actuator on an exchanged joint is not a plain torque motor, or
+  ///        the options are invalid.
+  static Simulation from_mjcf_file(const std::string& path, SimulationOptions options = {});
+
+  /// Loads a URDF with MuJoCo's URDF importer. URDF has no actuators, so every torque goes through
+  /// `qfrc_applied` and is not limited; there is no floor and no keyframe (q starts at 0).
+  /// @throw Error as from_mjcf_file().
+  static Simulation from_urdf_file(const std::string& path, SimulationOptions options = {});
+
+  Simulation(Simulation&&) noexcept;
+  Simulation& operator=(Simulation&&) noexcept;
+  Simulation(const Simulation&) = delete;
+  Simulation& operator=(const Simulation&) = delete;
+  ~Simulation();
+
+  int num_joints() const noexcept;
+  /// Joint names in the order q, dq and tau are exchanged.
+  const std::vector<std::string>& joint_names() const noexcept;
+  /// Simulated time since construction or the last reset() [s].
+  double time() const noexcept;
+  /// Integration step [s].
+  double timestep() const noexcept;
+
+  /// Joint positions [rad or m] and velocities [rad/s or m/s], in joint_names() order.
+  const JointVector& q() const noexcept;
+  const JointVector& dq() const noexcept;
+
+  /// Sets positions and velocities of the exchanged joints (other degrees of freedom keep theirs)
+  /// and recomputes every derived quantity (poses, contacts). Time is not changed.
+  /// @throw Error on a wrong size or a non-finite value (nothing is changed then).
+  void set_state(const JointVector& q, const JointVector& dq);
+
+  /// Back to the keyframe of the options (or the default qpos) at time 0: zero torque, no pushes.
+  void reset();
+
+  /// Commands joint torques tau [Nm or N], applied from the next step() until changed (gravity
+  /// compensation, when on, comes on top). Like a real drive, each value is clipped to the
+  /// torque range of its actuator (joints without an actuator are not limited).
+  /// @return true if any value was clipped; torque() holds what is applied.
+  /// @throw Error on a wrong size or a non-finite value (the previous torque stays then).
+  bool set_torque(const JointVector& tau);
+
+  /// The commanded torque actually applied, after clipping [Nm or N] (without gravity
+  /// compensation).
+  const JointVector& torque() const noexcept;
+  /// Torque range per joint [Nm or N]; -inf/+inf where the joint has no limited actuator.
+  const JointVector& torque_lower_limits() const noexcept;
+  const JointVector& torque_upper_limits() const noexcept;
+
+  /// Advances by one timestep: gravity compensation and pushes are evaluated at the current state,
+  /// then MuJoCo integrates. No allocation, no exception.
+  void step() noexcept;
+
+  /// Applies `wrench_world` = [force; torque] [N; Nm] (world frame) at the origin of the named
+  /// site, or of the named body if no site has that name, for `duration` [s] of simulated time
+  /// starting with the next step() (+infinity: until clear_pushes()). The point of application
+  /// moves with the body. Several pushes add up.
+  /// @throw Error if the name is unknown, the wrench is not finite or duration is not > 0.
+  void push(const std::string& body_or_site, const Vector6d& wrench_world, double duration);
+  /// Removes every push.
+  void clear_pushes() noexcept;
+
+  /// Pose of a site or a body (origin and orientation) in the world frame, at the current q.
+  /// @throw Error if the name is unknown.
+  Pose site_pose(const std::string& site) const;
+  Pose body_pose(const std::string& body) const;
+
+  /// Total contact wrench [N; Nm] that everything else exerts on `body` and on the bodies welded
+  /// to it (bodies without joints move with their parent, so the massless flange body
+  /// `panda_link8` reports the contacts of `panda_link7`'s geoms). World frame, torque about the
+  /// origin of `body`. Computed with mj_contactForce from the contacts of the last step()
+  /// or set_state().
+  /// @throw Error if the body is unknown.
+  Vector6d contact_wrench(const std::string& body) const;
+
+  /// Renders the scene offscreen (EGL, no display needed) and writes an RGB PNG of
+  /// width x height pixels. `camera` names an MJCF camera; "" is a free camera looking at the
+  /// scene from the robot's right side. The first call sets up an OpenGL context (about 0.5 s with
+  /// Mesa's software renderer); later calls reuse it.
+  /// @throw Error if EGL/OpenGL is unavailable (the message says why), the camera is unknown, the
+  ///        size is not in [1, 8192] or the file cannot be written.
+  void render_png(const std::string& path, int width, int height,
+                  const std::string& camera = "") const;
+
+  /// MuJoCo's model name (the `model` attribute of `<mujoco>` or the URDF robot name).
+  const std::string& model_name() const noexcept;
+
+  /// Internal: MuJoCo model, data and bookkeeping (defined in the sim sources; users cannot
+  /// create one, so they use the factories above).
+  struct Impl;
+  explicit Simulation(std::unique_ptr<Impl> impl) noexcept;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+/// A static box in the world (a table, a wall, a step), colliding with the robot.
+struct Box {
+  std::string name;                                     ///< geom name; "" = "scene_box_<index>"
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();     ///< world frame [m]
+  Eigen::Vector3d half_size = Eigen::Vector3d::Ones();  ///< half extents along the box axes [m]
+  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  ///< box axes in the world
+
+  /// A table standing on the floor (z = 0) whose top surface is at height `top_z` [m], centred at
+  /// `center_xy` with half extents `half_size_xy` [m].
+  static Box table(const Eigen::Vector2d& center_xy, const Eigen::Vector2d& half_size_xy,
+                   double top_z, const std::string& name = "");
+};
+
+/// Loads the MJCF robot file with the boxes added to its world, without writing any file (the
+/// combined document is held in MuJoCo's virtual file system, placed in the robot file's
+/// directory so that its relative asset and include paths still resolve).
+/// @throw Error as Simulation::from_mjcf_file(), or if a box has a non-finite value or a half
+///        size that is not > 0, or the robot file is not MJCF.
+Simulation make_scene(const std::string& robot_mjcf, const std::vector<Box>& boxes,
+                      SimulationOptions options = {});
+
+/// Whether offscreen rendering can work in this process (an EGL display and an OpenGL context
+/// can be created). If not and `reason` is given, it receives why.
+bool offscreen_rendering_available(std::string* reason = nullptr);
+
+}  // namespace cartesian_impedance::sim

@@ -1,0 +1,142 @@
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <locale>
+#include <memory>
+#include <sstream>
+
+#include "cartesian_impedance/sim/simulation.hpp"
+#include "simulation_impl.hpp"
+
+namespace cartesian_impedance::sim {
+namespace {
+
+struct VfsDeleter {
+  void operator()(mjVFS* vfs) const noexcept {
+    mj_deleteVFS(vfs);
+    delete vfs;
+  }
+};
+
+void check_finite(const Eigen::Ref<const Eigen::VectorXd>& value, const std::string& field) {
+  for (Eigen::Index i = 0; i < value.size(); ++i) {
+    if (!std::isfinite(value[i])) {
+      std::ostringstream message;
+      message << field << "[" << i << "] = " << value[i] << " is not a finite number";
+      throw Error(message.str());
+    }
+  }
+}
+
+// Name of the document's root element: skips the XML declaration, comments and a DOCTYPE.
+std::string root_element(const std::string& document) {
+  std::size_t at = 0;
+  while (true) {
+    at = document.find('<', at);
+    if (at == std::string::npos) return "";
+    if (document.compare(at, 4, "<!--") == 0) {
+      at = document.find("-->", at);
+      if (at == std::string::npos) return "";
+    } else if (document.compare(at, 2, "<?") == 0 || document.compare(at, 2, "<!") == 0) {
+      at = document.find('>', at);
+      if (at == std::string::npos) return "";
+    } else {
+      const std::size_t end = document.find_first_of(" \t\r\n/>", at + 1);
+      return document.substr(at + 1, end == std::string::npos ? end : end - at - 1);
+    }
+  }
+}
+
+}  // namespace
+
+Box Box::table(const Eigen::Vector2d& center_xy, const Eigen::Vector2d& half_size_xy, double top_z,
+               const std::string& name) {
+  Box box;
+  box.name = name;
+  box.center = Eigen::Vector3d(center_xy.x(), center_xy.y(), 0.5 * top_z);
+  box.half_size = Eigen::Vector3d(half_size_xy.x(), half_size_xy.y(), 0.5 * top_z);
+  return box;
+}
+
+Simulation make_scene(const std::string& robot_mjcf, const std::vector<Box>& boxes,
+                      SimulationOptions options) {
+  std::ostringstream geoms;
+  geoms.imbue(std::locale::classic());
+  geoms.precision(17);
+  geoms << "\n  <!-- added by cartesian_impedance::sim::make_scene -->\n  <worldbody>\n";
+  for (std::size_t i = 0; i < boxes.size(); ++i) {
+    const Box& box = boxes[i];
+    const std::string field = "boxes[" + std::to_string(i) + "]";
+    check_finite(box.center, field + ".center");
+    check_finite(box.half_size, field + ".half_size");
+    check_finite(box.orientation.coeffs(), field + ".orientation");
+    for (int k = 0; k < 3; ++k) {
+      if (!(box.half_size[k] > 0.0)) {
+        std::ostringstream message;
+        message << field << ".half_size[" << k << "] = " << box.half_size[k] << " m is not > 0";
+        throw Error(message.str());
+      }
+    }
+    if (box.orientation.norm() < 1e-9) {
+      throw Error(field + ".orientation has zero norm; expected a unit quaternion");
+    }
+    for (char c : box.name) {
+      if (c == '"' || c == '<' || c == '>' || c == '&') {
+        throw Error(field + ".name = '" + box.name +
+                    "' contains a character that cannot appear in an XML attribute (\" < > &)");
+      }
+    }
+    const Eigen::Quaterniond q = box.orientation.normalized();
+    const std::string name = box.name.empty() ? "scene_box_" + std::to_string(i) : box.name;
+    // contype/conaffinity 1 explicitly: the robot's default class may give geoms contype 0
+    // (the project's robots do, so that the arm does not collide with itself).
+    geoms << "    <geom name=\"" << name << "\" type=\"box\" pos=\"" << box.center.x() << ' '
+          << box.center.y() << ' ' << box.center.z() << "\" size=\"" << box.half_size.x() << ' '
+          << box.half_size.y() << ' ' << box.half_size.z() << "\" quat=\"" << q.w() << ' ' << q.x()
+          << ' ' << q.y() << ' ' << q.z()
+          << "\" contype=\"1\" conaffinity=\"1\" rgba=\"0.62 0.48 0.34 1\"/>\n";
+  }
+  geoms << "  </worldbody>\n";
+
+  std::error_code error_code;
+  if (!std::filesystem::is_regular_file(robot_mjcf, error_code)) {
+    throw Error("MJCF file '" + robot_mjcf + "' does not exist or is not a regular file");
+  }
+  std::ifstream file(robot_mjcf, std::ios::binary);
+  std::stringstream content;
+  content << file.rdbuf();
+  if (!file) throw Error("cannot read MJCF file '" + robot_mjcf + "'");
+  std::string document = content.str();
+
+  // A second <worldbody> section is merged with the first by MuJoCo's parser, so the boxes can
+  // go right before the closing tag without parsing the robot file.
+  const std::string root = root_element(document);
+  const std::size_t end = document.rfind("</mujoco>");
+  if (root != "mujoco" || end == std::string::npos) {
+    throw Error("make_scene: '" + robot_mjcf + "' is not an MJCF file (root element <" + root +
+                "> instead of <mujoco>); expected an MJCF robot file");
+  }
+  document.insert(end, geoms.str());
+
+  // The combined document goes into MuJoCo's virtual file system under a name in the robot
+  // file's directory: the loader finds it there first, and resolves the robot's relative
+  // include/mesh/texture paths against that directory as for the original file.
+  const std::filesystem::path robot_path = std::filesystem::absolute(robot_mjcf);
+  const std::string scene_name =
+      robot_path.stem().string() + "_cartesian_impedance_scene" + robot_path.extension().string();
+  const std::string scene_path = (robot_path.parent_path() / scene_name).string();
+
+  std::unique_ptr<mjVFS, VfsDeleter> vfs(new mjVFS);  // about 2 MB: not on the stack
+  mj_defaultVFS(vfs.get());
+  const int size = static_cast<int>(document.size());
+  if (mj_makeEmptyFileVFS(vfs.get(), scene_name.c_str(), size) != 0) {
+    throw Error("cannot create '" + scene_name + "' in MuJoCo's virtual file system");
+  }
+  const int index = mj_findFileVFS(vfs.get(), scene_name.c_str());
+  std::copy(document.begin(), document.end(), static_cast<char*>(vfs->filedata[index]));
+  return detail::load_simulation(scene_path, vfs.get(), "scene (" + robot_mjcf + " with boxes)",
+                                 std::move(options));
+}
+
+}  // namespace cartesian_impedance::sim

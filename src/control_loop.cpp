@@ -1,0 +1,344 @@
+#include "cartesian_impedance/control_loop.hpp"
+
+#include <cmath>
+
+#include "cartesian_impedance/error.hpp"
+#include "checks.hpp"
+
+namespace cartesian_impedance {
+
+namespace {
+constexpr int kTrajectoryBuffers = 4;  // running, queued, being written, one spare
+}
+
+// A trajectory buffer and who owns it: free -> (sender) filling -> queued -> (cycle) running ->
+// free. Only the owner touches the buffer; ownership changes through `state`.
+struct ControlLoop::Slot {
+  enum State : int { free, filling, queued, running };
+  Slot(int num_joints, int max_points) : buffer(num_joints, max_points) {}
+  TrajectoryBuffer buffer;
+  std::atomic<int> state{free};
+};
+
+const char* to_string(TrajectoryState state) noexcept {
+  switch (state) {
+    case TrajectoryState::idle:
+      return "idle";
+    case TrajectoryState::executing:
+      return "executing";
+    case TrajectoryState::finished:
+      return "finished";
+    case TrajectoryState::aborted:
+      return "aborted";
+    case TrajectoryState::cancelled:
+      return "cancelled";
+  }
+  return "unknown";
+}
+
+ControlLoop::ControlLoop(const RobotModel& model, const Parameters& parameters,
+                         LoopCapacity capacity)
+    : model_(model),
+      workspace_(model_),
+      reference_workspace_(model_),
+      controller_(model_.num_joints(), parameters),
+      kinematics_(workspace_.make_kinematics()),
+      reference_kinematics_(reference_workspace_.make_kinematics()),
+      robot_(make_robot_state(model_.num_joints())),
+      inbox_(static_cast<std::size_t>(capacity.commands < 2 ? 2 : capacity.commands)) {
+  const int n = model_.num_joints();
+  if (capacity.trajectory_points < 1) {
+    throw Error("LoopCapacity.trajectory_points = " + std::to_string(capacity.trajectory_points) +
+                " must be at least 1");
+  }
+  for (int i = 0; i < kTrajectoryBuffers; ++i) {
+    buffers_.push_back(std::make_unique<Slot>(n, capacity.trajectory_points));
+  }
+  trajectory_q_ = JointVector::Zero(n);
+  trajectory_dq_ = JointVector::Zero(n);
+  lower_limits_ = model_.limits().position_lower;
+  upper_limits_ = model_.limits().position_upper;
+  robot_.mass = JointMatrix::Zero(n, n);
+  robot_.gravity = JointVector::Zero(n);
+  robot_.nullspace_torque = JointVector::Zero(n);
+  state_.controller = controller_.state();
+  state_.q = JointVector::Zero(n);
+  state_.dq = JointVector::Zero(n);
+  outbox_.publish(state_);
+  parameters_outbox_.publish(controller_.parameters());
+}
+
+ControlLoop::~ControlLoop() = default;
+
+const RobotModel& ControlLoop::model() const noexcept {
+  return model_;
+}
+int ControlLoop::num_joints() const noexcept {
+  return model_.num_joints();
+}
+
+void ControlLoop::start(const Eigen::Ref<const Eigen::VectorXd>& q,
+                        const Eigen::Ref<const Eigen::VectorXd>& dq) {
+  checks::size("q", q.size(), num_joints());
+  checks::finite_vector("q", q, "rad");
+  const JointVector joints = q;
+  workspace_.compute(joints, JointVector::Zero(num_joints()), kinematics_, true);
+  start(q, dq,
+        controller_.parameters().dynamics.gravity_compensation
+            ? Eigen::VectorXd(kinematics_.gravity)
+            : Eigen::VectorXd::Zero(num_joints()));
+}
+
+void ControlLoop::start(const Eigen::Ref<const Eigen::VectorXd>& q,
+                        const Eigen::Ref<const Eigen::VectorXd>& dq,
+                        const Eigen::Ref<const Eigen::VectorXd>& tau_previous) {
+  const int n = num_joints();
+  checks::size("q", q.size(), n);
+  checks::size("dq", dq.size(), n);
+  checks::finite_vector("q", q, "rad");
+  checks::finite_vector("dq", dq, "rad/s");
+  apply_messages();  // commands sent before start take effect now, in order
+  const JointVector joints = q, velocities = dq;
+  workspace_.compute(joints, velocities, kinematics_, true);
+  fill_robot_state(joints, velocities, kinematics_, robot_);
+  controller_.start(robot_, tau_previous);
+  if (active_buffer_ >= 0) end_trajectory(TrajectoryState::cancelled, false);
+  state_.cycle = 0;
+  state_.time = 0.0;
+  state_.q = joints;
+  state_.dq = velocities;
+  state_.controller = controller_.state();
+  outbox_.publish(state_);
+}
+
+void ControlLoop::enqueue(const Message& message) {
+  if (!inbox_.push(message)) {
+    throw Error("control loop inbox is full (" + std::to_string(inbox_.capacity()) +
+                " commands): is the loop stepping?");
+  }
+}
+
+void ControlLoop::send(const Command& command) {
+  if (command.num_joints() != 0 && command.num_joints() != num_joints()) {
+    throw Error("command was validated for " + std::to_string(command.num_joints()) +
+                " joints; this loop has " + std::to_string(num_joints()));
+  }
+  Message message;
+  message.command = command;
+  enqueue(message);
+}
+
+void ControlLoop::set_parameters(const Parameters& parameters) {
+  send(Command::parameters(parameters, num_joints()));
+}
+void ControlLoop::set_reference_pose(const Pose& pose_base) {
+  send(Command::reference_pose(pose_base));
+}
+void ControlLoop::set_stiffness(const Vector6d& diagonal, std::optional<Frame> frame) {
+  send(Command::stiffness(diagonal, frame));
+}
+void ControlLoop::set_stiffness_matrix(const Matrix6d& stiffness, std::optional<Frame> frame) {
+  send(Command::stiffness_matrix(stiffness, frame));
+}
+void ControlLoop::set_damping_ratio(const Vector6d& damping_ratio) {
+  send(Command::damping_ratio(damping_ratio));
+}
+void ControlLoop::set_nullspace_target(const Eigen::Ref<const Eigen::VectorXd>& q_desired) {
+  send(Command::nullspace_target(q_desired, num_joints()));
+}
+void ControlLoop::set_nullspace_stiffness(const Eigen::Ref<const Eigen::VectorXd>& stiffness) {
+  send(Command::nullspace_stiffness(stiffness, num_joints()));
+}
+void ControlLoop::set_nullspace_damping_ratio(double damping_ratio) {
+  send(Command::nullspace_damping_ratio(damping_ratio));
+}
+void ControlLoop::set_wrench(const Vector6d& wrench, std::optional<Frame> frame) {
+  send(Command::wrench(wrench, frame));
+}
+
+void ControlLoop::start_teaching(bool keep_nullspace) {
+  const Command stiffness = Command::stiffness(Vector6d::Zero());
+  if (keep_nullspace) {
+    send(stiffness);
+    return;
+  }
+  const Command nullspace = Command::nullspace_stiffness(Eigen::VectorXd::Zero(1), num_joints());
+  send(stiffness);
+  send(nullspace);
+}
+
+std::uint64_t ControlLoop::execute_trajectory(const JointTrajectory& trajectory) {
+  for (std::size_t i = 0; i < buffers_.size(); ++i) {
+    Slot& slot = *buffers_[i];
+    int expected = Slot::free;
+    if (!slot.state.compare_exchange_strong(expected, Slot::filling)) continue;
+    try {
+      slot.buffer.assign(trajectory, model_.joint_names(), lower_limits_, upper_limits_);
+      Message message;
+      message.kind = Message::Kind::trajectory;
+      message.buffer = static_cast<int>(i);
+      message.trajectory_id = next_trajectory_id_.fetch_add(1);
+      slot.state.store(Slot::queued, std::memory_order_release);
+      enqueue(message);
+      return message.trajectory_id;
+    } catch (...) {
+      slot.state.store(Slot::free, std::memory_order_release);
+      throw;
+    }
+  }
+  throw Error("all " + std::to_string(buffers_.size()) +
+              " trajectory buffers are in use (queued or running): is the loop stepping?");
+}
+
+void ControlLoop::cancel_trajectory() {
+  Message message;
+  message.kind = Message::Kind::cancel_trajectory;
+  enqueue(message);
+}
+
+LoopState ControlLoop::latest_state() const {
+  return outbox_.read();
+}
+Parameters ControlLoop::latest_parameters() const {
+  return parameters_outbox_.read();
+}
+
+void ControlLoop::apply_messages() noexcept {
+  Message message;
+  bool parameters_changed = false;
+  while (inbox_.pop(message)) {
+    ++commands_applied_;
+    switch (message.kind) {
+      case Message::Kind::command: {
+        const Command& command = *message.command;
+        // A new reference or nullspace target from outside ends a running trajectory, which would
+        // otherwise overwrite it in the same cycle.
+        if (active_buffer_ >= 0 && (command.kind() == Command::Kind::reference_pose ||
+                                    command.kind() == Command::Kind::nullspace_target)) {
+          end_trajectory(TrajectoryState::cancelled, false);
+        }
+        controller_.apply(command);
+        parameters_changed = true;
+        break;
+      }
+      case Message::Kind::trajectory:
+        begin_trajectory(message.buffer, message.trajectory_id);
+        break;
+      case Message::Kind::cancel_trajectory:
+        if (active_buffer_ >= 0) end_trajectory(TrajectoryState::cancelled, true);
+        break;
+    }
+  }
+  if (parameters_changed) parameters_outbox_.publish(controller_.parameters());
+}
+
+void ControlLoop::begin_trajectory(int buffer, std::uint64_t id) noexcept {
+  // Continue from where the running trajectory is, or from the measured state.
+  if (active_buffer_ >= 0) {
+    buffers_[static_cast<std::size_t>(active_buffer_)]->state.store(Slot::free,
+                                                                    std::memory_order_release);
+  } else {
+    trajectory_q_ = state_.q;
+    trajectory_dq_ = state_.dq;
+  }
+  Slot& slot = *buffers_[static_cast<std::size_t>(buffer)];
+  slot.state.store(Slot::running, std::memory_order_relaxed);
+  slot.buffer.begin(trajectory_q_, trajectory_dq_);
+  active_buffer_ = buffer;
+  state_.trajectory =
+      TrajectoryProgress{TrajectoryState::executing, id, 0.0, slot.buffer.duration(), 0.0};
+}
+
+void ControlLoop::end_trajectory(TrajectoryState end_state, bool hold_measured) noexcept {
+  buffers_[static_cast<std::size_t>(active_buffer_)]->state.store(Slot::free,
+                                                                  std::memory_order_release);
+  active_buffer_ = -1;
+  state_.trajectory.state = end_state;
+  controller_.stop_tracking();
+  if (hold_measured) {
+    // Hold where the robot is rather than keep pulling toward a target it did not reach.
+    controller_.track(kinematics_.pose, Vector6d::Zero(), state_.q,
+                      JointVector::Zero(num_joints()));
+  }
+}
+
+void ControlLoop::advance_trajectory(double dt) noexcept {
+  if (active_buffer_ < 0) return;
+  const TrajectoryBuffer& buffer = buffers_[static_cast<std::size_t>(active_buffer_)]->buffer;
+  TrajectoryProgress& progress = state_.trajectory;
+  progress.time += dt;
+  buffer.sample(progress.time, trajectory_q_, trajectory_dq_);
+  // Reference pose by forward kinematics of the sampled joints, with the twist J(q_d) dq_d as
+  // velocity feed-forward; the nullspace follows the joints themselves.
+  reference_workspace_.compute(trajectory_q_, trajectory_dq_, reference_kinematics_, false);
+  Vector6d twist;
+  twist.noalias() = reference_kinematics_.jacobian * trajectory_dq_;
+  controller_.track(reference_kinematics_.pose, twist, trajectory_q_, trajectory_dq_);
+  if (progress.time < progress.duration) return;
+  const TrajectoryParameters& tolerances = controller_.parameters().trajectory;
+  progress.goal_error = (state_.q - trajectory_q_).cwiseAbs().maxCoeff();
+  if (progress.goal_error <= tolerances.goal_tolerance) {
+    end_trajectory(TrajectoryState::finished, false);
+  } else if (progress.time > progress.duration + tolerances.goal_time_tolerance) {
+    end_trajectory(TrajectoryState::aborted, true);
+  }
+}
+
+void ControlLoop::joint_limit_torque() noexcept {
+  // A spring that pushes each joint out of the margin next to its limits, added to tau_0 so the
+  // end effector does not feel it. Joints without limits (continuous) have infinite bounds.
+  const JointLimitAvoidanceParameters& avoidance = controller_.parameters().joint_limit_avoidance;
+  JointVector& torque = robot_.nullspace_torque;
+  if (!(avoidance.stiffness > 0.0)) {
+    torque.resize(0);
+    return;
+  }
+  torque.setZero(num_joints());
+  for (int i = 0; i < num_joints(); ++i) {
+    const double upper = upper_limits_[i] - avoidance.margin;
+    const double lower = lower_limits_[i] + avoidance.margin;
+    const double q = robot_.q[i];
+    if (q > upper) torque[i] = -avoidance.stiffness * (q - upper);
+    if (q < lower) torque[i] = avoidance.stiffness * (lower - q);
+  }
+}
+
+const JointVector& ControlLoop::step(const JointVector& q, const JointVector& dq,
+                                     double dt) noexcept {
+  apply_messages();
+  const int n = num_joints();
+  const DynamicsParameters& dynamics = controller_.parameters().dynamics;
+  const bool need_dynamics = dynamics.gravity_compensation || dynamics.inertia_shaped_damping ||
+                             dynamics.dynamically_consistent_nullspace;
+  // A bad measurement still goes to the controller (as a non-finite or wrongly sized state) so
+  // that it reports it and ramps the torque down; the model is only evaluated on good input.
+  const bool valid = q.size() == n && dq.size() == n && q.allFinite() && dq.allFinite();
+  if (valid) {
+    workspace_.compute(q, dq, kinematics_, need_dynamics);
+    fill_robot_state(q, dq, kinematics_, robot_);
+    state_.q = q;
+    state_.dq = dq;
+    if (dt > 0.0 && std::isfinite(dt) && controller_.started()) advance_trajectory(dt);
+  } else {
+    robot_.q = q.size() == n ? q : JointVector::Constant(n, std::nan(""));
+  }
+  if (need_dynamics && valid) {
+    robot_.mass = kinematics_.mass;
+    robot_.gravity = kinematics_.gravity;
+  } else if (!need_dynamics) {
+    robot_.mass.resize(0, 0);
+    robot_.gravity.resize(0);
+  }
+  if (valid) joint_limit_torque();
+  controller_.update(robot_, dt);
+  if (controller_.started() && dt > 0.0 && std::isfinite(dt)) {
+    ++state_.cycle;
+    state_.time += dt;
+  }
+  state_.commands_applied = commands_applied_;
+  state_.controller = controller_.state();
+  outbox_.publish(state_);
+  return controller_.torque();
+}
+
+}  // namespace cartesian_impedance

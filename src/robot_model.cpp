@@ -1,0 +1,324 @@
+#include "cartesian_impedance/robot_model.hpp"
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <kdl/chain.hpp>
+#include <kdl/chaindynparam.hpp>
+#include <kdl/chainfksolverpos_recursive.hpp>
+#include <kdl/chainjnttojacsolver.hpp>
+#include <kdl/frames.hpp>
+#include <kdl/jacobian.hpp>
+#include <kdl/jntarray.hpp>
+#include <kdl/jntspaceinertiamatrix.hpp>
+#include <sstream>
+#include <utility>
+
+#include "cartesian_impedance/error.hpp"
+#include "urdf_to_kdl.hpp"
+
+namespace cartesian_impedance {
+
+namespace detail {
+
+// Everything a RobotModel knows, shared (read-only) by its copies and workspaces.
+struct ModelData {
+  UrdfChain urdf;  // urdf.chain ends with one fixed "tool" segment for T_tip_tool
+  std::string base_link;
+  std::string tip_link;
+  Eigen::Isometry3d T_tip_tool = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d gravity_base = Eigen::Vector3d::Zero();
+};
+
+}  // namespace detail
+
+namespace {
+
+// A rigid transform with an orthonormal, right-handed rotation; returned with the rotation
+// re-orthonormalised (through a unit quaternion) so that rounding in the input does not scale.
+Eigen::Isometry3d checked_tool(const Eigen::Isometry3d& T_tip_tool) {
+  if (!T_tip_tool.matrix().allFinite()) {
+    throw Error("tool offset T_tip_tool has a non-finite entry; expected a finite rigid transform");
+  }
+  const Eigen::Matrix3d rotation = T_tip_tool.linear();
+  const double deviation =
+      (rotation.transpose() * rotation - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  // 1e-6 accepts rotations typed with 7 significant digits and rejects scaled or sheared ones.
+  if (deviation > 1e-6 || rotation.determinant() < 0.0) {
+    std::ostringstream message;
+    message << "tool offset T_tip_tool rotation is not a rotation matrix: max |R^T R - I| = "
+            << deviation << ", det R = " << rotation.determinant()
+            << "; expected |R^T R - I| <= 1e-6 and det R = +1";
+    throw Error(message.str());
+  }
+  Eigen::Isometry3d result = Eigen::Isometry3d::Identity();
+  result.linear() = Eigen::Quaterniond(rotation).normalized().toRotationMatrix();
+  result.translation() = T_tip_tool.translation();
+  return result;
+}
+
+}  // namespace
+
+const char* to_string(JointType type) noexcept {
+  switch (type) {
+    case JointType::revolute:
+      return "revolute";
+    case JointType::continuous:
+      return "continuous";
+    case JointType::prismatic:
+      return "prismatic";
+  }
+  return "unknown";
+}
+
+// ---------------------------------------------------------------------------------------------
+// RobotModel
+
+RobotModel::RobotModel(std::shared_ptr<const detail::ModelData> data) noexcept
+    : data_(std::move(data)) {}
+
+RobotModel RobotModel::from_urdf_file(const std::string& path, const std::string& base_link,
+                                      const std::string& tip_link,
+                                      const Eigen::Isometry3d& T_tip_tool,
+                                      const Eigen::Vector3d& gravity_base) {
+  std::error_code code;
+  if (!std::filesystem::exists(path, code)) {
+    throw Error("URDF file '" + path + "' does not exist");
+  }
+  if (std::filesystem::is_directory(path, code)) {
+    throw Error("URDF file '" + path + "' is a directory; expected a URDF file");
+  }
+  std::ifstream file(path, std::ios::binary);
+  if (!file.is_open()) throw Error("URDF file '" + path + "' cannot be opened for reading");
+  const std::string text{std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>()};
+  if (file.bad()) throw Error("URDF file '" + path + "' cannot be read");
+  return from_urdf_source(text, "URDF file '" + path + "'", base_link, tip_link, T_tip_tool,
+                          gravity_base);
+}
+
+RobotModel RobotModel::from_urdf_string(const std::string& xml, const std::string& base_link,
+                                        const std::string& tip_link,
+                                        const Eigen::Isometry3d& T_tip_tool,
+                                        const Eigen::Vector3d& gravity_base) {
+  return from_urdf_source(xml, "the URDF text", base_link, tip_link, T_tip_tool, gravity_base);
+}
+
+RobotModel RobotModel::from_urdf_source(const std::string& xml, const std::string& source,
+                                        const std::string& base_link, const std::string& tip_link,
+                                        const Eigen::Isometry3d& T_tip_tool,
+                                        const Eigen::Vector3d& gravity_base) {
+  // Cheap checks of the arguments first, so that their errors do not hide behind the URDF's.
+  const Eigen::Isometry3d tool = checked_tool(T_tip_tool);
+  if (!gravity_base.allFinite()) {
+    throw Error("gravity_base = " + detail::format_vector(gravity_base) +
+                " m/s^2 has a non-finite entry; expected a finite vector");
+  }
+  auto data = std::make_shared<detail::ModelData>();
+  data->urdf = detail::urdf_to_kdl_chain(xml, source, base_link, tip_link);
+  data->base_link = base_link;
+  data->tip_link = tip_link;
+  data->T_tip_tool = tool;
+  data->gravity_base = gravity_base;
+  // The tool is one more fixed, massless segment, so that KDL's pose and Jacobian refer to it.
+  data->urdf.chain.addSegment(
+      KDL::Segment("tool", KDL::Joint("tool", KDL::Joint::None), detail::to_kdl_frame(tool)));
+  return RobotModel(std::move(data));
+}
+
+int RobotModel::num_joints() const noexcept {
+  return static_cast<int>(data_->urdf.joint_names.size());
+}
+const std::vector<std::string>& RobotModel::joint_names() const noexcept {
+  return data_->urdf.joint_names;
+}
+const std::vector<JointType>& RobotModel::joint_types() const noexcept {
+  return data_->urdf.joint_types;
+}
+const JointLimits& RobotModel::limits() const noexcept {
+  return data_->urdf.limits;
+}
+const std::string& RobotModel::robot_name() const noexcept {
+  return data_->urdf.robot_name;
+}
+const std::string& RobotModel::base_link() const noexcept {
+  return data_->base_link;
+}
+const std::string& RobotModel::tip_link() const noexcept {
+  return data_->tip_link;
+}
+const Eigen::Isometry3d& RobotModel::tool() const noexcept {
+  return data_->T_tip_tool;
+}
+const Eigen::Vector3d& RobotModel::gravity_base() const noexcept {
+  return data_->gravity_base;
+}
+double RobotModel::moving_mass() const noexcept {
+  return data_->urdf.moving_mass;
+}
+
+// ---------------------------------------------------------------------------------------------
+// ModelWorkspace
+
+struct ModelWorkspace::Impl {
+  explicit Impl(const RobotModel& robot)
+      : model(robot),
+        n(robot.num_joints()),
+        // A private copy of the chain: KDL::Joint caches its last rotation in mutable members
+        // (Joint::pose is const but writes q_previous and joint_pose), so two threads computing
+        // on one shared chain would race. Each workspace therefore owns its chain.
+        chain(robot.data_->urdf.chain),
+        fk(chain),
+        jacobian_solver(chain),
+        dynamics_solver(chain, KDL::Vector(robot.gravity_base().x(), robot.gravity_base().y(),
+                                           robot.gravity_base().z())),
+        q(static_cast<unsigned int>(n)),
+        dq(static_cast<unsigned int>(n)),
+        jacobian(static_cast<unsigned int>(n)),
+        mass(static_cast<unsigned int>(n)),
+        gravity(static_cast<unsigned int>(n)),
+        coriolis(static_cast<unsigned int>(n)) {}
+
+  // The solvers keep references to `chain`, so an Impl never moves (it lives behind a pointer).
+  Impl(const Impl&) = delete;
+  Impl& operator=(const Impl&) = delete;
+
+  bool valid_input(const JointVector& q_in, const JointVector& dq_in) const noexcept {
+    return q_in.size() == n && dq_in.size() == n && q_in.allFinite() && dq_in.allFinite();
+  }
+
+  // Forward kinematics into `frame`; false if KDL fails or the result is not finite.
+  bool compute_frame() noexcept {
+    if (fk.JntToCart(q, frame) < 0) return false;
+    return rotation().allFinite() && position().allFinite();
+  }
+
+  Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> rotation() const noexcept {
+    return Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(frame.M.data);
+  }
+  Eigen::Map<const Eigen::Vector3d> position() const noexcept {
+    return Eigen::Map<const Eigen::Vector3d>(frame.p.data);
+  }
+  void write_pose(Pose& pose) const noexcept {
+    pose.position = position();
+    pose.orientation = Eigen::Quaterniond(Eigen::Matrix3d(rotation()));
+    pose.orientation.normalize();
+  }
+
+  RobotModel model;
+  int n;
+  KDL::Chain chain;
+  KDL::ChainFkSolverPos_recursive fk;
+  KDL::ChainJntToJacSolver jacobian_solver;
+  KDL::ChainDynParam dynamics_solver;
+  // KDL's in- and outputs, sized once.
+  KDL::JntArray q;
+  KDL::JntArray dq;
+  KDL::Jacobian jacobian;
+  KDL::JntSpaceInertiaMatrix mass;
+  KDL::JntArray gravity;
+  KDL::JntArray coriolis;
+  KDL::Frame frame;
+};
+
+namespace {
+
+// Gives `out` the model's sizes and replaces anything non-finite, so that a failed compute()
+// still leaves a usable (if stale) result. Resizing bounded Eigen objects never allocates.
+void make_sized_and_finite(int n, Kinematics& out) noexcept {
+  if (!out.pose.position.allFinite()) out.pose.position.setZero();
+  if (!out.pose.orientation.coeffs().allFinite() || out.pose.orientation.norm() < 0.5) {
+    out.pose.orientation.setIdentity();
+  }
+  if (out.jacobian.cols() != n || !out.jacobian.allFinite()) out.jacobian.setZero(6, n);
+  if (out.mass.rows() != n || out.mass.cols() != n || !out.mass.allFinite()) {
+    out.mass.setZero(n, n);
+    out.has_dynamics = false;
+  }
+  if (out.gravity.size() != n || !out.gravity.allFinite()) {
+    out.gravity.setZero(n);
+    out.has_dynamics = false;
+  }
+  if (out.coriolis.size() != n || !out.coriolis.allFinite()) {
+    out.coriolis.setZero(n);
+    out.has_dynamics = false;
+  }
+}
+
+}  // namespace
+
+ModelWorkspace::ModelWorkspace(const RobotModel& model) : impl_(std::make_unique<Impl>(model)) {}
+ModelWorkspace::~ModelWorkspace() = default;
+ModelWorkspace::ModelWorkspace(const ModelWorkspace& other)
+    : impl_(other.impl_ ? std::make_unique<Impl>(other.impl_->model) : nullptr) {}
+ModelWorkspace& ModelWorkspace::operator=(const ModelWorkspace& other) {
+  if (this != &other) impl_ = other.impl_ ? std::make_unique<Impl>(other.impl_->model) : nullptr;
+  return *this;
+}
+ModelWorkspace::ModelWorkspace(ModelWorkspace&& other) noexcept = default;
+ModelWorkspace& ModelWorkspace::operator=(ModelWorkspace&& other) noexcept = default;
+
+const RobotModel& ModelWorkspace::model() const noexcept {
+  return impl_->model;
+}
+
+Kinematics ModelWorkspace::make_kinematics() const {
+  Kinematics kinematics;
+  make_sized_and_finite(impl_->n, kinematics);
+  return kinematics;
+}
+
+bool ModelWorkspace::compute(const JointVector& q, const JointVector& dq, Kinematics& out,
+                             bool dynamics) noexcept {
+  if (!impl_) return false;
+  Impl& w = *impl_;
+  make_sized_and_finite(w.n, out);
+  if (!w.valid_input(q, dq)) return false;
+  w.q.data = q;  // same size: a copy, no allocation
+  if (!w.compute_frame()) return false;
+  if (w.jacobian_solver.JntToJac(w.q, w.jacobian) < 0 || !w.jacobian.data.allFinite()) {
+    return false;
+  }
+  if (dynamics) {
+    w.dq.data = dq;
+    // ChainDynParam runs the recursive Newton-Euler algorithm with zero acceleration (and zero
+    // gravity for the Coriolis term) on buffers it sized at construction: nothing allocates.
+    if (w.dynamics_solver.JntToMass(w.q, w.mass) < 0 ||
+        w.dynamics_solver.JntToGravity(w.q, w.gravity) < 0 ||
+        w.dynamics_solver.JntToCoriolis(w.q, w.dq, w.coriolis) < 0) {
+      return false;
+    }
+    if (!w.mass.data.allFinite() || !w.gravity.data.allFinite() || !w.coriolis.data.allFinite()) {
+      return false;
+    }
+  }
+  // Everything is finite: only now is `out` overwritten.
+  w.write_pose(out.pose);
+  out.jacobian = w.jacobian.data;
+  if (dynamics) {
+    out.mass = w.mass.data;
+    out.gravity = w.gravity.data;
+    out.coriolis = w.coriolis.data;
+  }
+  out.has_dynamics = dynamics;
+  return true;
+}
+
+bool ModelWorkspace::compute_pose(const JointVector& q, Pose& T_base_ee) noexcept {
+  if (!impl_) return false;
+  Impl& w = *impl_;
+  if (q.size() != w.n || !q.allFinite()) return false;
+  w.q.data = q;
+  if (!w.compute_frame()) return false;
+  w.write_pose(T_base_ee);
+  return true;
+}
+
+void fill_robot_state(const JointVector& q, const JointVector& dq, const Kinematics& kinematics,
+                      RobotState& state) noexcept {
+  state.q = q;
+  state.dq = dq;
+  state.pose = kinematics.pose;
+  state.jacobian = kinematics.jacobian;
+}
+
+}  // namespace cartesian_impedance
