@@ -75,6 +75,12 @@ Matrix6d block_rotation(const Eigen::Matrix3d& rotation) noexcept;
 /// lambda = 0 gives the exact projector for a full-rank J. The workspace is sized once.
 class NullspaceProjector {
  public:
+  NullspaceProjector() = default;
+  // The members are scratch space for one call; a copy starts with fresh scratch space (copying
+  // Eigen's never-computed factorisations would read their uninitialised status fields).
+  NullspaceProjector(const NullspaceProjector&) noexcept {}
+  NullspaceProjector& operator=(const NullspaceProjector&) noexcept { return *this; }
+
   /// Writes N tau_0 to `projected`; `tau_0` and `projected` may not alias.
   void project(const Jacobian& jacobian, double lambda, const JointVector& tau_0,
                JointVector& projected) noexcept;
