@@ -71,8 +71,7 @@ Matrix6d ControllerState::stiffness_base() const noexcept {
 }
 
 Matrix6d ControllerState::damping_base() const noexcept {
-  return in_base(damping_from_stiffness(filtered.stiffness, filtered.damping_ratio),
-                 stiffness_frame, pose.orientation);
+  return in_base(damping, stiffness_frame, pose.orientation);
 }
 
 CartesianImpedanceController::CartesianImpedanceController(int num_joints,
@@ -103,6 +102,7 @@ CartesianImpedanceController::CartesianImpedanceController(int num_joints,
   max_step_ = JointVector::Zero(n);
   tau_0_ = JointVector::Zero(n);
   damping_frame_.setZero();
+  state_.damping.setZero();
   damped_stiffness_.setConstant(std::nan(""));
   damped_ratio_.setConstant(std::nan(""));
   set_parameters(parameters);
@@ -414,6 +414,15 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
     damped_ratio_ = filtered.damping_ratio;
   }
 
+  // The damping floor keeps a soft arm (teaching: K = 0, so D = 0) from coasting. Raising the
+  // diagonal by a non-negative amount keeps D symmetric positive semi-definite.
+  Matrix6d& damping = state_.damping;
+  damping = damping_frame_;
+  const MinimumDampingParameters& minimum = parameters_.minimum_damping;
+  for (int i = 0; i < 6; ++i) {
+    damping(i, i) = std::max(damping(i, i), i < 3 ? minimum.translation : minimum.rotation);
+  }
+
   // The damper acts on the velocity relative to the reference's (zero unless tracking).
   Vector6d velocity = -filtered.twist;
   velocity.noalias() += jacobian * robot.dq;
@@ -429,10 +438,10 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
   }
   if (damping_diagonal) {
     force_frame = -filtered.stiffness.diagonal().cwiseProduct(error_frame) -
-                  damping_frame_.diagonal().cwiseProduct(velocity_frame);
+                  damping.diagonal().cwiseProduct(velocity_frame);
   } else {
     force_frame.noalias() = -filtered.stiffness * error_frame;
-    force_frame.noalias() -= damping_frame_ * velocity_frame;
+    force_frame.noalias() -= damping * velocity_frame;
   }
   Vector6d force;
   if (in_base) {
@@ -445,8 +454,9 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
   // Nullspace joint impedance, projected so that it does not disturb the end effector.
   const JointVector& stiffness_ns = filtered.nullspace_stiffness;
   tau_0_ = -stiffness_ns.cwiseProduct(robot.q - filtered.nullspace_q) -
-           (2.0 * filtered.nullspace_damping_ratio) *
-               stiffness_ns.cwiseSqrt().cwiseProduct(robot.dq - filtered.nullspace_dq);
+           ((2.0 * filtered.nullspace_damping_ratio) * stiffness_ns.cwiseSqrt())
+               .cwiseMax(parameters_.minimum_damping.nullspace)
+               .cwiseProduct(robot.dq - filtered.nullspace_dq);
   if (robot.nullspace_torque.size() == num_joints_) tau_0_ += robot.nullspace_torque;
   const double lambda = parameters_.nullspace.pseudo_inverse_damping;
   if (dynamics.dynamically_consistent_nullspace) {

@@ -25,6 +25,7 @@ ci::Parameters bare_parameters() {
   p.limits.joint_torque_rate = ci::JointVector::Constant(1, 1e12);
   p.nullspace.stiffness = ci::JointVector::Constant(1, 0.0);
   p.nullspace.pseudo_inverse_damping = 0.0;
+  p.minimum_damping = {0.0, 0.0, 0.0};
   return p;
 }
 
@@ -173,6 +174,24 @@ TEST(Teaching, ZeroStiffnessGivesNoCartesianTorque) {
   robot.pose.position += Eigen::Vector3d(0.2, 0.1, -0.1);
   ASSERT_EQ(controller.update(robot, 0.001), ci::Status::ok);
   EXPECT_EQ(controller.state().tau_cartesian.cwiseAbs().maxCoeff(), 0.0);
+}
+
+// The damping floor: with zero stiffness (teaching) the arm is still damped, by exactly the floor;
+// where 2 zeta sqrt(K) is larger the floor changes nothing.
+TEST(Teaching, MinimumDampingKeepsASoftArmDamped) {
+  ci::Parameters parameters = bare_parameters();
+  parameters.minimum_damping = {10.0, 1.0, 0.5};
+  parameters.stiffness.translation = Eigen::Vector3d(0.0, 0.0, 400.0);  // z: D = 40 > floor
+  parameters.stiffness.rotation.setZero();
+  parameters.nullspace.stiffness = ci::JointVector::Constant(1, 0.0);
+  ci::CartesianImpedanceController controller(6, parameters);
+  ci::RobotState robot = cartesian_robot();
+  controller.start(robot);
+  robot.dq = six(0.1, -0.2, 0.3, 1.0, 0.5, -1.0);
+  ASSERT_EQ(controller.update(robot, 0.001), ci::Status::ok);
+  const ci::Vector6d expected = -six(10, 10, 40, 1, 1, 1).cwiseProduct(robot.dq);
+  EXPECT_LE((controller.state().tau_cartesian - expected).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_EQ(controller.state().damping.diagonal(), six(10, 10, 40, 1, 1, 1));
 }
 
 // --- filters ------------------------------------------------------------------------------------

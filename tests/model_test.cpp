@@ -941,11 +941,17 @@ TEST(LoadErrors, ChainWithoutMovableJoints) {
 }
 
 TEST(LoadErrors, TooManyJoints) {
-  const std::vector<std::string> thirteen(ci::kMaxJoints + 1, "revolute");
-  expect_contains(load_error(serial_urdf(thirteen), "l0", "l13"),
-                  {"13 movable joints", "at most kMaxJoints = 12"});
-  // Twelve are fine, and so are joints beyond the tip.
-  EXPECT_EQ(ci::RobotModel::from_urdf_string(serial_urdf(thirteen), "l0", "l12").num_joints(), 12);
+  const int too_many = ci::kMaxJoints + 1;
+  const std::vector<std::string> joints(too_many, "revolute");
+  const std::string tip = "l" + std::to_string(too_many);
+  expect_contains(load_error(serial_urdf(joints), "l0", tip),
+                  {std::to_string(too_many) + " movable joints",
+                   "at most kMaxJoints = " + std::to_string(ci::kMaxJoints)});
+  // kMaxJoints are fine, and so are joints beyond the tip.
+  EXPECT_EQ(ci::RobotModel::from_urdf_string(serial_urdf(joints), "l0",
+                                             "l" + std::to_string(ci::kMaxJoints))
+                .num_joints(),
+            ci::kMaxJoints);
 }
 
 TEST(LoadErrors, UnsupportedJointTypes) {

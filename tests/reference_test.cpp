@@ -30,6 +30,7 @@ ci::Parameters bare_law_parameters() {
   p.limits.pose_error = {1e9, 1e9};
   p.limits.joint_torque = ci::JointVector::Constant(1, 1e12);
   p.limits.joint_torque_rate = ci::JointVector::Constant(1, 1e15);
+  p.minimum_damping = {0.0, 0.0, 0.0};  // the reference has no damping floor
   return p;
 }
 
@@ -113,6 +114,7 @@ TEST(ReferenceCrossCheck, FilteredLimitedRunMatchesReferenceController) {
   std::mt19937 rng(7);
   const int n = 7;
   ci::Parameters parameters;
+  parameters.minimum_damping = {0.0, 0.0, 0.0};  // the reference has no damping floor
   parameters.limits.pose_error = {1e9, 1e9};
   parameters.limits.joint_torque = ci::JointVector::Constant(1, 30.0);
   parameters.limits.joint_torque_rate = ci::JointVector::Constant(1, 400.0);

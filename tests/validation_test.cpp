@@ -292,6 +292,7 @@ ci::Parameters other_valid_parameters() {
   p.limits.joint_torque = joints({80, 81, 82, 83, 11, 11.5, 11.75});
   p.limits.joint_torque_rate = joints({900, 901, 902, 903, 904, 905, 906});
   p.joint_limit_avoidance = {0.15, 35.0};
+  p.minimum_damping = {12.0, 1.5, 0.75};
   p.trajectory = {0.02, 0.75};
   return p;
 }
@@ -773,7 +774,7 @@ TEST(ParameterValidation, EveryTableRowRejectsNanAndInfinityInEveryElement) {
     });
   }
   // 6 three-axis rows, 3 per-joint rows of 7, 22 single numbers.
-  EXPECT_EQ(elements_checked, 6 * 3 + 3 * 7 + 26);
+  EXPECT_EQ(elements_checked, 6 * 3 + 3 * 7 + 29);
 }
 
 TEST(ParameterValidation, EveryTableRowRejectsValuesOutsideItsRange) {
@@ -1135,9 +1136,10 @@ TEST(YamlConfig, ValueOfTheWrongShapeIsRejected) {
                                  {"test.yaml:2:", "wrench.torque", "3 numbers", "4"}));
   EXPECT_TRUE(yaml_rejected_with("limits:\n  joint_torque: []\n",
                                  {"test.yaml:2:", "limits.joint_torque", "one per joint"}));
-  EXPECT_TRUE(
-      yaml_rejected_with("limits:\n  joint_torque: [1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1]\n",
-                         {"test.yaml:2:", "limits.joint_torque", "one per joint"}));
+  std::string too_many = "limits:\n  joint_torque: [1";
+  for (int i = 0; i < ci::kMaxJoints; ++i) too_many += ", 1";  // kMaxJoints + 1 values
+  EXPECT_TRUE(yaml_rejected_with(too_many + "]\n",
+                                 {"test.yaml:2:", "limits.joint_torque", "one per joint"}));
   EXPECT_TRUE(yaml_rejected_with("nullspace:\n  damping_ratio: [1, 2]\n",
                                  {"test.yaml:2:", "nullspace.damping_ratio", "not a number"}));
   EXPECT_TRUE(yaml_rejected_with("stiffness:\n  frame: [base]\n",
@@ -1204,7 +1206,7 @@ TEST(YamlConfig, EveryTableRowRejectsNanAndInfinityWithItsLine) {
       }
     }
   }
-  EXPECT_EQ(elements_checked, 6 * 3 + 3 * 7 + 26);
+  EXPECT_EQ(elements_checked, 6 * 3 + 3 * 7 + 29);
 }
 
 TEST(YamlConfig, OutOfRangeValueIsReportedWithFileAndLine) {

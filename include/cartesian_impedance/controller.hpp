@@ -67,6 +67,7 @@ struct ControllerState {
   Vector6d pose_error;  ///< e = [p - p_d; log(R R_d^T)], base frame, after clipping [m; rad]
   Targets commanded;    ///< targets as last commanded (after validation and saturation)
   Targets filtered;     ///< targets the law used this cycle
+  Matrix6d damping;     ///< D the law used, in the stiffness frame
   Frame stiffness_frame = Frame::base;  ///< frame of the stiffness and damping targets
   Frame wrench_frame = Frame::base;     ///< frame of the wrench targets
   Vector6d wrench_base;                 ///< filtered F in the base frame
@@ -77,8 +78,8 @@ struct ControllerState {
   JointVector tau;                      ///< commanded torque after torque and rate limits [Nm]
   ActiveLimits limits;
 
-  /// Filtered K, and D = 2 Z^(1/2) sqrt(K) Z^(1/2), in the base frame (computed on request; the
-  /// cycle itself works in the stiffness frame).
+  /// Filtered K and the damping D the law used, in the base frame (rotated on request; the cycle
+  /// itself works in the stiffness frame).
   Matrix6d stiffness_base() const noexcept;
   Matrix6d damping_base() const noexcept;
 };

@@ -45,6 +45,14 @@ struct NullspaceParameters {
   double pseudo_inverse_damping = 0.01;
 };
 
+/// Damping that stays when the stiffness is low or zero (teaching), so a soft arm does not coast.
+/// The Cartesian damping's diagonal and the nullspace damping never fall below these.
+struct MinimumDampingParameters {
+  double translation = 10.0;  ///< [N s/m]
+  double rotation = 1.0;      ///< [Nm s/rad]
+  double nullspace = 0.5;     ///< [Nm s/rad] per joint
+};
+
 /// Options that need a dynamics model; the control loop provides M(q) and g(q) for them.
 struct DynamicsParameters {
   /// Add g(q) to the command, for robots that do not compensate gravity themselves.
@@ -112,6 +120,7 @@ struct LimitParameters {
 struct Parameters {
   StiffnessParameters stiffness;
   DampingRatioParameters damping_ratio;
+  MinimumDampingParameters minimum_damping;
   NullspaceParameters nullspace;
   WrenchParameters wrench;
   FilterParameters filter;

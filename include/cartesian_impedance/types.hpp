@@ -9,8 +9,9 @@
 
 namespace cartesian_impedance {
 
-/// Largest joint count the library supports; joint-sized storage is reserved for this many.
-inline constexpr int kMaxJoints = 12;
+/// Largest joint count the library supports; joint-sized storage is reserved for this many. Two
+/// 7-joint arms in one simulation need 14; a mobile manipulator's arm and torso fit too.
+inline constexpr int kMaxJoints = 16;
 
 using Vector6d = Eigen::Matrix<double, 6, 1>;
 using Matrix6d = Eigen::Matrix<double, 6, 6>;

@@ -1,0 +1,269 @@
+// cartesian_impedance_demo: a scripted tour of the controller on a simulated robot (MuJoCo),
+// with what theory predicts next to what was measured, CSV logs, plots and pictures.
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cartesian_impedance/config.hpp"
+#include "cartesian_impedance/error.hpp"
+#include "scenarios.hpp"
+
+namespace ci = cartesian_impedance;
+namespace scenarios = cartesian_impedance::scenarios;
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr const char* kUsage = R"(Usage: cartesian_impedance_demo [options]
+
+Runs the controller on a simulated robot through a scripted tour (reference motion, push and
+compliance, stiffness change, wrench against a table, nullspace motion, teaching, trajectory,
+stability grid, two arms) and prints, for each scenario, what theory predicts and what was
+measured. Writes CSV logs, plots and rendered pictures to the output folder.
+
+Options:
+  --robot panda|iiwa14     built-in robot (default: panda)
+  --urdf FILE              your robot's URDF (needs --base-link and --tip-link)
+  --mjcf FILE              your robot's MJCF for the simulation (default: simulate the URDF)
+  --base-link NAME         first link of the controlled chain (with --urdf)
+  --tip-link NAME          end-effector link (with --urdf)
+  --flange NAME            site or body at the tip in the simulation (default: the tip link)
+  --config FILE            controller parameters (YAML; default: config/<robot>.yaml)
+  --scenario NAME          run only this scenario (repeatable); names: )";
+
+struct Options {
+  scenarios::RobotSetup robot;
+  std::vector<std::string> scenarios;
+  fs::path out = "demo_output";
+  bool render = true;
+  bool plots = true;
+};
+
+[[noreturn]] void usage_error(const std::string& message) {
+  std::cerr << "cartesian_impedance_demo: " << message << "\n"
+            << "Run with --help for the options.\n";
+  std::exit(2);
+}
+
+void print_usage() {
+  std::cout << kUsage;
+  for (const std::string& name : scenarios::scenario_names()) std::cout << name << " ";
+  std::cout << R"(
+  --out DIR                output folder (default: demo_output)
+  --no-render              skip the rendered pictures
+  --no-plots               skip the plots
+  --help                   this text
+)";
+}
+
+void require_file(const std::string& option, const std::string& path) {
+  if (!fs::is_regular_file(path)) usage_error(option + " '" + path + "': no such file");
+}
+
+Options parse(int argc, char** argv) {
+  Options options;
+  std::string robot = "panda", urdf, mjcf, base, tip, flange, config;
+  for (int i = 1; i < argc; ++i) {
+    const std::string argument = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc) usage_error(argument + " needs a value");
+      return argv[++i];
+    };
+    if (argument == "--help" || argument == "-h") {
+      print_usage();
+      std::exit(0);
+    } else if (argument == "--robot") {
+      robot = value();
+    } else if (argument == "--urdf") {
+      urdf = value();
+    } else if (argument == "--mjcf") {
+      mjcf = value();
+    } else if (argument == "--base-link") {
+      base = value();
+    } else if (argument == "--tip-link") {
+      tip = value();
+    } else if (argument == "--flange") {
+      flange = value();
+    } else if (argument == "--config") {
+      config = value();
+    } else if (argument == "--scenario") {
+      options.scenarios.push_back(value());
+    } else if (argument == "--out") {
+      options.out = value();
+    } else if (argument == "--no-render") {
+      options.render = false;
+    } else if (argument == "--no-plots") {
+      options.plots = false;
+    } else {
+      usage_error("unknown argument '" + argument + "'");
+    }
+  }
+  if (!urdf.empty()) {
+    require_file("--urdf", urdf);
+    if (!mjcf.empty()) require_file("--mjcf", mjcf);
+    if (base.empty() || tip.empty()) usage_error("--urdf needs --base-link and --tip-link");
+    options.robot = {"custom", urdf, mjcf, base, tip, flange.empty() ? tip : flange, ""};
+  } else {
+    if (!mjcf.empty()) usage_error("--mjcf needs --urdf (the controller's model)");
+    try {
+      options.robot = scenarios::builtin_robot(robot, CARTESIAN_IMPEDANCE_SOURCE_DIR);
+    } catch (const ci::Error& error) {
+      usage_error(std::string("--robot: ") + error.what());
+    }
+    if (!flange.empty()) options.robot.flange = flange;
+  }
+  if (!config.empty()) {
+    require_file("--config", config);
+    try {
+      ci::load_parameters(config);  // report a bad file now, not in the middle of the tour
+    } catch (const ci::Error& error) {
+      usage_error(std::string("--config: ") + error.what());
+    }
+    options.robot.parameters_file = config;
+  }
+  const std::vector<std::string>& known = scenarios::scenario_names();
+  for (const std::string& name : options.scenarios) {
+    if (std::find(known.begin(), known.end(), name) == known.end()) {
+      usage_error("unknown scenario '" + name + "' (see --help)");
+    }
+  }
+  if (options.scenarios.empty()) options.scenarios = known;
+  return options;
+}
+
+void write_samples(const fs::path& path, const std::vector<scenarios::Sample>& samples) {
+  std::ofstream csv(path);
+  csv << "time,x,y,z,reference_x,reference_y,reference_z,commanded_x,commanded_y,commanded_z,"
+         "error_x,error_y,error_z,error_rx,error_ry,error_rz,stiffness_x,commanded_stiffness_x,"
+         "push_x,push_y,push_z,contact_x,contact_y,contact_z,wrench_x,wrench_y,wrench_z,"
+         "max_torque_rate";
+  const int joints = samples.empty() ? 0 : static_cast<int>(samples.front().tau.size());
+  for (int i = 0; i < joints; ++i) csv << ",tau_" << i + 1;
+  csv << "\n";
+  for (const scenarios::Sample& s : samples) {
+    csv << s.time;
+    for (const Eigen::Vector3d* v : {&s.position, &s.reference, &s.commanded}) {
+      csv << "," << v->x() << "," << v->y() << "," << v->z();
+    }
+    for (int i = 0; i < 6; ++i) csv << "," << s.pose_error[i];
+    csv << "," << s.stiffness_x << "," << s.commanded_stiffness_x;
+    for (const Eigen::Vector3d* v : {&s.push, &s.contact, &s.wrench}) {
+      csv << "," << v->x() << "," << v->y() << "," << v->z();
+    }
+    csv << "," << s.max_torque_rate;
+    for (int i = 0; i < s.tau.size(); ++i) csv << "," << s.tau[i];
+    csv << "\n";
+  }
+}
+
+std::string expectation(const scenarios::Result& r) {
+  char text[96];
+  if (r.bound) {
+    std::snprintf(text, sizeof(text), "<= %.4g %s", r.expected, r.unit.c_str());
+  } else if (r.tolerance > 0.0) {
+    std::snprintf(text, sizeof(text), "%.4g +- %.2g %s", r.expected, r.tolerance, r.unit.c_str());
+  } else if (r.note.rfind("at least", 0) == 0) {
+    std::snprintf(text, sizeof(text), ">= %.4g %s", r.expected, r.unit.c_str());
+  } else {
+    std::snprintf(text, sizeof(text), "%.4g %s", r.expected, r.unit.c_str());
+  }
+  return text;
+}
+
+std::string measurement(const scenarios::Result& r) {
+  char text[64];
+  std::snprintf(text, sizeof(text), "%.4g %s", r.measured, r.unit.c_str());
+  return text;
+}
+
+std::string csv_field(const std::string& text) {
+  std::string quoted = "\"";
+  for (char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return quoted + "\"";
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Options options = parse(argc, argv);
+  std::error_code error;
+  fs::create_directories(options.out, error);
+  if (error) usage_error("--out '" + options.out.string() + "': " + error.message());
+
+  std::string why_not;
+  const bool render = options.render && ci::sim::offscreen_rendering_available(&why_not);
+  std::cout << "Cartesian impedance demo: " << options.robot.name << " in MuJoCo at 1 kHz, "
+            << options.scenarios.size() << " scenarios, output in " << options.out.string() << "\n";
+  if (options.render && !render) std::cout << "(no pictures: " << why_not << ")\n";
+
+  std::vector<scenarios::Result> all;
+  int index = 0;
+  bool every_check_passed = true;
+  for (const std::string& name : options.scenarios) {
+    std::cout << "\n[" << ++index << "/" << options.scenarios.size() << "] " << name << " ... "
+              << std::flush;
+    const auto begin = std::chrono::steady_clock::now();
+    scenarios::MomentCallback moment;
+    if (render) {
+      moment = [&](const std::string& label, const ci::sim::Simulation& sim) {
+        std::string file = name + "_" + label + ".png";
+        for (char& c : file) c = c == ' ' || c == ',' ? '_' : c;
+        sim.render_png((options.out / file).string(), 800, 600);
+      };
+    }
+    scenarios::Outcome outcome;
+    try {
+      outcome = scenarios::run_scenario(name, options.robot, moment);
+    } catch (const ci::Error& failure) {
+      std::cout << "could not run: " << failure.what() << "\n";
+      every_check_passed = false;
+      continue;
+    }
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
+    std::printf("%.1f s\n", seconds);
+    for (const scenarios::Result& result : outcome.results) {
+      std::printf("    %s %-62s theory %-22s measured %s\n", result.passed ? "ok  " : "FAIL",
+                  result.quantity.c_str(), expectation(result).c_str(),
+                  measurement(result).c_str());
+      if (!result.passed && !result.note.empty()) std::printf("         %s\n", result.note.c_str());
+      every_check_passed &= result.passed;
+      all.push_back(result);
+    }
+    if (!outcome.samples.empty()) write_samples(options.out / (name + ".csv"), outcome.samples);
+  }
+
+  std::ofstream summary(options.out / "summary.csv");
+  summary << "scenario,quantity,theory,measured,unit,tolerance,passed\n";
+  for (const scenarios::Result& r : all) {
+    summary << csv_field(r.scenario) << "," << csv_field(r.quantity) << "," << r.expected << ","
+            << r.measured << "," << csv_field(r.unit) << "," << r.tolerance << ","
+            << (r.passed ? "yes" : "no") << "\n";
+  }
+  summary.close();
+
+  std::printf("\n%-18s %-62s %-22s %-16s %s\n", "scenario", "what", "theory", "measured", "");
+  for (const scenarios::Result& r : all) {
+    std::printf("%-18s %-62s %-22s %-16s %s\n", r.scenario.c_str(), r.quantity.c_str(),
+                expectation(r).c_str(), measurement(r).c_str(), r.passed ? "ok" : "FAIL");
+  }
+
+  if (options.plots) {
+    const std::string command = "/usr/bin/python3 '" + std::string(CARTESIAN_IMPEDANCE_SOURCE_DIR) +
+                                "/apps/plot_demo.py' '" + options.out.string() + "'";
+    if (std::system(command.c_str()) != 0) {
+      std::cout << "(plots were not made: " << command << " failed)\n";
+    }
+  }
+  std::cout << "\nLogs, plots and pictures: " << fs::absolute(options.out).string() << "\n"
+            << (every_check_passed ? "Every measurement agrees with theory.\n"
+                                   : "Some measurements disagree with theory (FAIL above).\n");
+  return every_check_passed ? 0 : 1;
+}

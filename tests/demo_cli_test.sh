@@ -1,0 +1,51 @@
+#!/usr/bin/env bash
+# The demo program as a user meets it: wrong arguments get a clear message and a non-zero exit;
+# a short tour writes its logs, plots and pictures. Usage: demo_cli_test.sh DEMO SOURCE_DIR
+set -uo pipefail
+demo=$1
+source_dir=$2
+scratch=$(mktemp -d)
+trap 'rm -rf "$scratch"' EXIT
+failures=0
+
+# expect_error "message part" args...: non-zero exit and the message on stderr.
+expect_error() {
+  local part=$1
+  shift
+  if "$demo" "$@" >"$scratch/out" 2>"$scratch/err"; then
+    echo "FAIL: '$*' succeeded"; failures=$((failures + 1)); return
+  fi
+  if ! grep -qF -- "$part" "$scratch/err"; then
+    echo "FAIL: '$*' did not say '$part':"; cat "$scratch/err"; failures=$((failures + 1))
+  fi
+}
+
+expect_error "unknown argument '--bogus'" --bogus
+expect_error "not built in" --robot ur5
+expect_error "--urdf '/no/such.urdf': no such file" --urdf /no/such.urdf --base-link a --tip-link b
+expect_error "--urdf needs --base-link and --tip-link" --urdf "$source_dir/models/panda/panda.urdf"
+expect_error "--mjcf needs --urdf" --mjcf "$source_dir/models/panda/panda.xml"
+expect_error "unknown scenario 'nope'" --scenario nope
+expect_error "--out needs a value" --out
+printf 'stiffness:\n  translation: -5\n' >"$scratch/bad.yaml"
+expect_error "bad.yaml:2: stiffness.translation = -5 N/m is outside [0, inf)" --config "$scratch/bad.yaml"
+"$demo" --help | grep -q "Usage: cartesian_impedance_demo" || { echo "FAIL: --help"; failures=$((failures + 1)); }
+
+# A short tour on the iiwa14, with plots and (where EGL works) pictures.
+if ! "$demo" --robot iiwa14 --scenario hold --scenario wrench --out "$scratch/tour" >"$scratch/tour.log" 2>&1; then
+  echo "FAIL: the tour did not succeed:"; cat "$scratch/tour.log"; failures=$((failures + 1))
+fi
+for file in summary.csv hold.csv wrench.csv wrench_force.png wrench_pose_error.png hold_torques.png; do
+  [ -s "$scratch/tour/$file" ] || { echo "FAIL: $file was not written"; failures=$((failures + 1)); }
+done
+grep -q "contact force under a commanded 10 N" "$scratch/tour/summary.csv" ||
+  { echo "FAIL: summary.csv lacks the wrench line"; failures=$((failures + 1)); }
+if ! grep -q "no pictures" "$scratch/tour.log"; then
+  [ -s "$scratch/tour/wrench_pressing_on_the_table.png" ] ||
+    { echo "FAIL: no picture although rendering is available"; failures=$((failures + 1)); }
+fi
+grep -q "Every measurement agrees with theory" "$scratch/tour.log" ||
+  { echo "FAIL: the tour's checks did not all pass:"; cat "$scratch/tour.log"; failures=$((failures + 1)); }
+
+[ "$failures" -eq 0 ] && echo "demo CLI: all checks passed"
+exit "$failures"
