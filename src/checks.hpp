@@ -11,9 +11,6 @@
 
 namespace cartesian_impedance::checks {
 
-/// Quaternions given as four numbers are accepted if their norm is this close to one: a message
-/// that rounds to a few digits still passes, a zero or garbage quaternion does not.
-inline constexpr double kQuaternionNormTolerance = 1e-3;
 
 std::string indexed(std::string_view name, Eigen::Index i);
 void finite(std::string_view name, double value, std::string_view unit = "");

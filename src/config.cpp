@@ -155,6 +155,13 @@ Parameters load_parameters(const std::string& path) {
   return parameters_from_yaml(text.str(), path);
 }
 
+void save_parameters(const std::string& path, const Parameters& parameters) {
+  std::ofstream file(path);
+  file << parameters_to_yaml(parameters);
+  file.close();
+  if (!file) throw Error("cannot write parameter file '" + path + "'");
+}
+
 std::string parameters_to_yaml(const Parameters& parameters) {
   // The table lists the members of each group together, so one pass with a stack of open groups
   // writes the nested maps in table order.

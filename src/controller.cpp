@@ -207,7 +207,7 @@ bool CartesianImpedanceController::robot_state_usable(const RobotState& robot) c
       robot.nullspace_torque.size() == 0 || robot.nullspace_torque.size() == num_joints_;
   const double optional_sum = robot.mass.sum() + robot.gravity.sum() + robot.nullspace_torque.sum();
   return mass_ok && gravity_ok && extra_ok && std::isfinite(sum) && std::isfinite(optional_sum) &&
-         std::abs(robot.pose.orientation.norm() - 1.0) <= checks::kQuaternionNormTolerance;
+         std::abs(robot.pose.orientation.norm() - 1.0) <= kQuaternionNormTolerance;
 }
 
 void CartesianImpedanceController::start(const RobotState& robot) {

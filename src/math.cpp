@@ -149,31 +149,35 @@ Matrix6d block_rotation(const Eigen::Matrix3d& rotation) noexcept {
 namespace {
 
 // Solves A x = b in place for a symmetric positive definite 6x6 A (only its lower triangle is
-// read, and overwritten by the Cholesky factor). Written out because at this size Eigen's LLT
-// spends most of its time in the set-up of its general blocked triangular solver; this is the
-// same algorithm in fixed-size loops the compiler unrolls. False if A is not positive definite.
+// read, and overwritten by the factor) through A = L D L^T. Written out because at this size
+// Eigen's LLT spends most of its time in the set-up of its general blocked triangular solver; and
+// L D L^T rather than Cholesky because the cost here is the chain of latencies from one column to
+// the next, and L D L^T has one division in it per column where Cholesky has a square root and a
+// division. False if A is not positive definite.
 bool cholesky_solve(Matrix6d& a, Vector6d& b) noexcept {
-  // The reciprocals of the diagonal of L turn every later division into a multiplication, which
-  // shortens the dependency chain of sqrt/div latencies that dominates at this size.
-  Vector6d inverse_diagonal;
+  Vector6d pivots, inverse_pivot;
+  Vector6d scaled;  // L(j, k) * D(k) of the current row j
   for (int j = 0; j < 6; ++j) {
     double pivot = a(j, j);
-    for (int k = 0; k < j; ++k) pivot -= a(j, k) * a(j, k);
+    for (int k = 0; k < j; ++k) {
+      scaled[k] = a(j, k) * pivots[k];
+      pivot -= a(j, k) * scaled[k];
+    }
     if (!(pivot > 0.0)) return false;
-    inverse_diagonal[j] = 1.0 / std::sqrt(pivot);
+    pivots[j] = pivot;
+    inverse_pivot[j] = 1.0 / pivot;
     for (int i = j + 1; i < 6; ++i) {
       double value = a(i, j);
-      for (int k = 0; k < j; ++k) value -= a(i, k) * a(j, k);
-      a(i, j) = value * inverse_diagonal[j];
+      for (int k = 0; k < j; ++k) value -= a(i, k) * scaled[k];
+      a(i, j) = value * inverse_pivot[j];
     }
   }
   for (int i = 0; i < 6; ++i) {  // L y = b
     for (int k = 0; k < i; ++k) b[i] -= a(i, k) * b[k];
-    b[i] *= inverse_diagonal[i];
   }
-  for (int i = 5; i >= 0; --i) {  // L^T x = y
+  for (int i = 0; i < 6; ++i) b[i] *= inverse_pivot[i];  // D z = y
+  for (int i = 5; i >= 0; --i) {                         // L^T x = z
     for (int k = i + 1; k < 6; ++k) b[i] -= a(k, i) * b[k];
-    b[i] *= inverse_diagonal[i];
   }
   return true;
 }
@@ -186,12 +190,14 @@ void NullspaceProjector::project(const Jacobian& jacobian, double lambda, const 
   const double lambda_squared = lambda * lambda;
   if (n >= 6) {
     // N tau_0 = tau_0 - J^T (J J^T + lambda^2 I)^-1 (J tau_0): O(6n) beyond the 6x6 factorisation.
-    // J J^T as a sum of fixed-size outer products: vectorises, where the dynamic inner
-    // dimension of jacobian * jacobian.transpose() does not.
+    // J J^T as a sum of outer products of fixed-size columns (the dynamic inner dimension of
+    // jacobian * jacobian.transpose() is slower), lower triangle only: nothing else is read.
     task_gram_.setZero();
     for (Eigen::Index i = 0; i < n; ++i) {
       const Vector6d column = jacobian.col(i);
-      task_gram_.noalias() += column * column.transpose();
+      for (int c = 0; c < 6; ++c) {
+        for (int r = c; r < 6; ++r) task_gram_(r, c) += column[r] * column[c];
+      }
     }
     task_gram_.diagonal().array() += lambda_squared;
     task_vector_.noalias() = jacobian * tau_0;

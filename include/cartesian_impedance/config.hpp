@@ -22,4 +22,7 @@ Parameters parameters_from_yaml(const std::string& yaml, std::string_view source
 /// Writes every parameter as YAML that parameters_from_yaml() reads back to the same values.
 std::string parameters_to_yaml(const Parameters& parameters);
 
+/// Writes parameters_to_yaml() to a file. @throws Error if the file cannot be written.
+void save_parameters(const std::string& path, const Parameters& parameters);
+
 }  // namespace cartesian_impedance

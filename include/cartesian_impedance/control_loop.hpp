@@ -90,6 +90,9 @@ class ControlLoop {
   /// torque that ramps toward zero (or toward gravity compensation) within the rate limit.
   const JointVector& step(const JointVector& q, const JointVector& dq, double dt) noexcept;
 
+  /// True once start() has succeeded.
+  bool started() const noexcept { return controller_.started(); }
+
   /// The state after the last step (cycle thread only; other threads use latest_state()).
   const LoopState& state() const noexcept { return state_; }
   /// The controller, for inspection from the cycle thread.

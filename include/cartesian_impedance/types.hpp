@@ -24,6 +24,11 @@ using JointMatrix =
 /// expressed in the base frame.
 using Jacobian = Eigen::Matrix<double, 6, Eigen::Dynamic, Eigen::ColMajor, 6, kMaxJoints>;
 
+/// Quaternions given as four numbers (YAML, messages, Python) are accepted if their norm is this
+/// close to one (and then normalised): a message rounded to a few digits passes, a zero or
+/// garbage quaternion does not.
+inline constexpr double kQuaternionNormTolerance = 1e-3;
+
 /// A frame's position [m] and orientation (unit quaternion), both in the base frame.
 struct Pose {
   Eigen::Vector3d position = Eigen::Vector3d::Zero();

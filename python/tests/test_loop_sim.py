@@ -1,0 +1,175 @@
+"""ControlLoop in closed loop with the MuJoCo simulation: compliance, trajectories, the
+GIL-released run(), states as NumPy arrays."""
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import cartesian_impedance as ci
+from conftest import PANDA_XML, requires_sim
+
+pytestmark = requires_sim
+
+
+def panda_sim(**options):
+    return ci.sim.Simulation.from_mjcf_file(PANDA_XML, **options)
+
+
+@pytest.mark.parametrize("axis", [0, 1, 2])
+def test_a_push_on_the_flange_displaces_it_by_force_over_stiffness(panda, axis):
+    # 10 N against 500 N/m: 20 mm. The simulation compensates gravity itself (like the robot's
+    # firmware), so the controller's own gravity compensation stays off.
+    sim = panda_sim()
+    loop = ci.ControlLoop(panda, {"stiffness.translation": 500})
+    loop.start(sim.q, sim.dq)
+    start = sim.site_pose("flange").position
+    force = np.zeros(6)
+    force[axis] = 10.0
+    sim.push("flange", force)
+    steps = sim.run(loop, 3.0)
+    assert steps == 3000 and sim.time == pytest.approx(3.0)
+    displacement = sim.site_pose("flange").position - start
+    assert displacement[axis] == pytest.approx(10.0 / 500.0, rel=0.05)
+    others = np.delete(displacement, axis)
+    assert np.all(np.abs(others) < 0.05 * 0.02)
+    state = loop.state
+    assert state.controller.status == ci.Status.ok
+    # The spring balances the push: K e = F along the axis (its force -K e opposes F).
+    assert 500 * state.controller.pose_error[axis] == pytest.approx(10.0, rel=0.05)
+
+
+def test_trajectory_finishes_and_reaches_its_goal(panda):
+    sim = panda_sim()
+    loop = ci.ControlLoop(panda)
+    loop.start(sim.q, sim.dq)
+    goal = sim.q + np.array([0.3, -0.2, 0.2, 0.3, 0.2, -0.2, 0.3])
+    via = (sim.q + goal) / 2 + 0.05
+    trajectory_id = loop.execute_trajectory([1.0, 2.0], np.stack([via, goal]))
+    steps = sim.run(loop, 5.0, until_trajectory_done=True)
+    progress = loop.state.trajectory
+    assert progress.id == trajectory_id
+    assert progress.state == ci.TrajectoryState.finished, progress
+    assert 2000 <= steps < 5000
+    tolerance = loop.latest_parameters()["trajectory.goal_tolerance"]
+    assert progress.goal_error <= tolerance
+    assert "finished" in repr(loop)
+    sim.run(loop, 1.0)  # holds at the goal afterwards
+    assert np.abs(sim.q - goal).max() < tolerance
+
+
+def test_trajectory_with_named_joints_in_another_order_and_velocities(panda):
+    sim = panda_sim()
+    loop = ci.ControlLoop(panda)
+    loop.start(sim.q, sim.dq)
+    names = panda.joint_names[::-1]
+    goal = sim.q + 0.1
+    positions = [list(goal[::-1])]  # a list of lists works as well as an array
+    loop.execute_trajectory([1.5], positions, velocities=[[0.0] * 7], joint_names=names)
+    sim.run(loop, 4.0, until_trajectory_done=True)
+    assert loop.state.trajectory.state == ci.TrajectoryState.finished
+    loop.execute_trajectory([3.0], [goal + 0.1])
+    sim.run(loop, 0.5)
+    loop.cancel_trajectory()
+    sim.run(loop, 0.01)
+    assert loop.latest_state().trajectory.state == ci.TrajectoryState.cancelled
+
+
+def test_run_is_the_same_as_stepping_from_python(panda):
+    results = []
+    for use_run in (True, False):
+        sim = panda_sim()
+        loop = ci.ControlLoop(panda)
+        loop.start(sim.q, sim.dq)
+        loop.set_reference_pose((loop.state.controller.pose.position + [0, 0.05, 0],
+                                 loop.state.controller.pose.orientation))
+        if use_run:
+            sim.run(loop, 0.5)
+        else:
+            for _ in range(500):
+                sim.set_torque(loop.step(sim.q, sim.dq, sim.timestep))
+                sim.step()
+        results.append((sim.q, loop.state.controller.tau))
+    np.testing.assert_array_equal(results[0][0], results[1][0])
+    np.testing.assert_array_equal(results[0][1], results[1][1])
+
+
+def test_run_releases_the_gil_and_guards_the_simulation(panda):
+    sim = panda_sim()
+    loop = ci.ControlLoop(panda)
+    loop.start(sim.q, sim.dq)
+    seconds = 30.0
+    thread = threading.Thread(target=sim.run, args=(loop, seconds))
+    seen_cycles, refusals = [], []
+    thread.start()
+    while thread.is_alive():
+        cycle = loop.latest_state().cycle  # any thread may read the published state
+        seen_cycles.append(cycle)
+        if 0 < cycle and not refusals:
+            for use in (lambda: sim.q, lambda: loop.step(sim.q, sim.dq, 0.001), lambda: loop.state):
+                try:
+                    use()
+                except RuntimeError as error:
+                    refusals.append(str(error))
+            loop.set_stiffness([400, 400, 400, 40, 40, 40])  # commands are fine from any thread
+        time.sleep(0.001)
+    thread.join()
+    final = int(round(seconds / sim.timestep))
+    # Python ran here while run() stepped in the other thread: the GIL was released.
+    assert any(0 < cycle < final for cycle in seen_cycles)
+    assert refusals and all("in use by Simulation.run() in another thread" in r for r in refusals)
+    assert loop.state.cycle == final
+    np.testing.assert_allclose(np.diag(loop.state.controller.commanded.stiffness),
+                               [400, 400, 400, 40, 40, 40])
+
+
+def test_states_are_python_objects_with_numpy_arrays(panda, ready):
+    loop = ci.ControlLoop(panda)
+    assert "not started" in repr(loop) and not loop.started
+    loop.start(ready, np.zeros(7))
+    tau = loop.step(ready, np.zeros(7), 0.001)
+    assert isinstance(tau, np.ndarray) and tau.shape == (7,) and tau.dtype == np.float64
+    state = loop.latest_state()
+    assert state.cycle == 1 and state.time == pytest.approx(0.001)
+    assert state.q.shape == (7,) and state.dq.shape == (7,)
+    controller = state.controller
+    assert controller.status == ci.Status.ok
+    assert controller.pose_error.shape == (6,)
+    assert controller.filtered.stiffness.shape == (6, 6)
+    assert controller.stiffness_base().shape == (6, 6)
+    assert controller.damping_base().shape == (6, 6)
+    np.testing.assert_array_equal(controller.tau, tau)
+    np.testing.assert_allclose(controller.pose.position, panda.compute_pose(ready).position)
+    assert isinstance(controller.limits.torque_rate_limited, bool)
+    assert "ActiveLimits(" in repr(controller.limits)
+    assert controller.stiffness_frame == ci.Frame.base
+    assert "7 joints" in repr(loop) and "started" in repr(loop) and "idle" in repr(loop)
+    assert loop.model is panda and loop.num_joints == 7 and loop.started
+    # The returned torque is a copy: the next step does not change it.
+    before = tau.copy()
+    loop.step(ready + 0.01, np.zeros(7), 0.001)
+    np.testing.assert_array_equal(tau, before)
+
+
+def test_table_scene_reports_the_contact_force():
+    # A table 4 cm below the flange; a 20 N downward push lowers the gravity-compensated arm on it.
+    sim = ci.sim.Simulation.from_mjcf_file(PANDA_XML)
+    top = sim.site_pose("flange").position[2] - 0.04
+    table = ci.sim.Box.table([0.3, 0.0], [0.2, 0.2], top, name="table")
+    assert table.name == "table" and table.center[2] == pytest.approx(top / 2)
+    scene = ci.sim.make_scene(PANDA_XML, [table])
+    scene.push("flange", [0, 0, -20, 0, 0, 0])
+    scene.step(3000)
+    wrench = scene.contact_wrench("panda_link8")
+    assert wrench[2] == pytest.approx(20.0, rel=0.05)
+    assert "panda" in repr(scene) and scene.num_joints == 7
+
+
+def test_render_png(tmp_path):
+    available, reason = ci.sim.offscreen_rendering_available()
+    if not available:
+        pytest.skip("offscreen rendering unavailable: " + reason)
+    path = tmp_path / "panda.png"
+    panda_sim().render_png(path, 64, 48)
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
