@@ -221,6 +221,21 @@ Simulation load_simulation(const std::string& path, const mjVFS* vfs, const std:
     impl->tau_upper[i] = upper;
   }
 
+  // MuJoCo runs its collision pipeline every step even when no two geoms can ever touch (a robot
+  // whose geoms only collide with an environment that is not there: about a quarter of the step
+  // for the project's arms). If no pair of geoms on different bodies passes the contype /
+  // conaffinity filter and no explicit <pair> exists, no contact can arise; switching detection
+  // off then changes nothing but the cost.
+  bool contact_possible = model->npair > 0;
+  for (int a = 0; a < model->ngeom && !contact_possible; ++a) {
+    for (int b = a + 1; b < model->ngeom && !contact_possible; ++b) {
+      contact_possible = model->geom_bodyid[a] != model->geom_bodyid[b] &&
+                         ((model->geom_contype[a] & model->geom_conaffinity[b]) != 0 ||
+                          (model->geom_contype[b] & model->geom_conaffinity[a]) != 0);
+    }
+  }
+  if (!contact_possible) model->opt.disableflags |= mjDSBL_CONTACT;
+
   impl->keyframe_id =
       options.keyframe.empty() ? -1 : mj_name2id(model, mjOBJ_KEY, options.keyframe.c_str());
   impl->gravity_on = options.gravity_compensation &&
