@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <initializer_list>
 #include <string>
 
 #include "cartesian_impedance/error.hpp"
@@ -108,21 +109,36 @@ CartesianImpedanceController::CartesianImpedanceController(int num_joints,
   set_parameters(parameters);
 }
 
-void CartesianImpedanceController::apply_saturation(Targets& commanded,
-                                                    ActiveLimits& limits) const noexcept {
+void CartesianImpedanceController::apply_saturation(Targets& commanded, ActiveLimits& limits,
+                                                    Command::Kind kind) const noexcept {
+  // Every commanded value is brought within the (possibly new) limits. A quantity's flag says
+  // whether its last command was saturated: it is set afresh for the quantity just commanded
+  // (all of them for new parameters) and otherwise only raised, never cleared by an unrelated
+  // command.
   const LimitParameters& l = parameters_.limits;
-  limits.stiffness_saturated = saturate_stiffness(
-      commanded.stiffness, l.stiffness.translation.min, l.stiffness.translation.max,
-      l.stiffness.rotation.min, l.stiffness.rotation.max);
-  limits.damping_ratio_saturated = clamp_each(commanded.damping_ratio, l.damping_ratio);
+  const bool all = kind == Command::Kind::parameters;
+  auto update = [all, kind](bool& flag, bool saturated, std::initializer_list<Command::Kind> own) {
+    bool commanded_now = all;
+    for (Command::Kind k : own) commanded_now |= k == kind;
+    flag = commanded_now ? saturated : (flag || saturated);
+  };
+  update(limits.stiffness_saturated,
+         saturate_stiffness(commanded.stiffness, l.stiffness.translation.min,
+                            l.stiffness.translation.max, l.stiffness.rotation.min,
+                            l.stiffness.rotation.max),
+         {Command::Kind::stiffness});
   Eigen::Matrix<double, 1, 1> nullspace_zeta(commanded.nullspace_damping_ratio);
-  limits.damping_ratio_saturated |= clamp_each(nullspace_zeta, l.damping_ratio);
+  const bool cartesian_zeta = clamp_each(commanded.damping_ratio, l.damping_ratio);
+  const bool nullspace_zeta_clamped = clamp_each(nullspace_zeta, l.damping_ratio);
   commanded.nullspace_damping_ratio = nullspace_zeta[0];
-  limits.nullspace_stiffness_saturated =
-      clamp_each(commanded.nullspace_stiffness, l.nullspace_stiffness);
+  update(limits.damping_ratio_saturated, cartesian_zeta || nullspace_zeta_clamped,
+         {Command::Kind::damping_ratio, Command::Kind::nullspace_damping_ratio});
+  update(limits.nullspace_stiffness_saturated,
+         clamp_each(commanded.nullspace_stiffness, l.nullspace_stiffness),
+         {Command::Kind::nullspace_stiffness});
   const bool force_clipped = clip_norm(commanded.wrench.head<3>(), l.wrench.force);
   const bool torque_clipped = clip_norm(commanded.wrench.tail<3>(), l.wrench.torque);
-  limits.wrench_saturated = force_clipped || torque_clipped;
+  update(limits.wrench_saturated, force_clipped || torque_clipped, {Command::Kind::wrench});
 }
 
 void CartesianImpedanceController::change_frames(Frame stiffness_frame,
@@ -149,7 +165,7 @@ void CartesianImpedanceController::change_frames(Frame stiffness_frame,
   }
 }
 
-void CartesianImpedanceController::commit(const Parameters& parameters,
+void CartesianImpedanceController::commit(const Parameters& parameters, Command::Kind kind,
                                           Targets commanded) noexcept {
   // Callers have validated everything; from here on nothing can fail, so a rejected command
   // never leaves a half-applied change behind.
@@ -157,7 +173,7 @@ void CartesianImpedanceController::commit(const Parameters& parameters,
   parameters_ = parameters;
   state_.stiffness_frame = parameters.stiffness.frame;
   state_.wrench_frame = parameters.wrench.frame;
-  apply_saturation(commanded, state_.limits);
+  apply_saturation(commanded, state_.limits, kind);
   state_.commanded = commanded;
   if (!started_) state_.filtered = state_.commanded;
   refresh_damping_mode();
@@ -323,7 +339,7 @@ bool CartesianImpedanceController::apply(const Command& command) noexcept {
       commanded.wrench << parameters.wrench.force, parameters.wrench.torque;
       break;
   }
-  commit(parameters, commanded);
+  commit(parameters, command.kind(), commanded);
   return true;
 }
 

@@ -184,6 +184,17 @@ bool cholesky_solve(Matrix6d& a, Vector6d& b) noexcept {
 
 }  // namespace
 
+void NullspaceProjector::solve_task_system() noexcept {
+  // L D L^T is the fast path; a singular J with lambda = 0 makes the matrix only semi-definite,
+  // and Eigen's pivoting LDLT then still returns a finite least-squares answer.
+  task_factor_ = task_gram_;
+  task_solution_ = task_vector_;
+  if (!cholesky_solve(task_factor_, task_solution_)) {
+    task_ldlt_.compute(task_gram_);
+    task_solution_ = task_ldlt_.solve(task_vector_);
+  }
+}
+
 void NullspaceProjector::project(const Jacobian& jacobian, double lambda, const JointVector& tau_0,
                                  JointVector& projected) noexcept {
   const Eigen::Index n = jacobian.cols();
@@ -201,14 +212,7 @@ void NullspaceProjector::project(const Jacobian& jacobian, double lambda, const 
     }
     task_gram_.diagonal().array() += lambda_squared;
     task_vector_.noalias() = jacobian * tau_0;
-    // Cholesky is the fast path; a singular J with lambda = 0 makes the matrix only
-    // semi-definite, and the pivoting LDLT then still returns a finite least-squares answer.
-    task_factor_ = task_gram_;
-    task_solution_ = task_vector_;
-    if (!cholesky_solve(task_factor_, task_solution_)) {
-      task_ldlt_.compute(task_gram_);
-      task_solution_ = task_ldlt_.solve(task_vector_);
-    }
+    solve_task_system();
     projected = tau_0;
     projected.noalias() -= jacobian.transpose() * task_solution_;
   } else {
@@ -242,12 +246,7 @@ bool NullspaceProjector::project_dynamic(const Jacobian& jacobian, const JointMa
     task_gram_.noalias() = jacobian * mass_inverse_jt_;
     task_gram_.diagonal().array() += lambda * lambda;
     task_vector_.noalias() = jacobian * joint_vector_;
-    task_factor_ = task_gram_;
-    task_solution_ = task_vector_;
-    if (!cholesky_solve(task_factor_, task_solution_)) {
-      task_ldlt_.compute(task_gram_);
-      task_solution_ = task_ldlt_.solve(task_vector_);
-    }
+    solve_task_system();
     projected = tau_0;
     projected.noalias() -= jacobian.transpose() * task_solution_;
   } else {

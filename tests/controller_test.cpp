@@ -295,6 +295,21 @@ TEST(Saturation, CommandsAreClampedToUserLimits) {
   EXPECT_FALSE(controller.state().limits.wrench_saturated);
 }
 
+// A flag belongs to its quantity: an unrelated command leaves it, a new command of that quantity
+// sets it afresh.
+TEST(Saturation, FlagsLastUntilTheirQuantityIsCommandedAgain) {
+  ci::Parameters parameters = bare_parameters();
+  parameters.limits.stiffness.translation = {0.0, 1000.0};
+  ci::CartesianImpedanceController controller(7, parameters);
+  controller.set_stiffness(six(2000, 500, 500, 50, 50, 50));
+  EXPECT_TRUE(controller.state().limits.stiffness_saturated);
+  controller.set_nullspace_stiffness(ci::JointVector::Constant(1, 5.0));
+  controller.set_wrench(six(1, 0, 0, 0, 0, 0));
+  EXPECT_TRUE(controller.state().limits.stiffness_saturated);
+  controller.set_stiffness(six(800, 500, 500, 50, 50, 50));
+  EXPECT_FALSE(controller.state().limits.stiffness_saturated);
+}
+
 TEST(Saturation, PoseErrorIsClippedKeepingDirection) {
   ci::Parameters parameters = bare_parameters();
   parameters.limits.pose_error = {0.05, 0.2};

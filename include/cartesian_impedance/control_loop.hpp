@@ -77,6 +77,9 @@ class ControlLoop {
   /// Starts (or restarts) from the measured state: reference pose = current pose, nullspace
   /// target = q. The previous torque is taken as g(q) when dynamics.gravity_compensation is on
   /// (that is what the robot needs to hold still), else zero, unless `tau_previous` is given.
+  /// Commands queued before start() are applied first, so a queued stiffness or wrench holds;
+  /// a queued reference pose or nullspace target is then replaced by the measured state (send
+  /// those after start()).
   /// @throws Error for wrongly sized or non-finite q, dq, tau_previous.
   void start(const Eigen::Ref<const Eigen::VectorXd>& q,
              const Eigen::Ref<const Eigen::VectorXd>& dq);

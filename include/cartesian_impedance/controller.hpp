@@ -47,8 +47,9 @@ struct Targets {
   JointVector nullspace_dq;  ///< nullspace target velocity [rad/s]
 };
 
-/// Which limits shaped the last command. Command saturations are set when a setter clipped a
-/// value; the others describe the last cycle.
+/// Which limits shaped the commands and the last cycle. A command saturation flag says whether
+/// the last command of that quantity was saturated (new parameters re-command them all); the
+/// others describe the last cycle.
 struct ActiveLimits {
   bool stiffness_saturated = false;
   bool damping_ratio_saturated = false;
@@ -162,8 +163,9 @@ class CartesianImpedanceController {
 
   void check_robot_state(const RobotState& robot) const;
   bool robot_state_usable(const RobotState& robot) const noexcept;
-  void apply_saturation(Targets& commanded, ActiveLimits& limits) const noexcept;
-  void commit(const Parameters& parameters, Targets commanded) noexcept;
+  void apply_saturation(Targets& commanded, ActiveLimits& limits,
+                        Command::Kind kind) const noexcept;
+  void commit(const Parameters& parameters, Command::Kind kind, Targets commanded) noexcept;
   void refresh_damping_mode() noexcept;
   void change_frames(Frame stiffness_frame, Frame wrench_frame) noexcept;
   void update_gains(double dt) noexcept;

@@ -97,6 +97,9 @@ class NullspaceProjector {
   JointMatrix matrix(const Jacobian& jacobian, const JointMatrix& mass, double lambda) noexcept;
 
  private:
+  // task_solution_ = task_gram_^-1 task_vector_ (the 6x6 system both projectors solve).
+  void solve_task_system() noexcept;
+
   Eigen::LDLT<Matrix6d> task_ldlt_;
   Eigen::LLT<JointMatrix> joint_llt_;
   Eigen::LDLT<JointMatrix> joint_ldlt_;

@@ -1,0 +1,170 @@
+#pragma once
+/// @file
+/// The ROS 1 shell around cartesian_impedance::ControlLoop. Three kinds of threads:
+///
+/// - the control thread runs the cycle at ~control_rate on a steady clock with absolute
+///   deadlines (sleep_until). It never calls ROS: commands reach it through the loop's lock-free
+///   inbox, measured joint states (topics mode) through a lock-free SnapshotBuffer, and what it
+///   produces leaves through the loop's outbox and a torque SnapshotBuffer. In sim mode it also
+///   steps the MuJoCo simulation.
+/// - the publisher thread reads the newest state at ~publish_rate and publishes controller_state,
+///   commanded_torques and (sim mode) joint_states; in topics mode an effort thread publishes
+///   each cycle's torque on effort_command, woken by a semaphore the control thread posts.
+/// - ROS callbacks (an AsyncSpinner) convert and validate messages, do tf2 lookups, and hand the
+///   commands to the loop. A rejected message is logged and changes nothing.
+
+#include <dynamic_reconfigure/server.h>
+#include <geometry_msgs/PoseStamped.h>
+#include <geometry_msgs/Wrench.h>
+#include <geometry_msgs/WrenchStamped.h>
+#include <ros/ros.h>
+#include <sensor_msgs/JointState.h>
+#include <std_srvs/Trigger.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_listener.h>
+#include <trajectory_msgs/JointTrajectory.h>
+
+#include <semaphore.h>
+
+#include <atomic>
+#include <memory>
+#include <optional>
+#include <string>
+#include <thread>
+
+#include <cartesian_impedance/control_loop.hpp>
+#include <cartesian_impedance/mailbox.hpp>
+#include <cartesian_impedance/robot_model.hpp>
+#include <cartesian_impedance/sim/simulation.hpp>
+
+#include <cartesian_impedance_ros/DampingConfig.h>
+#include <cartesian_impedance_ros/NullspaceConfig.h>
+#include <cartesian_impedance_ros/StiffnessConfig.h>
+#include <cartesian_impedance_ros/WrenchConfig.h>
+
+#include "conversions.hpp"
+#include "ros_parameters.hpp"
+
+namespace cartesian_impedance_ros {
+
+/// A counting semaphore: post() never blocks and is safe in the control cycle (a futex wake at
+/// most); wait_for() returns after a post or a timeout.
+class Wakeup {
+ public:
+  Wakeup();
+  ~Wakeup();
+  Wakeup(const Wakeup&) = delete;
+  Wakeup& operator=(const Wakeup&) = delete;
+  void post() noexcept;
+  /// True if woken by post(), false after `seconds`.
+  bool wait_for(double seconds) noexcept;
+
+ private:
+  sem_t semaphore_;
+};
+
+class CartesianImpedanceNode {
+ public:
+  /// Reads the parameters, loads the URDF from robot_description (and in sim mode the MJCF), and
+  /// creates the control loop.
+  /// @throws cartesian_impedance::Error with a message for the user.
+  CartesianImpedanceNode(const ros::NodeHandle& node, const ros::NodeHandle& private_node);
+  ~CartesianImpedanceNode();
+  CartesianImpedanceNode(const CartesianImpedanceNode&) = delete;
+  CartesianImpedanceNode& operator=(const CartesianImpedanceNode&) = delete;
+
+  /// Runs until ROS shuts down; returns the process exit code (non-zero if the control thread
+  /// failed).
+  int run();
+
+ private:
+  struct TorqueSample {
+    cartesian_impedance::JointVector tau;
+    std::uint64_t cycle = 0;
+  };
+
+  using StiffnessServer = dynamic_reconfigure::Server<StiffnessConfig>;
+  using DampingServer = dynamic_reconfigure::Server<DampingConfig>;
+  using WrenchServer = dynamic_reconfigure::Server<WrenchConfig>;
+
+  // Threads.
+  void control_thread() noexcept;
+  void publisher_thread();
+  void effort_thread();
+  void stop_threads();
+
+  // Set up once the controller runs (so no command is lost to start()).
+  void create_command_interface();
+  void create_reconfigure_servers();
+
+  // Callbacks.
+  void on_joint_states(const sensor_msgs::JointState::ConstPtr& message);
+  void on_reference_pose(const geometry_msgs::PoseStamped::ConstPtr& message);
+  void on_stiffness(const geometry_msgs::WrenchStamped::ConstPtr& message);
+  void on_damping_factors(const geometry_msgs::Wrench::ConstPtr& message);
+  void on_wrench(const geometry_msgs::WrenchStamped::ConstPtr& message);
+  void on_config(const NullspaceConfig::ConstPtr& message);
+  void on_trajectory(const trajectory_msgs::JointTrajectory::ConstPtr& message);
+  bool on_cancel_trajectory(std_srvs::Trigger::Request& request,
+                            std_srvs::Trigger::Response& response);
+  void on_stiffness_reconfigure(StiffnessConfig& config, std::uint32_t level);
+  void on_damping_reconfigure(DampingConfig& config, std::uint32_t level);
+  void on_wrench_reconfigure(WrenchConfig& config, std::uint32_t level);
+
+  /// The frame a stiffness or wrench message names: nullopt for "" (the configured frame),
+  /// base or end_effector for the base or tip link; else R_base_frame from tf2 in `rotation`.
+  /// @throws cartesian_impedance::Error if the transform is not available.
+  std::optional<cartesian_impedance::Frame> frame_of(const std::string& frame_id,
+                                                     Eigen::Matrix3d& rotation) const;
+  /// T_base_frame from tf2 (latest available), waiting at most ~tf_timeout.
+  /// @throws cartesian_impedance::Error if it is not available.
+  Eigen::Isometry3d lookup(const std::string& frame_id) const;
+  bool is_base(const std::string& frame_id) const;
+  bool is_tip(const std::string& frame_id) const;
+
+  ros::NodeHandle node_;
+  ros::NodeHandle private_node_;
+  NodeConfiguration configuration_;
+  const NodeSettings& settings_ = configuration_.settings;
+
+  std::optional<cartesian_impedance::RobotModel> model_;
+  std::unique_ptr<cartesian_impedance::ControlLoop> loop_;
+  std::optional<cartesian_impedance::sim::Simulation> simulation_;
+  std::unique_ptr<JointStateMapper> joint_mapper_;
+
+  // Hand-off to and from the control thread (lock-free, no allocation after construction).
+  cartesian_impedance::SnapshotBuffer<JointSample, 4> joint_samples_;
+  std::uint64_t joint_sequence_ = 0;  // written by the joint_states callback only
+  cartesian_impedance::SnapshotBuffer<TorqueSample, 4> torques_;
+  Wakeup torque_wakeup_;
+
+  std::atomic<bool> stop_{false};
+  std::atomic<bool> started_{false};
+  std::atomic<bool> failed_{false};
+  std::atomic<bool> joint_states_stale_{false};
+  std::atomic<std::uint64_t> overruns_{0};
+  std::string failure_;  // written by the control thread before it sets failed_
+
+  std::thread control_thread_;
+  std::thread publisher_thread_;
+  std::thread effort_thread_;
+
+  ros::Publisher state_publisher_;
+  ros::Publisher torque_publisher_;
+  ros::Publisher joint_state_publisher_;
+  ros::Publisher effort_publisher_;
+  ros::Subscriber joint_state_subscriber_;
+  std::vector<ros::Subscriber> command_subscribers_;
+  ros::ServiceServer cancel_service_;
+
+  std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
+  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
+
+  boost::recursive_mutex stiffness_mutex_, damping_mutex_, wrench_mutex_;
+  std::unique_ptr<StiffnessServer> stiffness_server_;
+  std::unique_ptr<DampingServer> damping_server_;
+  std::unique_ptr<WrenchServer> wrench_server_;
+  bool wrench_from_reconfigure_ = false;  // guarded by wrench_mutex_ (held during its callbacks)
+};
+
+}  // namespace cartesian_impedance_ros

@@ -1,0 +1,704 @@
+#!/usr/bin/python3
+"""Tests of cartesian_impedance_node against a real ROS master, driven with rospy.
+
+Each run starts its own rosmaster on a free loopback port (ROS_HOME and ROS_LOG_DIR in a
+temporary folder), launches the node(s) with the package's launch files, runs one case and stops
+every process it started by process group, also when the case fails or times out. Usage:
+
+    node_test.py CASE --node <path of cartesian_impedance_node>
+
+The environment must let roslaunch find the package and rospy its messages (CTest sets it):
+ROS_PACKAGE_PATH=<repo>/ros, CMAKE_PREFIX_PATH=<build>/devel,
+PYTHONPATH=<build>/devel/lib/python3/dist-packages.
+"""
+
+import argparse
+import ctypes
+import math
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import traceback
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+LAUNCH = os.path.join(HERE, "..", "launch")
+REPO = os.path.abspath(os.path.join(HERE, "..", ".."))
+CONTROLLER = "cartesian_impedance_controller"
+CASE_BUDGET = 50  # [s] per case; CTest's TIMEOUT (60 s) is the backstop
+
+PANDA_JOINTS = ["panda_joint%d" % i for i in range(1, 8)]
+PANDA_READY = [0.0, -math.pi / 4, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4]
+
+
+class CaseTimeout(BaseException):  # not swallowed by "except Exception" in rospy
+    pass
+
+
+def free_port():
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _die_with_parent():
+    # Runs in the child before exec: a new process group (so the whole tree can be signalled) and
+    # SIGTERM if this driver dies, even by SIGKILL.
+    os.setpgrp()
+    ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    # A driver started in the background of a shell ignores SIGINT; the children must not.
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+class Processes:
+    """Master, launches and nodes of one test, each in its own process group."""
+
+    def __init__(self):
+        self.folder = tempfile.mkdtemp(prefix="cartesian_impedance_ros_test_")
+        self.port = free_port()
+        self.env = dict(os.environ)
+        self.env.update({
+            "ROS_MASTER_URI": "http://127.0.0.1:%d" % self.port,
+            "ROS_HOSTNAME": "127.0.0.1",
+            "ROS_HOME": os.path.join(self.folder, "home"),
+            "ROS_LOG_DIR": os.path.join(self.folder, "log"),
+        })
+        self.env.pop("ROS_IP", None)
+        os.environ.update(self.env)
+        os.environ.pop("ROS_IP", None)
+        self.started = []  # (name, Popen, log path)
+
+    def start(self, name, command):
+        log = os.path.join(self.folder, name + ".log")
+        with open(log, "wb") as out:
+            process = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT,
+                                       env=self.env, preexec_fn=_die_with_parent)
+        self.started.append((name, process, log))
+        return process
+
+    def start_master(self):
+        self.start("master", ["rosmaster", "--core", "-p", str(self.port)])
+        import rosgraph
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline:
+            try:
+                rosgraph.Master("/node_test").getPid()
+                return
+            except Exception:
+                time.sleep(0.05)
+        raise RuntimeError("rosmaster did not come up on port %d" % self.port)
+
+    def launch(self, name, launch_file, *arguments):
+        return self.start(name, ["roslaunch", os.path.join(LAUNCH, launch_file)] +
+                          list(arguments))
+
+    def log(self, name):
+        for started_name, _, log in self.started:
+            if started_name == name:
+                with open(log, errors="replace") as f:
+                    return f.read()
+        return ""
+
+    def stop(self):
+        # Newest first (nodes before the master); SIGINT lets roslaunch stop its nodes.
+        for _, process, _ in reversed(self.started):
+            if process.poll() is None:
+                try:
+                    os.killpg(process.pid, signal.SIGINT)
+                except ProcessLookupError:
+                    pass
+        deadline = time.monotonic() + 5
+        for name, process, _ in reversed(self.started):
+            try:
+                process.wait(max(0.1, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                print("%s did not stop on SIGINT: killed" % name)
+            try:
+                os.killpg(process.pid, signal.SIGKILL)  # anything left in the group
+            except ProcessLookupError:
+                pass
+            process.wait()
+
+    def report(self):
+        for name, _, log in self.started:
+            with open(log, errors="replace") as f:
+                text = f.read()
+            print("---- %s (last 40 lines of %s) ----" % (name, log))
+            print("\n".join(text.splitlines()[-40:]))
+
+
+# ---- helpers over rospy (imported after the environment is set) ---------------------------------
+
+def init_rospy():
+    import rospy
+    rospy.init_node("node_test", anonymous=True, disable_signals=True)
+
+
+def wait_until(condition, timeout, what):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = condition()
+        if value:
+            return value
+        time.sleep(0.01)
+    raise AssertionError("timed out after %g s waiting for %s" % (timeout, what))
+
+
+class Latest:
+    """The newest message on a topic."""
+
+    def __init__(self, topic, message_type):
+        import rospy
+        self.message = None
+        self.count = 0
+        self.lock = threading.Lock()
+        self.subscriber = rospy.Subscriber(topic, message_type, self._store, queue_size=1,
+                                           tcp_nodelay=True)
+        self.topic = topic
+
+    def _store(self, message):
+        with self.lock:
+            self.message = message
+            self.count += 1
+
+    def get(self):
+        with self.lock:
+            return self.message
+
+    def wait(self, condition=lambda m: True, timeout=10.0, what=None):
+        def check():
+            message = self.get()
+            return message if message is not None and condition(message) else None
+        try:
+            return wait_until(check, timeout, what or "a message on " + self.topic)
+        except AssertionError as error:
+            raise AssertionError("%s; last message: %s" % (error, summary(self.get()))) from None
+
+
+def summary(state):
+    if state is None or not hasattr(state, "current_pose"):
+        return repr(state)[:400]
+    p = state.current_pose.position
+    r = state.commanded_reference_pose.position
+    return ("status=%s cycle=%d pose=(%.4f %.4f %.4f) commanded=(%.4f %.4f %.4f) trajectory=%s %d"
+            " stiffness=%s commanded stiffness=%s wrench=%s saturated: stiffness %s wrench %s"
+            % (state.status, state.cycle, p.x, p.y, p.z, r.x, r.y, r.z, state.trajectory_state,
+               state.trajectory_id, vector6(state.cartesian_stiffness),
+               vector6(state.commanded_cartesian_stiffness), vector6(state.wrench),
+               state.stiffness_saturated, state.wrench_saturated))
+
+
+def publisher(topic, message_type, subscribers=1, timeout=10.0):
+    import rospy
+    pub = rospy.Publisher(topic, message_type, queue_size=10)
+    wait_until(lambda: pub.get_num_connections() >= subscribers, timeout,
+               "a subscriber on " + topic)
+    return pub
+
+
+def controller_state(namespace=""):
+    from cartesian_impedance_ros.msg import ControllerState
+    state = Latest(namespace + "/" + CONTROLLER + "/controller_state", ControllerState)
+    state.wait(lambda m: m.status == "ok", timeout=20.0, what="the controller to run")
+    return state
+
+
+def position(pose):
+    return (pose.position.x, pose.position.y, pose.position.z)
+
+
+def distance(a, b):
+    return math.sqrt(sum((x - y) ** 2 for x, y in zip(a, b)))
+
+
+def pose_stamped(frame, xyz, quaternion):
+    from geometry_msgs.msg import PoseStamped
+    message = PoseStamped()
+    message.header.frame_id = frame
+    message.pose.position.x, message.pose.position.y, message.pose.position.z = xyz
+    (message.pose.orientation.x, message.pose.orientation.y, message.pose.orientation.z,
+     message.pose.orientation.w) = quaternion
+    return message
+
+
+def quaternion_of(pose):
+    o = pose.orientation
+    return (o.x, o.y, o.z, o.w)
+
+
+def wrench_stamped(frame, force, torque):
+    from geometry_msgs.msg import WrenchStamped
+    message = WrenchStamped()
+    message.header.frame_id = frame
+    message.wrench.force.x, message.wrench.force.y, message.wrench.force.z = force
+    message.wrench.torque.x, message.wrench.torque.y, message.wrench.torque.z = torque
+    return message
+
+
+def vector6(wrench):
+    return (wrench.force.x, wrench.force.y, wrench.force.z, wrench.torque.x, wrench.torque.y,
+            wrench.torque.z)
+
+
+def close(a, b, tolerance):
+    return all(abs(x - y) <= tolerance for x, y in zip(a, b))
+
+
+def reach_pose(state, reference_topic, frame, target_base, quaternion, sent=None, tolerance=0.003,
+               timeout=10.0):
+    """Publishes a reference and waits until the measured pose is within tolerance of target."""
+    from geometry_msgs.msg import PoseStamped
+    pub = publisher(reference_topic, PoseStamped)
+    pub.publish(pose_stamped(frame, sent or target_base, quaternion))
+    start = time.monotonic()
+    state.wait(lambda m: close(position(m.commanded_reference_pose), target_base, 1e-6),
+               timeout=3.0, what="the reference to be taken")
+    state.wait(lambda m: distance(position(m.current_pose), target_base) < tolerance,
+               timeout=timeout, what="the arm to reach %s" % (target_base,))
+    return time.monotonic() - start
+
+
+def holds(state, seconds, condition, what):
+    """Checks condition on every state for `seconds`."""
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        message = state.get()
+        if not condition(message):
+            raise AssertionError("%s: %s" % (what, summary(message)))
+        time.sleep(0.01)
+
+
+# ---- cases ----------------------------------------------------------------------------------------
+
+def case_reference_pose(processes, args):
+    """A reference pose is reached, in the base frame and in another frame via tf2; joint_states
+    come from the simulation; a pose in an unknown frame is rejected."""
+    processes.launch("launch", "sim_panda.launch")
+    init_rospy()
+    from sensor_msgs.msg import JointState
+    joints = Latest("/joint_states", JointState)
+    state = controller_state()
+    message = joints.wait(what="joint_states from the simulation")
+    assert list(message.name) == PANDA_JOINTS, message.name
+    assert close(message.position, PANDA_READY, 1e-2), message.position
+
+    start = state.get()
+    assert start.header.frame_id == "panda_link0"
+    assert list(start.joint_state.name) == PANDA_JOINTS
+    p0, q0 = position(start.current_pose), quaternion_of(start.current_pose)
+    topic = "/%s/reference_pose" % CONTROLLER
+    target = (p0[0] + 0.05, p0[1] - 0.05, p0[2] - 0.04)
+    took = reach_pose(state, topic, "panda_link0", target, q0)
+    print("base-frame reference reached within 3 mm after %.2f s" % took)
+
+    # A frame 'world' in which the base sits at (0.1, 0.2, 0) rotated 90 degrees about z.
+    from geometry_msgs.msg import TransformStamped
+    from tf2_msgs.msg import TFMessage
+    import rospy
+    transform = TransformStamped()
+    transform.header.stamp = rospy.Time.now()
+    transform.header.frame_id = "world"
+    transform.child_frame_id = "panda_link0"
+    transform.transform.translation.x = 0.1
+    transform.transform.translation.y = 0.2
+    s = math.sqrt(0.5)
+    transform.transform.rotation.z = s
+    transform.transform.rotation.w = s
+    static = rospy.Publisher("/tf_static", TFMessage, queue_size=1, latch=True)
+    wait_until(lambda: static.get_num_connections() >= 1, 10.0, "the node's tf2 listener")
+    static.publish(TFMessage([transform]))
+    time.sleep(0.3)  # delivered to the listener's buffer
+    # The same target, written in 'world': x_w = 0.1 - y_b, y_w = 0.2 + x_b; orientation
+    # q_w = R_z(90) q_b, so that the node's transform gives back q_b.
+    target2 = (target[0] - 0.03, target[1] + 0.06, target[2] + 0.03)
+    sent = (0.1 - target2[1], 0.2 + target2[0], target2[2])
+    qz = (0.0, 0.0, s, s)
+    qw = (qz[3] * q0[0] + qz[0] * q0[3] + qz[1] * q0[2] - qz[2] * q0[1],
+          qz[3] * q0[1] - qz[0] * q0[2] + qz[1] * q0[3] + qz[2] * q0[0],
+          qz[3] * q0[2] + qz[0] * q0[1] - qz[1] * q0[0] + qz[2] * q0[3],
+          qz[3] * q0[3] - qz[0] * q0[0] - qz[1] * q0[1] - qz[2] * q0[2])
+    took = reach_pose(state, topic, "world", target2, qw, sent=sent)
+    reached = state.get()
+    dot = abs(sum(a * b for a, b in zip(quaternion_of(reached.commanded_reference_pose), q0)))
+    assert dot > 1 - 1e-9, "orientation not transformed back: %s" % (reached.commanded_reference_pose,)
+    print("reference in frame 'world' (tf2) reached after %.2f s" % took)
+
+    # Unknown frame: rejected, nothing changes.
+    pub = publisher(topic, type(pose_stamped("", (0, 0, 0), (0, 0, 0, 1))))
+    pub.publish(pose_stamped("nowhere", p0, q0))
+    holds(state, 0.6, lambda m: close(position(m.commanded_reference_pose), target2, 1e-9),
+          "a pose in an unknown frame changed the reference")
+    wait_until(lambda: "no transform from frame 'nowhere'" in processes.log("launch"), 3.0,
+               "the rejection to be logged")
+
+
+def case_stiffness(processes, args):
+    """set_cartesian_stiffness and set_damping_factors change the controller's stiffness and
+    damping; so does dynamic_reconfigure; values beyond the limits are saturated."""
+    processes.launch("launch", "sim_panda.launch")
+    init_rospy()
+    from geometry_msgs.msg import Wrench, WrenchStamped
+    state = controller_state()
+    stiffness = (300.0, 400.0, 600.0, 30.0, 40.0, 45.0)
+    pub = publisher("/%s/set_cartesian_stiffness" % CONTROLLER, WrenchStamped)
+    pub.publish(wrench_stamped("", stiffness[:3], stiffness[3:]))
+    start = time.monotonic()
+    state.wait(lambda m: close(vector6(m.commanded_cartesian_stiffness), stiffness, 1e-9),
+               timeout=3.0, what="the commanded stiffness")
+    state.wait(lambda m: close(vector6(m.cartesian_stiffness), stiffness, 0.01 * 600),
+               timeout=3.0, what="the filtered stiffness")
+    print("stiffness applied (filtered to within 1 %%) after %.2f s" % (time.monotonic() - start))
+    assert state.get().stiffness_frame == "base"
+
+    ratios = (0.7, 0.8, 0.9, 0.5, 0.6, 0.75)
+    pub = publisher("/%s/set_damping_factors" % CONTROLLER, Wrench)
+    message = Wrench()
+    message.force.x, message.force.y, message.force.z = ratios[:3]
+    message.torque.x, message.torque.y, message.torque.z = ratios[3:]
+    pub.publish(message)
+    m = state.wait(lambda m: close(vector6(m.damping_ratio), ratios, 0.01), timeout=3.0,
+                   what="the damping ratios")
+    k, zeta, d = vector6(m.cartesian_stiffness), vector6(m.damping_ratio), vector6(m.cartesian_damping)
+    for i in range(6):  # D = 2 zeta sqrt(K) (or more: the library may keep a minimum damping)
+        assert d[i] >= 0.99 * 2 * zeta[i] * math.sqrt(k[i]), (i, k, zeta, d)
+
+    # dynamic_reconfigure; 5000 N/m is above the Panda's limit (3000 N/m): saturated.
+    import dynamic_reconfigure.client
+    client = dynamic_reconfigure.client.Client("/%s/stiffness_reconfigure" % CONTROLLER,
+                                               timeout=10)
+    result = client.update_configuration({
+        "translation_x": 800.0, "translation_y": 900.0, "translation_z": 5000.0,
+        "rotation_x": 20.0, "rotation_y": 25.0, "rotation_z": 35.0,
+        "nullspace_stiffness": 15.0, "update_stiffness": True})
+    assert result["update_stiffness"] and result["translation_x"] == 800.0, result
+    # The ranges shown to GUIs are the node's limits; the library saturates what is beyond.
+    ranges = {d["name"]: d for d in client.get_parameter_descriptions()}
+    assert ranges["translation_z"]["max"] == 3000.0, ranges["translation_z"]
+    expected = (800.0, 900.0, 3000.0, 20.0, 25.0, 35.0)
+    state.wait(lambda m: close(vector6(m.commanded_cartesian_stiffness), expected, 1e-9),
+               timeout=3.0, what="the stiffness from dynamic_reconfigure")
+    state.wait(lambda m: close(m.nullspace_stiffness, [15.0] * 7, 0.5), timeout=3.0,
+               what="the nullspace stiffness from dynamic_reconfigure")
+
+    # Negative stiffness is invalid (not saturated): rejected, nothing changes.
+    pub = publisher("/%s/set_cartesian_stiffness" % CONTROLLER, WrenchStamped)
+    pub.publish(wrench_stamped("", (-5.0, 100.0, 100.0), (10.0, 10.0, 10.0)))
+    holds(state, 0.5, lambda m: close(vector6(m.commanded_cartesian_stiffness), expected, 1e-9),
+          "an invalid stiffness changed the stiffness")
+    wait_until(lambda: "set_cartesian_stiffness rejected" in processes.log("launch"), 3.0,
+               "the rejection to be logged")
+    pub.publish(wrench_stamped("", (5000.0, 100.0, 100.0), (10.0, 10.0, 10.0)))
+    m = state.wait(lambda m: m.stiffness_saturated, timeout=3.0, what="stiffness_saturated")
+    assert m.commanded_cartesian_stiffness.force.x == 3000.0, m.commanded_cartesian_stiffness
+
+
+def case_wrench(processes, args):
+    """set_cartesian_wrench changes the commanded wrench, in the base frame, in the end-effector
+    frame, and saturated at limits/wrench; the arm gives way by F / K."""
+    processes.launch("launch", "sim_panda.launch")
+    init_rospy()
+    from geometry_msgs.msg import WrenchStamped
+    state = controller_state()
+    start = state.get()
+    assert start.wrench_frame == "base" and vector6(start.commanded_wrench) == (0.0,) * 6, start
+    p0 = position(start.current_pose)
+    pub = publisher("/%s/set_cartesian_wrench" % CONTROLLER, WrenchStamped)
+    pub.publish(wrench_stamped("panda_link0", (0.0, 0.0, -5.0), (0.0, 0.0, 0.0)))
+    state.wait(lambda m: close(vector6(m.commanded_wrench), (0, 0, -5, 0, 0, 0), 1e-9),
+               timeout=3.0, what="the commanded wrench")
+    state.wait(lambda m: close(vector6(m.wrench), (0, 0, -5, 0, 0, 0), 0.05), timeout=3.0,
+               what="the applied (filtered) wrench")
+    # 5 N against 500 N/m: 10 mm down once settled, a little less with the nullspace spring and
+    # joint friction holding back.
+    m = state.wait(lambda m: abs(m.current_pose.position.z - (p0[2] - 0.010)) < 0.004,
+                   timeout=5.0, what="the arm to give way by about 10 mm")
+    print("pushed down by %.1f mm" % (1000 * (p0[2] - m.current_pose.position.z)))
+    assert m.wrench_frame == "base"
+
+    # The end-effector frame of the Panda at the ready pose points down: +z there is -z in base.
+    pub.publish(wrench_stamped("panda_link8", (0.0, 0.0, 4.0), (0.0, 0.0, 0.0)))
+    m = state.wait(lambda m: m.wrench_frame == "end_effector" and
+                   close(vector6(m.wrench), (0, 0, -4, 0, 0, 0), 0.2), timeout=3.0,
+                   what="a wrench in the end-effector frame")
+
+    pub.publish(wrench_stamped("panda_link0", (0.0, 0.0, -1000.0), (0.0, 0.0, 0.0)))
+    m = state.wait(lambda m: m.wrench_saturated, timeout=3.0, what="wrench_saturated")
+    assert abs(m.commanded_wrench.force.z + 60.0) < 1e-9, m.commanded_wrench  # limits/wrench/force
+
+    pub.publish(wrench_stamped("panda_link0", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)))
+    state.wait(lambda m: close(vector6(m.wrench), (0,) * 6, 0.05), timeout=3.0,
+               what="the wrench to go back to zero")
+
+    # dynamic_reconfigure: applied while apply_wrench is true, removed when it is switched off.
+    import dynamic_reconfigure.client
+    client = dynamic_reconfigure.client.Client("/%s/cartesian_wrench_reconfigure" % CONTROLLER,
+                                               timeout=10)
+    client.update_configuration({"f_x": 3.0, "tau_z": 0.5, "frame": "base", "apply_wrench": True})
+    state.wait(lambda m: m.wrench_frame == "base" and
+               close(vector6(m.commanded_wrench), (3, 0, 0, 0, 0, 0.5), 1e-9), timeout=3.0,
+               what="the wrench from dynamic_reconfigure")
+    client.update_configuration({"apply_wrench": False})
+    state.wait(lambda m: close(vector6(m.commanded_wrench), (0,) * 6, 1e-12), timeout=3.0,
+               what="the wrench to be removed")
+
+
+def case_trajectory(processes, args):
+    """A joint trajectory (joints in another order than the model's) is executed and finishes
+    at its last point."""
+    processes.launch("launch", "sim_panda.launch")
+    init_rospy()
+    import rospy
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+    state = controller_state()
+    # A stiffer nullspace (set_config, keeping the nullspace target) so that friction does not
+    # keep the joints from their goal within trajectory/goal_tolerance.
+    from cartesian_impedance_ros.msg import NullspaceConfig
+    config = NullspaceConfig(q_d_nullspace=[], nullspace_stiffness=[40.0],
+                             nullspace_damping_ratio=0.9)
+    publisher("/%s/set_config" % CONTROLLER, NullspaceConfig).publish(config)
+    state.wait(lambda m: close(m.nullspace_stiffness, [40.0] * 7, 0.4) and
+               abs(m.nullspace_damping_ratio - 0.9) < 0.01, timeout=3.0,
+               what="the nullspace configuration")
+    q0 = list(state.get().joint_state.position)
+    goal = [q + d for q, d in zip(q0, (0.3, 0.2, -0.2, 0.3, 0.3, -0.2, 0.4))]
+    order = [6, 2, 0, 4, 1, 5, 3]
+    message = JointTrajectory()
+    message.joint_names = [PANDA_JOINTS[i] for i in order]
+    for t in (0.5, 1.0, 1.5):
+        point = JointTrajectoryPoint()
+        point.positions = [q0[i] + (goal[i] - q0[i]) * t / 1.5 for i in order]
+        point.time_from_start = rospy.Duration(t)
+        message.points.append(point)
+    pub = publisher("/%s/joint_trajectory" % CONTROLLER, JointTrajectory)
+    pub.publish(message)
+    start = time.monotonic()
+    state.wait(lambda m: m.trajectory_id == 1 and m.trajectory_state == "executing", timeout=3.0,
+               what="the trajectory to start")
+    m = state.wait(lambda m: m.trajectory_state == "finished", timeout=6.0,
+                   what="the trajectory to finish")
+    print("trajectory finished after %.2f s (duration 1.5 s), goal error %.4f rad"
+          % (time.monotonic() - start, m.trajectory_goal_error))
+    assert m.trajectory_progress == 1.0 and abs(m.trajectory_duration - 1.5) < 1e-9, m
+    assert close(m.joint_state.position, goal, 0.02), (list(m.joint_state.position), goal)
+
+    # A trajectory with an unknown joint is rejected; the robot stays where it is.
+    message.joint_names[0] = "elbow"
+    pub.publish(message)
+    holds(state, 0.5, lambda m: m.trajectory_id == 1 and m.trajectory_state == "finished",
+          "a bad trajectory was executed")
+    wait_until(lambda: "joint_trajectory rejected" in processes.log("launch"), 3.0,
+               "the rejection to be logged")
+
+
+def case_nan_pose(processes, args):
+    """A NaN pose and a non-unit quaternion are rejected and logged; the robot holds and the
+    controller keeps running and accepts the next good pose."""
+    processes.launch("launch", "sim_panda.launch")
+    init_rospy()
+    from geometry_msgs.msg import PoseStamped
+    state = controller_state()
+    start = state.get()
+    p0, q0 = position(start.current_pose), quaternion_of(start.current_pose)
+    reference = position(start.commanded_reference_pose)
+    pub = publisher("/%s/reference_pose" % CONTROLLER, PoseStamped)
+    pub.publish(pose_stamped("", (float("nan"), p0[1], p0[2]), q0))
+    time.sleep(0.05)
+    pub.publish(pose_stamped("", (p0[0] + 0.1, p0[1], p0[2]), (0.0, 0.0, 0.0, 0.0)))
+    holds(state, 1.0, lambda m: m.status == "ok" and
+          close(position(m.commanded_reference_pose), reference, 1e-12) and
+          distance(position(m.current_pose), p0) < 0.001,
+          "the robot did not hold after bad poses")
+    wait_until(lambda: "reference_pose rejected" in processes.log("launch"), 3.0,
+               "the rejection to be logged")
+    log = processes.log("launch")
+    assert "nan" in log, log[-2000:]
+    cycle = state.get().cycle
+    target = (p0[0], p0[1] + 0.03, p0[2])
+    reach_pose(state, "/%s/reference_pose" % CONTROLLER, "", target, q0)
+    assert state.get().cycle > cycle
+
+
+def case_two_arms(processes, args):
+    """Two namespaced arms (a Panda in /left, an iiwa 14 in /right) run at once, each reaching
+    its own reference."""
+    processes.launch("launch", "sim_two_arms.launch")
+    init_rospy()
+    from sensor_msgs.msg import JointState
+    left, right = controller_state("/left"), controller_state("/right")
+    left_joints = Latest("/left/joint_states", JointState)
+    right_joints = Latest("/right/joint_states", JointState)
+    assert list(left_joints.wait().name) == PANDA_JOINTS
+    assert list(right_joints.wait().name) == ["iiwa_joint_%d" % i for i in range(1, 8)]
+    assert left.get().header.frame_id == "panda_link0"
+    assert right.get().header.frame_id == "iiwa_link_0"
+
+    from geometry_msgs.msg import PoseStamped
+    targets = {}
+    for name, state in (("left", left), ("right", right)):
+        m = state.get()
+        p, q = position(m.current_pose), quaternion_of(m.current_pose)
+        targets[name] = (p[0] - 0.04, p[1] + 0.04, p[2] + 0.03)
+        pub = publisher("/%s/%s/reference_pose" % (name, CONTROLLER), PoseStamped)
+        pub.publish(pose_stamped("", targets[name], q))
+    for name, state in (("left", left), ("right", right)):
+        state.wait(lambda m: distance(position(m.current_pose), targets[name]) < 0.003,
+                   timeout=10.0, what="the %s arm to reach its reference" % name)
+    print("both arms reached their references")
+
+
+def case_topics_mode(processes, args):
+    """mode topics: joint_states in (in any order, with other joints), effort_command out at the
+    control rate; without joint_states the status turns invalid and the torque ramps to zero."""
+    processes.launch(
+        "launch", "cartesian_impedance.launch", "mode:=topics",
+        "urdf:=%s/models/panda/panda.urdf" % REPO, "config:=%s/config/panda.yaml" % REPO,
+        "base_link:=panda_link0", "tip_link:=panda_link8")
+    init_rospy()
+    import rospy
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64MultiArray
+    efforts = Latest("/effort_command", Float64MultiArray)
+
+    robot = rospy.Publisher("/joint_states", JointState, queue_size=10)
+    wait_until(lambda: robot.get_num_connections() >= 1, 10.0, "the node to subscribe")
+    running = {"on": True}
+    order = [3, 0, 6, 1, 5, 2, 4]
+
+    def play_robot():
+        message = JointState()
+        message.name = ["panda_finger_joint1"] + [PANDA_JOINTS[i] for i in order]
+        message.position = [0.04] + [PANDA_READY[i] for i in order]
+        message.velocity = [0.0] * 8
+        message.effort = [0.0] + [0.5] * 7
+        while not rospy.is_shutdown() and running["on"] is not None:
+            if running["on"]:
+                message.header.stamp = rospy.Time.now()
+                robot.publish(message)
+            time.sleep(0.004)  # about 250 Hz
+
+    player = threading.Thread(target=play_robot, daemon=True)
+    player.start()
+    try:
+        state = controller_state()
+        m = state.get()
+        assert close(m.joint_state.position, PANDA_READY, 1e-9), m.joint_state.position
+        assert close(m.external_torques, [0.5 - t for t in m.commanded_torques], 1e-9)
+        efforts.wait(lambda e: len(e.data) == 7, timeout=5.0, what="effort_command")
+        count = efforts.count
+        time.sleep(1.0)
+        rate = efforts.count - count
+        print("effort_command: %d messages in 1 s (control rate 1000 Hz)" % rate)
+        assert rate > 300, rate
+
+        # A reference 5 cm away: efforts grow (the robot here does not move).
+        from geometry_msgs.msg import PoseStamped
+        p, q = position(m.current_pose), quaternion_of(m.current_pose)
+        pub = publisher("/%s/reference_pose" % CONTROLLER, PoseStamped)
+        pub.publish(pose_stamped("", (p[0] + 0.05, p[1], p[2]), q))
+        efforts.wait(lambda e: max(abs(x) for x in e.data) > 5.0, timeout=3.0,
+                     what="efforts toward the new reference")
+
+        running["on"] = False  # the robot connection is lost
+        state.wait(lambda m: m.status == "invalid_robot_state", timeout=2.0,
+                   what="invalid_robot_state without joint_states")
+        efforts.wait(lambda e: max(abs(x) for x in e.data) < 1e-9, timeout=2.0,
+                     what="the torque to ramp to zero")
+        running["on"] = True
+        state.wait(lambda m: m.status == "ok", timeout=2.0, what="ok once joint_states are back")
+    finally:
+        running["on"] = None
+
+
+def case_bad_parameters(processes, args):
+    """Invalid parameters, a missing robot_description or a wrong link end the node at start with
+    the library's message and a non-zero exit code."""
+    init_rospy()
+    import rospy
+    with open(os.path.join(REPO, "models", "panda", "panda.urdf")) as f:
+        urdf = f.read()
+
+    def run(name, parameters, expected):
+        for key, value in parameters.items():
+            rospy.set_param("/%s/%s" % (name, key), value)
+        process = processes.start(name, [args.node, "__name:=" + name])
+        try:
+            code = process.wait(15)
+        except subprocess.TimeoutExpired:
+            raise AssertionError("%s: the node did not exit" % name)
+        log = processes.log(name)
+        assert code == 1, "%s: exit code %s\n%s" % (name, code, log)
+        assert expected in log, "%s: %r not in\n%s" % (name, expected, log)
+        print("%s: exit code 1: %s" % (name, [l for l in log.splitlines() if expected in l][0]))
+
+    good = {"base_link": "panda_link0", "tip_link": "panda_link8",
+            "mjcf_path": os.path.join(REPO, "models", "panda", "panda.xml")}
+    run("no_description", good, "parameter /robot_description is not set")
+    rospy.set_param("/robot_description", urdf)
+    run("negative_stiffness", dict(good, **{"stiffness/translation": [500, -5, 500]}),
+        "stiffness.translation.y = -5 N/m is outside [0, inf)")
+    run("misspelt", dict(good, **{"filter/pose/tme": 0.1}),
+        "/misspelt/filter/pose/tme: unknown parameter")
+    run("wrong_tip", dict(good, tip_link="panda_hand"), "panda_hand")
+    run("joint_count", dict(good, **{"limits/joint_torque": [87, 87, 87]}),
+        "limits.joint_torque")
+    run("bad_mjcf", dict(good, mjcf_path="/nonexistent/panda.xml"), "/nonexistent/panda.xml")
+
+
+CASES = {name[len("case_"):]: function for name, function in globals().items()
+         if name.startswith("case_")}
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("case", choices=sorted(CASES))
+    parser.add_argument("--node", required=True, help="path of cartesian_impedance_node")
+    args = parser.parse_args()
+
+    def on_alarm(signum, frame):
+        raise CaseTimeout("case '%s' took longer than %d s" % (args.case, CASE_BUDGET))
+
+    def on_term(signum, frame):
+        raise CaseTimeout("terminated by signal %d" % signum)
+
+    signal.signal(signal.SIGALRM, on_alarm)
+    signal.signal(signal.SIGTERM, on_term)
+    signal.alarm(CASE_BUDGET)
+    processes = Processes()
+    started = time.monotonic()
+    ok = False
+    try:
+        processes.start_master()
+        CASES[args.case](processes, args)
+        ok = True
+    except BaseException:
+        traceback.print_exc()
+    finally:
+        # Cleanup must not be interrupted by a second signal (CTest's timeout kill); if the
+        # driver is killed outright, PR_SET_PDEATHSIG still ends its children.
+        signal.alarm(0)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            import rospy
+            if rospy.core.is_initialized():
+                rospy.signal_shutdown("test done")
+        except Exception:
+            pass
+        processes.stop()
+        if not ok:
+            processes.report()
+            print("logs kept in %s" % processes.folder)
+        else:
+            shutil.rmtree(processes.folder, ignore_errors=True)
+    print("%s: %s in %.1f s" % (args.case, "passed" if ok else "FAILED", time.monotonic() - started))
+    sys.exit(0 if ok else 1)
+
+
+if __name__ == "__main__":
+    main()

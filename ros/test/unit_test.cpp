@@ -1,0 +1,427 @@
+// Unit tests of the ROS shell that need no ROS master: parameters read from the parameter
+// server's XmlRpc values (the same names and values as config/*.yaml give the same Parameters as
+// the library's YAML loader), and the message conversions.
+
+#include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include <cartesian_impedance/config.hpp>
+#include <cartesian_impedance/control_loop.hpp>
+#include <cartesian_impedance/error.hpp>
+
+#include "conversions.hpp"
+#include "ros_parameters.hpp"
+
+namespace ci = cartesian_impedance;
+namespace cir = cartesian_impedance_ros;
+using XmlRpc::XmlRpcValue;
+
+namespace {
+
+const std::string kSource = CARTESIAN_IMPEDANCE_SOURCE_DIR;
+const std::string kNamespace = "/arm/cartesian_impedance_controller";
+
+// What `rosparam load` makes of a YAML document: ints stay ints, floats doubles.
+XmlRpcValue to_xmlrpc(const YAML::Node& node) {
+  XmlRpcValue value;
+  if (node.IsMap()) {
+    for (const auto& entry : node) value[entry.first.as<std::string>()] = to_xmlrpc(entry.second);
+  } else if (node.IsSequence()) {
+    value.setSize(static_cast<int>(node.size()));
+    for (std::size_t i = 0; i < node.size(); ++i) value[static_cast<int>(i)] = to_xmlrpc(node[i]);
+  } else if (node.IsScalar()) {
+    const std::string& text = node.Scalar();
+    bool flag = false;
+    int integer = 0;
+    double number = 0.0;
+    if (text == "true" || text == "false") {
+      flag = text == "true";
+      value = flag;
+    } else if (YAML::convert<int>::decode(node, integer) &&
+               text.find_first_of(".eE") == std::string::npos) {
+      value = integer;
+    } else if (YAML::convert<double>::decode(node, number)) {
+      value = number;
+    } else {
+      value = text;
+    }
+  }
+  return value;
+}
+
+XmlRpcValue required_settings() {
+  XmlRpcValue root;
+  root["base_link"] = std::string("panda_link0");
+  root["tip_link"] = std::string("panda_link8");
+  root["mjcf_path"] = std::string("panda.xml");
+  return root;
+}
+
+std::string error_of(XmlRpcValue& root) {
+  try {
+    cir::configuration_from_xmlrpc(root, kNamespace);
+  } catch (const ci::Error& error) {
+    return error.what();
+  }
+  return "";
+}
+
+ci::RobotModel panda() {
+  return ci::RobotModel::from_urdf_file(kSource + "/models/panda/panda.urdf", "panda_link0",
+                                        "panda_link8");
+}
+
+}  // namespace
+
+// ---- parameters -----------------------------------------------------------------------------
+
+class RosParametersFromConfigFile : public testing::TestWithParam<const char*> {};
+
+TEST_P(RosParametersFromConfigFile, SameAsTheYamlLoader) {
+  const std::string path = kSource + "/config/" + GetParam();
+  XmlRpcValue root = to_xmlrpc(YAML::LoadFile(path));
+  for (const char* key : {"base_link", "tip_link", "mjcf_path"}) root[key] = std::string("x");
+  const cir::NodeConfiguration configuration = cir::configuration_from_xmlrpc(root, kNamespace);
+  EXPECT_EQ(ci::parameters_to_yaml(configuration.parameters),
+            ci::parameters_to_yaml(ci::load_parameters(path)));
+  EXPECT_TRUE(configuration.unknown_keys.empty());
+}
+
+INSTANTIATE_TEST_SUITE_P(Configs, RosParametersFromConfigFile,
+                         testing::Values("panda.yaml", "iiwa14.yaml"));
+
+TEST(RosParameters, EveryRowOfTheTableIsRead) {
+  // Non-default values for every parameter, written as YAML by the library, read back through
+  // the parameter-server path: each row of the table must arrive.
+  ci::Parameters changed;
+  for (const ci::ParameterInfo& info : ci::parameter_table()) {
+    const ci::ParameterField field = info.in(changed);
+    const double value = std::isfinite(info.max)   ? info.max
+                         : std::isfinite(info.min) ? info.min + 1.5
+                                                   : 1.5;
+    if (auto* scalar = std::get_if<double*>(&field)) {
+      **scalar = value;
+    } else if (auto* vector = std::get_if<Eigen::Vector3d*>(&field)) {
+      (*vector)->setConstant(value);
+    } else if (auto* joints = std::get_if<ci::JointVector*>(&field)) {
+      **joints = ci::JointVector::Constant(7, value);
+    } else if (auto* flag = std::get_if<bool*>(&field)) {
+      **flag = !**flag;
+    } else if (auto* frame = std::get_if<ci::Frame*>(&field)) {
+      **frame = ci::Frame::end_effector;
+    }
+  }
+  // Limits must stay ordered (min <= max) for validation; equal bounds are fine.
+  XmlRpcValue root = to_xmlrpc(YAML::Load(ci::parameters_to_yaml(changed)));
+  for (const char* key : {"base_link", "tip_link", "mjcf_path"}) root[key] = std::string("x");
+  const ci::Parameters read = cir::configuration_from_xmlrpc(root, kNamespace).parameters;
+  EXPECT_EQ(ci::parameters_to_yaml(read), ci::parameters_to_yaml(changed));
+  EXPECT_NE(ci::parameters_to_yaml(read), ci::parameters_to_yaml(ci::Parameters{}));
+}
+
+TEST(RosParameters, DefaultsAndSettings) {
+  XmlRpcValue root = required_settings();
+  const cir::NodeConfiguration configuration = cir::configuration_from_xmlrpc(root, kNamespace);
+  EXPECT_EQ(ci::parameters_to_yaml(configuration.parameters),
+            ci::parameters_to_yaml(ci::Parameters{}));
+  EXPECT_EQ(configuration.settings.mode, cir::Mode::sim);
+  EXPECT_EQ(configuration.settings.control_rate, 1000.0);
+  EXPECT_EQ(configuration.settings.publish_rate, 100.0);
+  EXPECT_EQ(configuration.settings.base_link, "panda_link0");
+
+  root["mode"] = std::string("topics");
+  root["control_rate"] = 500;  // an int is a number too
+  root["publish_rate"] = 50.0;
+  root["realtime_priority"] = 80;
+  root["stiffness_reconfigure"]["translation_x"] = 3.0;  // left by dynamic_reconfigure: fine
+  const cir::NodeSettings settings = cir::configuration_from_xmlrpc(root, kNamespace).settings;
+  EXPECT_EQ(settings.mode, cir::Mode::topics);
+  EXPECT_EQ(settings.control_rate, 500.0);
+  EXPECT_EQ(settings.publish_rate, 50.0);
+  EXPECT_EQ(settings.realtime_priority, 80);
+}
+
+TEST(RosParameters, NothingSetNamesTheMissingSetting) {
+  XmlRpcValue nothing;  // what the master gives for an empty namespace
+  EXPECT_EQ(error_of(nothing),
+            "ROS parameter " + kNamespace + "/base_link: is not set (the chain's root link)");
+}
+
+TEST(RosParameters, ErrorsNameParameterValueAndRange) {
+  {
+    XmlRpcValue root = required_settings();
+    root["stiffness"]["translation"] = -5;
+    EXPECT_EQ(error_of(root), "ROS parameter " + kNamespace +
+                                  "/stiffness/translation: stiffness.translation = -5 N/m is "
+                                  "outside [0, inf)");
+  }
+  {
+    XmlRpcValue root = required_settings();
+    XmlRpcValue& list = root["stiffness"]["rotation"];
+    list.setSize(3);
+    list[0] = 1.0;
+    list[1] = std::numeric_limits<double>::quiet_NaN();
+    list[2] = 1.0;
+    const std::string error = error_of(root);
+    EXPECT_NE(error.find("stiffness.rotation.y = nan"), std::string::npos) << error;
+    EXPECT_NE(error.find("not finite"), std::string::npos) << error;
+  }
+  {
+    XmlRpcValue root = required_settings();
+    root["stiffness"]["tranlation"] = 500;
+    EXPECT_EQ(error_of(root), "ROS parameter " + kNamespace +
+                                  "/stiffness/tranlation: unknown parameter (see the parameter "
+                                  "table in README.md)");
+  }
+  {
+    XmlRpcValue root = required_settings();
+    root["filter"]["pose"]["time"] = std::string("fast");
+    EXPECT_EQ(error_of(root), "ROS parameter " + kNamespace +
+                                  "/filter/pose/time: filter.pose.time is a string, expected a "
+                                  "number [s]");
+  }
+  {
+    XmlRpcValue root = required_settings();
+    XmlRpcValue& list = root["limits"]["joint_torque"];
+    list.setSize(ci::kMaxJoints + 1);
+    for (int i = 0; i <= ci::kMaxJoints; ++i) list[i] = 10.0;
+    EXPECT_NE(error_of(root).find("list of 1 to " + std::to_string(ci::kMaxJoints) +
+                                  " numbers (one per joint), got a list of " +
+                                  std::to_string(ci::kMaxJoints + 1)),
+              std::string::npos);
+  }
+  {
+    XmlRpcValue root = required_settings();
+    root["wrench"]["frame"] = std::string("tool");
+    EXPECT_NE(error_of(root).find("/wrench/frame: "), std::string::npos);
+    EXPECT_NE(error_of(root).find("tool"), std::string::npos);
+  }
+  {
+    XmlRpcValue root = required_settings();
+    root["dynamics"]["gravity_compensation"] = 1;
+    EXPECT_NE(error_of(root).find("expected true or false, got an integer"), std::string::npos);
+  }
+  {
+    XmlRpcValue root = required_settings();
+    root["mode"] = std::string("hardware");
+    EXPECT_EQ(error_of(root),
+              "ROS parameter " + kNamespace + "/mode: 'hardware' is not sim or topics");
+  }
+  {
+    XmlRpcValue root = required_settings();
+    root["publish_rate"] = 2000;
+    EXPECT_NE(error_of(root).find("above control_rate"), std::string::npos);
+  }
+  {
+    XmlRpcValue root = required_settings();
+    root["control_rate"] = 0;
+    EXPECT_NE(error_of(root).find("/control_rate: 0 is outside (0, 10000]"), std::string::npos);
+  }
+  {
+    XmlRpcValue root = required_settings();
+    root["mjcf_path"] = std::string("");
+    EXPECT_NE(error_of(root).find("sim mode needs the MuJoCo model"), std::string::npos);
+    root["mode"] = std::string("topics");
+    EXPECT_EQ(error_of(root), "");
+  }
+}
+
+TEST(RosParameters, UnknownTopLevelKeysAreWarnings) {
+  XmlRpcValue root = required_settings();
+  root["stifness"]["translation"] = 500;  // not a group: only a warning
+  const cir::NodeConfiguration configuration = cir::configuration_from_xmlrpc(root, kNamespace);
+  ASSERT_EQ(configuration.unknown_keys.size(), 1u);
+  EXPECT_EQ(configuration.unknown_keys[0], kNamespace + "/stifness");
+}
+
+TEST(RosParameters, PerJointValuesAreCheckedAgainstTheModel) {
+  XmlRpcValue root = required_settings();
+  XmlRpcValue& list = root["nullspace"]["stiffness"];
+  list.setSize(6);
+  for (int i = 0; i < 6; ++i) list[i] = 10;
+  const ci::Parameters parameters = cir::configuration_from_xmlrpc(root, kNamespace).parameters;
+  try {
+    ci::ControlLoop loop(panda(), parameters);
+    FAIL() << "6 nullspace stiffnesses for 7 joints were accepted";
+  } catch (const ci::Error& error) {
+    EXPECT_NE(std::string(error.what()).find("nullspace.stiffness"), std::string::npos);
+  }
+}
+
+// ---- joint states ---------------------------------------------------------------------------
+
+TEST(JointStateMapper, ReordersAndIgnoresOtherJoints) {
+  const cir::JointStateMapper mapper({"a", "b", "c"});
+  sensor_msgs::JointState message;
+  message.name = {"finger", "c", "a", "b"};
+  message.position = {9, 3, 1, 2};
+  message.velocity = {9, 30, 10, 20};
+  message.effort = {9, 300, 100, 200};
+  cir::JointSample sample;
+  ASSERT_TRUE(mapper.map(message, sample));
+  EXPECT_EQ(sample.q, (Eigen::Vector3d(1, 2, 3)));
+  EXPECT_EQ(sample.dq, (Eigen::Vector3d(10, 20, 30)));
+  EXPECT_EQ(sample.effort, (Eigen::Vector3d(100, 200, 300)));
+
+  message.effort.clear();  // efforts are optional
+  ASSERT_TRUE(mapper.map(message, sample));
+  EXPECT_EQ(sample.effort.size(), 0);
+
+  sensor_msgs::JointState gripper;
+  gripper.name = {"finger"};
+  gripper.position = {0.1};
+  gripper.velocity = {0.0};
+  EXPECT_FALSE(mapper.map(gripper, sample));
+}
+
+TEST(JointStateMapper, RejectsIncompleteMessages) {
+  const cir::JointStateMapper mapper({"a", "b", "c"});
+  cir::JointSample sample;
+  sensor_msgs::JointState message;
+  message.name = {"a", "b"};
+  message.position = {1, 2};
+  message.velocity = {1, 2};
+  EXPECT_THROW(mapper.map(message, sample), ci::Error);  // c missing
+  message.name = {"a", "b", "c"};
+  message.position = {1, 2, 3};
+  message.velocity = {};
+  EXPECT_THROW(mapper.map(message, sample), ci::Error);  // no velocities
+  message.velocity = {1, 2, 3};
+  message.effort = {1};
+  EXPECT_THROW(mapper.map(message, sample), ci::Error);  // effort size
+  message.effort = {};
+  message.position = {1, 2};
+  EXPECT_THROW(mapper.map(message, sample), ci::Error);  // position size
+  message.name = {"a", "b", "c", "a"};
+  message.position = {1, 2, 3, 4};
+  message.velocity = {1, 2, 3, 4};
+  EXPECT_THROW(mapper.map(message, sample), ci::Error);  // a twice
+}
+
+TEST(JointStateMapper, PassesNonFiniteValuesOnToTheController) {
+  const cir::JointStateMapper mapper({"a"});
+  sensor_msgs::JointState message;
+  message.name = {"a"};
+  message.position = {std::numeric_limits<double>::quiet_NaN()};
+  message.velocity = {0.0};
+  cir::JointSample sample;
+  ASSERT_TRUE(mapper.map(message, sample));
+  EXPECT_TRUE(std::isnan(sample.q[0]));
+}
+
+// ---- geometry -------------------------------------------------------------------------------
+
+TEST(Conversions, PoseRoundTripKeepsQuaternionOrderAndNorm) {
+  geometry_msgs::Pose message;
+  message.position.x = 1;
+  message.position.y = 2;
+  message.position.z = 3;
+  message.orientation.x = 0.0;
+  message.orientation.y = 2.0;  // not unit: the library, not the conversion, rejects it
+  message.orientation.z = 0.0;
+  message.orientation.w = 0.0;
+  const ci::Pose pose = cir::pose_from_message(message);
+  EXPECT_EQ(pose.orientation.y(), 2.0);
+  EXPECT_EQ(pose.orientation.w(), 0.0);
+  geometry_msgs::Pose back;
+  cir::pose_to_message(pose, back);
+  EXPECT_EQ(back, message);
+}
+
+TEST(Conversions, TransformsPosesWrenchesAndStiffness) {
+  // Frame "world" has the base at (1, 0, 0), rotated 90 degrees about z.
+  geometry_msgs::Transform transform;
+  transform.translation.x = 1.0;
+  transform.rotation.z = std::sqrt(0.5);
+  transform.rotation.w = std::sqrt(0.5);
+  const Eigen::Isometry3d T = cir::isometry_from_transform(transform);
+
+  ci::Pose pose;
+  pose.position = Eigen::Vector3d(1, 0, 0);
+  const ci::Pose base = cir::transform_pose(T, pose);
+  EXPECT_TRUE(base.position.isApprox(Eigen::Vector3d(1, 1, 0)));
+  EXPECT_NEAR(base.orientation.angularDistance(
+                  Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()))),
+              0.0, 1e-12);
+
+  ci::Vector6d wrench;
+  wrench << 1, 0, 0, 0, 2, 0;
+  ci::Vector6d expected;
+  expected << 0, 1, 0, -2, 0, 0;
+  EXPECT_TRUE(cir::rotate_wrench(T.linear(), wrench).isApprox(expected));
+
+  ci::Vector6d diagonal;
+  diagonal << 100, 200, 300, 10, 20, 30;
+  const ci::Matrix6d K = cir::rotate_stiffness(T.linear(), diagonal);
+  ci::Vector6d swapped;
+  swapped << 200, 100, 300, 20, 10, 30;
+  EXPECT_TRUE(K.diagonal().isApprox(swapped));
+  EXPECT_NEAR((K - ci::Matrix6d(swapped.asDiagonal())).norm(), 0.0, 1e-9);
+}
+
+TEST(Conversions, Trajectory) {
+  trajectory_msgs::JointTrajectory message;
+  message.joint_names = {"b", "a"};
+  message.points.resize(2);
+  message.points[0].positions = {1, 2};
+  message.points[0].time_from_start = ros::Duration(0.5);
+  message.points[1].positions = {3, 4};
+  message.points[1].time_from_start = ros::Duration(1.5);
+  ci::JointTrajectory trajectory = cir::trajectory_from_message(message);
+  EXPECT_EQ(trajectory.joint_names, message.joint_names);
+  EXPECT_EQ(trajectory.times, (std::vector<double>{0.5, 1.5}));
+  EXPECT_EQ(trajectory.positions[1], (std::vector<double>{3, 4}));
+  EXPECT_TRUE(trajectory.velocities.empty());
+
+  message.points[1].velocities = {0, 0};
+  EXPECT_THROW(cir::trajectory_from_message(message), ci::Error);
+  message.points[0].velocities = {0.1, 0.2};
+  trajectory = cir::trajectory_from_message(message);
+  EXPECT_EQ(trajectory.velocities[0], (std::vector<double>{0.1, 0.2}));
+}
+
+// ---- state message --------------------------------------------------------------------------
+
+TEST(Conversions, StateMessageFromALoopStep) {
+  const ci::RobotModel model = panda();
+  ci::ControlLoop loop(model);
+  ci::JointVector q(7);
+  q << 0, -M_PI / 4, 0, -3 * M_PI / 4, 0, M_PI / 2, M_PI / 4;
+  const ci::JointVector dq = ci::JointVector::Zero(7);
+  loop.start(q, dq);
+  ci::Vector6d stiffness;
+  stiffness << 100, 200, 300, 10, 20, 30;
+  loop.set_stiffness(stiffness, ci::Frame::end_effector);
+  loop.step(q, dq, 0.001);
+
+  cir::ControllerState message;
+  cir::JointSample measured;
+  measured.effort = ci::JointVector::Constant(7, 1.0);
+  cir::fill_state_message(loop.state(), model.joint_names(), &measured, message);
+  EXPECT_EQ(message.status, "ok");
+  EXPECT_EQ(message.cycle, 1u);
+  EXPECT_NEAR(message.current_pose.position.x, 0.3069, 1e-4);
+  EXPECT_NEAR(message.current_pose.position.z, 0.5903, 1e-4);
+  EXPECT_EQ(message.joint_state.name, model.joint_names());
+  EXPECT_EQ(message.joint_state.position.size(), 7u);
+  EXPECT_EQ(message.commanded_torques.size(), 7u);
+  EXPECT_EQ(message.nullspace_config.size(), 7u);
+  EXPECT_EQ(message.stiffness_frame, "end_effector");
+  EXPECT_EQ(message.commanded_cartesian_stiffness.force.y, 200.0);
+  EXPECT_EQ(message.commanded_cartesian_stiffness.torque.z, 30.0);
+  // Damping in the stiffness frame: d = 2 zeta sqrt(k) for the filtered diagonal.
+  EXPECT_NEAR(message.cartesian_damping.force.x,
+              2.0 * message.damping_ratio.force.x * std::sqrt(message.cartesian_stiffness.force.x),
+              1e-6);
+  ASSERT_EQ(message.external_torques.size(), 7u);
+  EXPECT_NEAR(message.external_torques[0], 1.0 - message.commanded_torques[0], 1e-12);
+  EXPECT_EQ(message.trajectory_state, "idle");
+
+  cir::fill_state_message(loop.state(), model.joint_names(), nullptr, message);
+  EXPECT_TRUE(message.external_torques.empty());
+  EXPECT_TRUE(message.joint_state.effort.empty());
+}
