@@ -11,7 +11,6 @@
 
 namespace cartesian_impedance::checks {
 
-
 std::string indexed(std::string_view name, Eigen::Index i);
 void finite(std::string_view name, double value, std::string_view unit = "");
 void size(std::string_view name, Eigen::Index size, Eigen::Index expected);
