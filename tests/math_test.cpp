@@ -282,3 +282,59 @@ TEST(NullspaceProjector, FewerThanSixJointsHaveNoNullspace) {
     EXPECT_LE(n_matrix.cwiseAbs().maxCoeff(), 1e-12) << "n = " << n;
   }
 }
+
+// --- dynamics-aware pieces
+// ------------------------------------------------------------------------
+
+// The dynamically consistent projector: a projected torque causes no end-effector acceleration,
+// J M^-1 N tau_0 = 0 (lambda = 0), for any positive definite M. Round-off as for the kinematic one,
+// with M's condition number (below 100 here) on top.
+TEST(NullspaceProjector, DynamicallyConsistentProjectionCausesNoTaskAcceleration) {
+  std::mt19937 rng(10);
+  ci::NullspaceProjector projector;
+  for (int trial = 0; trial < 100; ++trial) {
+    const int n = 7;
+    const ci::Jacobian jacobian = random_jacobian(n, rng);
+    ci::JointMatrix a(n, n);
+    for (Eigen::Index i = 0; i < a.size(); ++i) a.data()[i] = uniform(rng, -1, 1);
+    const ci::JointMatrix mass = a * a.transpose() + 0.5 * ci::JointMatrix::Identity(n, n);
+    const ci::JointMatrix projector_matrix = projector.matrix(jacobian, mass, 0.0);
+    const ci::JointVector tau_0 = random_joints(n, rng, 50.0);
+    const ci::Vector6d acceleration =
+        jacobian * mass.llt().solve(ci::JointVector(projector_matrix * tau_0));
+    EXPECT_LE(acceleration.cwiseAbs().maxCoeff(), 1e-9);
+    // It is a projector (idempotent), though not a symmetric one.
+    EXPECT_LE((projector_matrix * projector_matrix - projector_matrix).cwiseAbs().maxCoeff(), 1e-9);
+  }
+}
+
+// Inertia-shaped damping: with diagonal inertia and stiffness it is d = 2 zeta sqrt(m k) per axis,
+// and in general, in coordinates where the inertia is the identity (Lambda = L L^T), it is twice
+// the square root of the stiffness there: (L^-1 D L^-T)^2 = 4 L^-1 K L^-T for zeta = 1.
+TEST(Damping, InertiaShapedDampingIsCriticalPerMode) {
+  ci::Matrix6d inertia = ci::Matrix6d::Zero(), stiffness = ci::Matrix6d::Zero();
+  inertia.diagonal() << 2, 3, 4, 0.1, 0.2, 0.3;
+  stiffness.diagonal() << 500, 600, 700, 50, 60, 70;
+  ci::Vector6d zeta;
+  zeta << 1, 0.7, 0.5, 1, 1.2, 0.8;
+  const ci::Matrix6d damping = ci::inertia_shaped_damping(stiffness, zeta, inertia);
+  for (int i = 0; i < 6; ++i) {
+    EXPECT_NEAR(damping(i, i), 2 * zeta[i] * std::sqrt(inertia(i, i) * stiffness(i, i)), 1e-9);
+  }
+  EXPECT_LE((damping - ci::Matrix6d(damping.diagonal().asDiagonal())).cwiseAbs().maxCoeff(), 1e-9);
+
+  std::mt19937 rng(11);
+  for (int trial = 0; trial < 50; ++trial) {
+    const ci::Matrix6d k = random_stiffness(rng);
+    const ci::Matrix6d m = random_stiffness(rng, 0.5, 5.0);  // any SPD matrix serves as inertia
+    const ci::Matrix6d d = ci::inertia_shaped_damping(k, ci::Vector6d::Ones(), m);
+    const Eigen::LLT<ci::Matrix6d> llt(m);
+    const ci::Matrix6d lower = llt.matrixL();
+    const ci::Matrix6d l_inverse = lower.inverse();
+    const ci::Matrix6d d_normalised = l_inverse * d * l_inverse.transpose();
+    const ci::Matrix6d k_normalised = l_inverse * k * l_inverse.transpose();
+    EXPECT_LE((d_normalised * d_normalised - 4 * k_normalised).cwiseAbs().maxCoeff(),
+              1e-8 * k_normalised.cwiseAbs().maxCoeff());
+    EXPECT_LE((d - d.transpose()).cwiseAbs().maxCoeff(), 1e-8 * d.cwiseAbs().maxCoeff());
+  }
+}
