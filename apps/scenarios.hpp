@@ -12,6 +12,14 @@
 
 namespace cartesian_impedance::scenarios {
 
+/// A deliberately broken controller, to show that the scenarios' checks can fail: the torque the
+/// loop computes is replaced before it reaches the simulated robot.
+enum class Mutation {
+  none,          ///< the controller as it is
+  zero_torque,   ///< a dead controller: zero torque (the simulated firmware still holds gravity)
+  flipped_sign,  ///< the law with its sign flipped: -tau
+};
+
 /// A robot as the scenarios need it: the URDF for the controller's model, the MJCF (or the URDF
 /// again) for the simulation, the chain, and the body or site at the tip.
 struct RobotSetup {
@@ -22,6 +30,7 @@ struct RobotSetup {
   std::string tip_link;
   std::string flange;           ///< site or body of the simulation at the tip
   std::string parameters_file;  ///< "" = library defaults
+  Mutation mutation = Mutation::none;
 };
 
 /// "panda" or "iiwa14" from the project's models/ and config/ under `source_dir`.

@@ -398,6 +398,20 @@ const JointVector& Simulation::torque_lower_limits() const noexcept {
 const JointVector& Simulation::torque_upper_limits() const noexcept {
   return impl_->tau_upper;
 }
+JointVector Simulation::armature() const {
+  JointVector values(num_joints());
+  for (int i = 0; i < num_joints(); ++i) {
+    values[i] = impl_->model->dof_armature[impl_->dof_address[static_cast<std::size_t>(i)]];
+  }
+  return values;
+}
+JointVector Simulation::friction_loss() const {
+  JointVector values(num_joints());
+  for (int i = 0; i < num_joints(); ++i) {
+    values[i] = impl_->model->dof_frictionloss[impl_->dof_address[static_cast<std::size_t>(i)]];
+  }
+  return values;
+}
 const std::string& Simulation::model_name() const noexcept {
   return impl_->model_name;
 }

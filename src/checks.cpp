@@ -27,6 +27,18 @@ void finite_vector(std::string_view name, const Eigen::Ref<const Eigen::VectorXd
   for (Eigen::Index i = 0; i < values.size(); ++i) finite(indexed(name, i), values[i], unit);
 }
 
+void bounded_vector(std::string_view name, const Eigen::Ref<const Eigen::VectorXd>& values,
+                    double bound, std::string_view unit) {
+  const std::string suffix = unit.empty() ? "" : " " + std::string(unit);
+  for (Eigen::Index i = 0; i < values.size(); ++i) {
+    finite(indexed(name, i), values[i], unit);
+    if (std::abs(values[i]) > bound) {
+      throw Error(indexed(name, i) + " = " + format_number(values[i]) + suffix + " is outside [" +
+                  format_number(-bound) + ", " + format_number(bound) + "]" + suffix);
+    }
+  }
+}
+
 Eigen::Quaterniond unit_quaternion(std::string_view name, const Eigen::Quaterniond& q) {
   static constexpr const char* kComponent[4] = {".x", ".y", ".z", ".w"};
   for (int i = 0; i < 4; ++i) finite(std::string(name) + kComponent[i], q.coeffs()[i]);
@@ -43,7 +55,12 @@ Eigen::Quaterniond unit_quaternion(std::string_view name, const Eigen::Quaternio
 Pose pose(std::string_view name, const Pose& pose) {
   static constexpr const char* kAxis[3] = {".x", ".y", ".z"};
   for (int i = 0; i < 3; ++i) {
-    finite(std::string(name) + ".position" + kAxis[i], pose.position[i], "m");
+    const std::string element = std::string(name) + ".position" + kAxis[i];
+    finite(element, pose.position[i], "m");
+    if (std::abs(pose.position[i]) > kMaxPosition) {
+      throw Error(element + " = " + format_number(pose.position[i]) + " m is outside [" +
+                  format_number(-kMaxPosition) + ", " + format_number(kMaxPosition) + "] m");
+    }
   }
   return Pose{pose.position, unit_quaternion(std::string(name) + ".orientation", pose.orientation)};
 }

@@ -24,10 +24,18 @@ Command Command::stiffness(const Vector6d& diagonal, std::optional<Frame> frame)
 }
 
 Command Command::stiffness_matrix(const Matrix6d& stiffness, std::optional<Frame> frame) {
+  // Entries are bounded like the diagonal stiffness parameters (the largest of their ranges), so
+  // that the eigen-decompositions of saturation and damping stay far from overflow.
+  const double bound = parameter_info("stiffness.translation").max;
   for (int row = 0; row < 6; ++row) {
     for (int col = 0; col < 6; ++col) {
-      checks::finite("stiffness(" + std::to_string(row) + ", " + std::to_string(col) + ")",
-                     stiffness(row, col));
+      const std::string element =
+          "stiffness(" + std::to_string(row) + ", " + std::to_string(col) + ")";
+      checks::finite(element, stiffness(row, col));
+      if (std::abs(stiffness(row, col)) > bound) {
+        throw Error(element + " = " + format_number(stiffness(row, col)) + " is outside [" +
+                    format_number(-bound) + ", " + format_number(bound) + "]");
+      }
     }
   }
   const double scale = std::max(1.0, stiffness.cwiseAbs().maxCoeff());
@@ -65,7 +73,7 @@ Command Command::damping_ratio(const Vector6d& damping_ratio) {
 Command Command::nullspace_target(const Eigen::Ref<const Eigen::VectorXd>& q_desired,
                                   int num_joints) {
   checks::size("nullspace_target", q_desired.size(), num_joints);
-  checks::finite_vector("nullspace_target", q_desired, "rad");
+  checks::bounded_vector("nullspace_target", q_desired, checks::kMaxJointPosition, "rad");
   Command command(Kind::nullspace_target);
   command.num_joints_ = num_joints;
   command.joints_ = q_desired;

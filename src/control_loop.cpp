@@ -9,7 +9,18 @@ namespace cartesian_impedance {
 
 namespace {
 constexpr int kTrajectoryBuffers = 4;  // running, queued, being written, one spare
+
+// Error text for a joint position outside [lower - margin, upper + margin].
+std::string outside_limits(std::string_view name, int joint, double value, double lower,
+                           double upper, double margin, const char* margin_name) {
+  std::string text = std::string(name) + "[" + std::to_string(joint) +
+                     "] = " + format_number(value) + " is outside the joint's limits [" +
+                     format_number(lower) + ", " + format_number(upper) + "]";
+  if (margin > 0.0)
+    text += " by more than " + std::string(margin_name) + " = " + format_number(margin);
+  return text;
 }
+}  // namespace
 
 // A trajectory buffer and who owns it: free -> (sender) filling -> queued -> (cycle) running ->
 // free. Only the owner touches the buffer; ownership changes through `state`.
@@ -61,6 +72,8 @@ ControlLoop::ControlLoop(const RobotModel& model, const Parameters& parameters,
   robot_.mass = JointMatrix::Zero(n, n);
   robot_.gravity = JointVector::Zero(n);
   robot_.nullspace_torque = JointVector::Zero(n);
+  armature_ = per_joint(controller_.parameters().dynamics.armature, n);
+  joint_velocity_bound_ = per_joint(controller_.parameters().plausibility.joint_velocity, n);
   state_.controller = controller_.state();
   state_.q = JointVector::Zero(n);
   state_.dq = JointVector::Zero(n);
@@ -77,12 +90,25 @@ int ControlLoop::num_joints() const noexcept {
   return model_.num_joints();
 }
 
+void ControlLoop::check_positions(const Eigen::Ref<const Eigen::VectorXd>& q) const {
+  const double margin = controller_.parameters().plausibility.joint_position_margin;
+  for (int i = 0; i < num_joints(); ++i) {
+    if (q[i] < lower_limits_[i] - margin || q[i] > upper_limits_[i] + margin) {
+      throw Error(outside_limits("q", i, q[i], lower_limits_[i], upper_limits_[i], margin,
+                                 "plausibility.joint_position_margin"));
+    }
+  }
+}
+
 void ControlLoop::start(const Eigen::Ref<const Eigen::VectorXd>& q,
                         const Eigen::Ref<const Eigen::VectorXd>& dq) {
   checks::size("q", q.size(), num_joints());
   checks::finite_vector("q", q, "rad");
+  check_positions(q);
   const JointVector joints = q;
-  workspace_.compute(joints, JointVector::Zero(num_joints()), kinematics_, true);
+  if (!workspace_.compute(joints, JointVector::Zero(num_joints()), kinematics_, true)) {
+    throw Error("the robot model cannot be evaluated at q");
+  }
   start(q, dq,
         controller_.parameters().dynamics.gravity_compensation
             ? Eigen::VectorXd(kinematics_.gravity)
@@ -97,11 +123,14 @@ void ControlLoop::start(const Eigen::Ref<const Eigen::VectorXd>& q,
   checks::size("dq", dq.size(), n);
   checks::finite_vector("q", q, "rad");
   checks::finite_vector("dq", dq, "rad/s");
-  apply_messages();  // commands sent before start take effect now, in order
+  apply_messages(inbox_.capacity());  // commands sent before start take effect now, in order
+  check_positions(q);
   const JointVector joints = q, velocities = dq;
-  workspace_.compute(joints, velocities, kinematics_, true);
+  if (!workspace_.compute(joints, JointVector::Zero(num_joints()), kinematics_, true)) {
+    throw Error("the robot model cannot be evaluated at q");
+  }
   fill_robot_state(joints, velocities, kinematics_, robot_);
-  controller_.start(robot_, tau_previous);
+  controller_.start(robot_, tau_previous);  // checks dq against plausibility.joint_velocity
   if (active_buffer_ >= 0) end_trajectory(TrajectoryState::cancelled, false);
   state_.cycle = 0;
   state_.time = 0.0;
@@ -122,6 +151,16 @@ void ControlLoop::send(const Command& command) {
   if (command.num_joints() != 0 && command.num_joints() != num_joints()) {
     throw Error("command was validated for " + std::to_string(command.num_joints()) +
                 " joints; this loop has " + std::to_string(num_joints()));
+  }
+  if (command.kind() == Command::Kind::nullspace_target) {
+    // A target outside the limits would have the nullspace spring fight the joint limit.
+    const JointVector& target = command.joints();
+    for (int i = 0; i < num_joints(); ++i) {
+      if (target[i] < lower_limits_[i] || target[i] > upper_limits_[i]) {
+        throw Error(outside_limits("nullspace_target", i, target[i], lower_limits_[i],
+                                   upper_limits_[i], 0.0, ""));
+      }
+    }
   }
   Message message;
   message.command = command;
@@ -203,10 +242,10 @@ Parameters ControlLoop::latest_parameters() const {
   return parameters_outbox_.read();
 }
 
-void ControlLoop::apply_messages() noexcept {
+void ControlLoop::apply_messages(std::size_t at_most) noexcept {
   Message message;
   bool parameters_changed = false;
-  while (inbox_.pop(message)) {
+  for (std::size_t applied = 0; applied < at_most && inbox_.pop(message); ++applied) {
     ++commands_applied_;
     switch (message.kind) {
       case Message::Kind::command: {
@@ -229,7 +268,12 @@ void ControlLoop::apply_messages() noexcept {
         break;
     }
   }
-  if (parameters_changed) parameters_outbox_.publish(controller_.parameters());
+  if (parameters_changed) {
+    const Parameters& parameters = controller_.parameters();
+    armature_ = per_joint(parameters.dynamics.armature, num_joints());
+    joint_velocity_bound_ = per_joint(parameters.plausibility.joint_velocity, num_joints());
+    parameters_outbox_.publish(parameters);
+  }
 }
 
 void ControlLoop::begin_trajectory(int buffer, std::uint64_t id) noexcept {
@@ -303,35 +347,90 @@ void ControlLoop::joint_limit_torque() noexcept {
   }
 }
 
+bool ControlLoop::find_measurement_fault(const JointVector& q, const JointVector& dq,
+                                         Fault& fault) const noexcept {
+  const int n = num_joints();
+  const PlausibilityParameters& plausible = controller_.parameters().plausibility;
+  if (q.size() != n) {
+    fault = Fault{"q", -1, static_cast<double>(q.size()), "has the wrong size"};
+    return true;
+  }
+  if (dq.size() != n) {
+    fault = Fault{"dq", -1, static_cast<double>(dq.size()), "has the wrong size"};
+    return true;
+  }
+  const JointVector& speed_bound = joint_velocity_bound_;
+  for (int i = 0; i < n; ++i) {
+    if (!std::isfinite(q[i])) {
+      fault = Fault{"q", i, q[i], "is not finite"};
+      return true;
+    }
+    if (!std::isfinite(dq[i])) {
+      fault = Fault{"dq", i, dq[i], "is not finite"};
+      return true;
+    }
+    if (q[i] < lower_limits_[i] - plausible.joint_position_margin) {
+      fault = Fault{"q",
+                    i,
+                    q[i],
+                    "is below its joint limit minus plausibility.joint_position_margin",
+                    lower_limits_[i] - plausible.joint_position_margin,
+                    true};
+      return true;
+    }
+    if (q[i] > upper_limits_[i] + plausible.joint_position_margin) {
+      fault = Fault{"q",
+                    i,
+                    q[i],
+                    "is above its joint limit plus plausibility.joint_position_margin",
+                    upper_limits_[i] + plausible.joint_position_margin,
+                    true};
+      return true;
+    }
+    if (std::abs(dq[i]) > speed_bound[i]) {
+      fault = Fault{"dq", i, dq[i], "is beyond plausibility.joint_velocity", speed_bound[i], true};
+      return true;
+    }
+  }
+  return false;
+}
+
 const JointVector& ControlLoop::step(const JointVector& q, const JointVector& dq,
                                      double dt) noexcept {
-  apply_messages();
-  const int n = num_joints();
-  const DynamicsParameters& dynamics = controller_.parameters().dynamics;
+  apply_messages(kCommandsPerCycle);
+  const Parameters& parameters = controller_.parameters();
+  const DynamicsParameters& dynamics = parameters.dynamics;
   const bool need_dynamics = dynamics.gravity_compensation || dynamics.inertia_shaped_damping ||
                              dynamics.dynamically_consistent_nullspace;
-  // A bad measurement still goes to the controller (as a non-finite or wrongly sized state) so
-  // that it reports it and ramps the torque down; the model is only evaluated on good input.
-  const bool valid = q.size() == n && dq.size() == n && q.allFinite() && dq.allFinite();
-  if (valid) {
-    workspace_.compute(q, dq, kinematics_, need_dynamics);
+  const bool dt_plausible =
+      dt >= parameters.plausibility.dt.min && dt <= parameters.plausibility.dt.max;
+  // A bad measurement, or one the model cannot be evaluated at, fails the cycle closed before
+  // anything of it reaches the robot state: nothing computed from an earlier q (pose, Jacobian,
+  // M) is ever paired with a newer one.
+  Fault fault;
+  if (find_measurement_fault(q, dq, fault)) {
+    controller_.fail_closed(Status::invalid_robot_state, fault, dt);
+  } else if (!workspace_.compute(q, dq, kinematics_, need_dynamics)) {
+    controller_.fail_closed(
+        Status::model_error,
+        Fault{"q", -1, 0.0, "gives a pose, Jacobian or M(q) that is not finite"}, dt);
+  } else {
     fill_robot_state(q, dq, kinematics_, robot_);
     state_.q = q;
     state_.dq = dq;
-    if (dt > 0.0 && std::isfinite(dt) && controller_.started()) advance_trajectory(dt);
-  } else {
-    robot_.q = q.size() == n ? q : JointVector::Constant(n, std::nan(""));
+    if (dt_plausible && controller_.started()) advance_trajectory(dt);
+    if (need_dynamics) {
+      robot_.mass = kinematics_.mass;
+      robot_.mass.diagonal() += armature_;
+      robot_.gravity = kinematics_.gravity;
+    } else {
+      robot_.mass.resize(0, 0);
+      robot_.gravity.resize(0);
+    }
+    joint_limit_torque();
+    controller_.update(robot_, dt);
   }
-  if (need_dynamics && valid) {
-    robot_.mass = kinematics_.mass;
-    robot_.gravity = kinematics_.gravity;
-  } else if (!need_dynamics) {
-    robot_.mass.resize(0, 0);
-    robot_.gravity.resize(0);
-  }
-  if (valid) joint_limit_torque();
-  controller_.update(robot_, dt);
-  if (controller_.started() && dt > 0.0 && std::isfinite(dt)) {
+  if (controller_.started() && controller_.state().status == Status::ok) {
     ++state_.cycle;
     state_.time += dt;
   }

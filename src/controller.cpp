@@ -55,8 +55,19 @@ const char* to_string(Status status) noexcept {
       return "numerical_error";
     case Status::missing_dynamics:
       return "missing_dynamics";
+    case Status::model_error:
+      return "model_error";
   }
   return "unknown";
+}
+
+std::string to_string(const Fault& fault) {
+  if (fault.input == nullptr || fault.input[0] == '\0') return "";
+  std::string text = fault.input;
+  if (fault.index >= 0) text += "[" + std::to_string(fault.index) + "]";
+  text += std::string(" = ") + format_number(fault.value) + " " + fault.reason;
+  if (fault.has_bound) text += " = " + format_number(fault.bound);
+  return text;
 }
 
 namespace {
@@ -99,13 +110,14 @@ CartesianImpedanceController::CartesianImpedanceController(int num_joints,
   state_.tau_wrench = JointVector::Zero(n);
   state_.tau_gravity = JointVector::Zero(n);
   state_.tau = JointVector::Zero(n);
+  state_.joint_torque_limit = JointVector::Zero(n);
   tau_previous_ = JointVector::Zero(n);
   max_step_ = JointVector::Zero(n);
   tau_0_ = JointVector::Zero(n);
   damping_frame_.setZero();
   state_.damping.setZero();
-  damped_stiffness_.setConstant(std::nan(""));
-  damped_ratio_.setConstant(std::nan(""));
+  damping_stiffness_.setConstant(std::nan(""));
+  damping_ratio_.setConstant(std::nan(""));
   set_parameters(parameters);
 }
 
@@ -179,6 +191,16 @@ void CartesianImpedanceController::commit(const Parameters& parameters, Command:
   refresh_damping_mode();
   joint_torque_limit_ = per_joint(parameters.limits.joint_torque, num_joints_);
   joint_torque_rate_limit_ = per_joint(parameters.limits.joint_torque_rate, num_joints_);
+  joint_velocity_bound_ = per_joint(parameters.plausibility.joint_velocity, num_joints_);
+  // A raised bound holds at once (the rate limit keeps the torque continuous); a lowered one
+  // ramps down from the torque being commanded (limit_torque()), so that neither the rate limit
+  // nor the bound in force is ever exceeded.
+  if (started_) {
+    state_.joint_torque_limit =
+        joint_torque_limit_.cwiseMax(state_.joint_torque_limit.cwiseMin(tau_previous_.cwiseAbs()));
+  } else {
+    state_.joint_torque_limit = joint_torque_limit_;
+  }
   gains_.dt = -1.0;
 }
 
@@ -187,7 +209,7 @@ void CartesianImpedanceController::refresh_damping_mode() noexcept {
   stiffness_diagonal_ =
       is_diagonal(state_.commanded.stiffness) && is_diagonal(state_.filtered.stiffness);
   if (stiffness_diagonal_) damping_frame_.setZero();
-  damped_stiffness_.setConstant(std::nan(""));
+  damping_stiffness_.setConstant(std::nan(""));
 }
 
 void CartesianImpedanceController::set_parameters(const Parameters& parameters) {
@@ -204,26 +226,92 @@ void CartesianImpedanceController::check_robot_state(const RobotState& robot) co
     checks::finite(checks::indexed("robot.jacobian", i), robot.jacobian.data()[i]);
   }
   checks::pose("robot.pose", robot.pose);
+  for (int i = 0; i < num_joints_; ++i) {
+    if (std::abs(robot.dq[i]) > joint_velocity_bound_[i]) {
+      throw Error(checks::indexed("robot.dq", i) + " = " + format_number(robot.dq[i]) +
+                  " rad/s is beyond plausibility.joint_velocity = " +
+                  format_number(joint_velocity_bound_[i]) + " rad/s");
+    }
+  }
 }
 
-bool CartesianImpedanceController::robot_state_usable(const RobotState& robot) const noexcept {
-  if (robot.q.size() != num_joints_ || robot.dq.size() != num_joints_ ||
-      robot.jacobian.cols() != num_joints_) {
-    return false;
+namespace {
+
+bool set_fault(Fault& fault, const char* input, int index, double value, const char* reason,
+               double bound = 0.0, bool has_bound = false) noexcept {
+  fault = Fault{input, index, value, reason, bound, has_bound};
+  return true;
+}
+
+// First non-finite element of a vector or matrix, as a fault of `input`.
+template <typename Derived>
+bool find_non_finite(const Eigen::DenseBase<Derived>& values, const char* input,
+                     Fault& fault) noexcept {
+  for (Eigen::Index i = 0; i < values.size(); ++i) {
+    const double value = values.derived().data()[i];
+    if (!std::isfinite(value)) {
+      return set_fault(fault, input, static_cast<int>(i), value, "is not finite");
+    }
   }
-  // A NaN or an infinity anywhere makes the sum NaN or infinite (inf - inf is NaN), so one sum
-  // checks every value; finite values large enough to overflow it are not usable either.
+  return false;
+}
+
+}  // namespace
+
+bool CartesianImpedanceController::find_fault(const RobotState& robot,
+                                              Fault& fault) const noexcept {
+  const int n = num_joints_;
+  if (robot.q.size() != n) return set_fault(fault, "q", -1, robot.q.size(), "has the wrong size");
+  if (robot.dq.size() != n) {
+    return set_fault(fault, "dq", -1, robot.dq.size(), "has the wrong size");
+  }
+  if (robot.jacobian.cols() != n) {
+    return set_fault(fault, "jacobian", -1, robot.jacobian.cols(), "has the wrong column count");
+  }
+  // One sum checks every value for the common case (a NaN or an infinity anywhere makes it NaN or
+  // infinite); only a failing sum pays for finding the element.
   const double sum = robot.q.sum() + robot.dq.sum() + robot.jacobian.sum() +
                      robot.pose.position.sum() + robot.pose.orientation.coeffs().sum();
+  if (!std::isfinite(sum)) {
+    if (find_non_finite(robot.q, "q", fault) || find_non_finite(robot.dq, "dq", fault) ||
+        find_non_finite(robot.jacobian, "jacobian", fault) ||
+        find_non_finite(robot.pose.position, "pose.position", fault) ||
+        find_non_finite(robot.pose.orientation.coeffs(), "pose.orientation", fault)) {
+      return true;
+    }
+    return set_fault(fault, "robot state", -1, sum, "overflows");
+  }
+  const double norm = robot.pose.orientation.norm();
+  if (std::abs(norm - 1.0) > kQuaternionNormTolerance) {
+    return set_fault(fault, "pose.orientation", -1, norm, "has a norm away from 1");
+  }
+  for (int i = 0; i < n; ++i) {
+    if (std::abs(robot.dq[i]) > joint_velocity_bound_[i]) {
+      return set_fault(fault, "dq", i, robot.dq[i], "is beyond plausibility.joint_velocity",
+                       joint_velocity_bound_[i], true);
+    }
+  }
   // Optional terms: absent (size 0) or complete and finite.
-  const bool mass_ok = robot.mass.size() == 0 ||
-                       (robot.mass.rows() == num_joints_ && robot.mass.cols() == num_joints_);
-  const bool gravity_ok = robot.gravity.size() == 0 || robot.gravity.size() == num_joints_;
-  const bool extra_ok =
-      robot.nullspace_torque.size() == 0 || robot.nullspace_torque.size() == num_joints_;
+  if (robot.mass.size() != 0 && (robot.mass.rows() != n || robot.mass.cols() != n)) {
+    return set_fault(fault, "mass", -1, robot.mass.rows(), "has the wrong size");
+  }
+  if (robot.gravity.size() != 0 && robot.gravity.size() != n) {
+    return set_fault(fault, "gravity", -1, robot.gravity.size(), "has the wrong size");
+  }
+  if (robot.nullspace_torque.size() != 0 && robot.nullspace_torque.size() != n) {
+    return set_fault(fault, "nullspace_torque", -1, robot.nullspace_torque.size(),
+                     "has the wrong size");
+  }
   const double optional_sum = robot.mass.sum() + robot.gravity.sum() + robot.nullspace_torque.sum();
-  return mass_ok && gravity_ok && extra_ok && std::isfinite(sum) && std::isfinite(optional_sum) &&
-         std::abs(robot.pose.orientation.norm() - 1.0) <= kQuaternionNormTolerance;
+  if (!std::isfinite(optional_sum)) {
+    if (find_non_finite(robot.mass, "mass", fault) ||
+        find_non_finite(robot.gravity, "gravity", fault) ||
+        find_non_finite(robot.nullspace_torque, "nullspace_torque", fault)) {
+      return true;
+    }
+    return set_fault(fault, "robot state", -1, optional_sum, "overflows");
+  }
+  return false;
 }
 
 void CartesianImpedanceController::start(const RobotState& robot) {
@@ -247,10 +335,16 @@ void CartesianImpedanceController::start(const RobotState& robot,
   state_.pose = pose;
   state_.tau = tau_previous;
   tau_previous_ = tau_previous;
+  state_.joint_torque_limit = joint_torque_limit_.cwiseMax(tau_previous_.cwiseAbs());
+  state_.limits.joint_torque_limit_ramping =
+      (state_.joint_torque_limit.array() > joint_torque_limit_.array()).any();
+  state_.fault = Fault{};
   state_.tau_cartesian.setZero();
   state_.tau_nullspace.setZero();
   state_.tau_wrench.setZero();
   state_.status = Status::ok;
+  const Range& plausible = parameters_.plausibility.dt;
+  last_valid_dt_ = std::clamp(1e-3, plausible.min, plausible.max);
   gains_.dt = -1.0;
   started_ = true;
 }
@@ -419,15 +513,15 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
       inertia = rotation6.transpose() * inertia * rotation6;
     }
     damping_frame_ = inertia_shaped_damping(filtered.stiffness, filtered.damping_ratio, inertia);
-    damped_stiffness_.setConstant(std::nan(""));
+    damping_stiffness_.setConstant(std::nan(""));
     damping_diagonal = false;
   } else if (stiffness_diagonal_) {
     damping_frame_.diagonal() =
         2.0 * filtered.damping_ratio.cwiseProduct(filtered.stiffness.diagonal().cwiseSqrt());
-  } else if (filtered.stiffness != damped_stiffness_ || filtered.damping_ratio != damped_ratio_) {
+  } else if (filtered.stiffness != damping_stiffness_ || filtered.damping_ratio != damping_ratio_) {
     damping_frame_ = damping_from_stiffness(filtered.stiffness, filtered.damping_ratio);
-    damped_stiffness_ = filtered.stiffness;
-    damped_ratio_ = filtered.damping_ratio;
+    damping_stiffness_ = filtered.stiffness;
+    damping_ratio_ = filtered.damping_ratio;
   }
 
   // The damping floor keeps a soft arm (teaching: K = 0, so D = 0) from coasting. Raising the
@@ -516,19 +610,40 @@ void CartesianImpedanceController::stop_tracking() noexcept {
   state_.commanded.nullspace_dq.setZero();
 }
 
-Status CartesianImpedanceController::hold_safely(Status status, double dt) noexcept {
+void CartesianImpedanceController::limit_torque(double dt) noexcept {
+  // The bound in force ramps down toward limits.joint_torque at the rate limit (and never sits
+  // below it), so a lowered limit is reached as fast as the rate limit allows. The torque is
+  // clamped to that bound before and after the rate limit: the previous torque lies within the
+  // previous bound, so the clamp after the rate limit moves each joint by at most rate * dt.
+  JointVector& bound = state_.joint_torque_limit;
+  max_step_ = joint_torque_rate_limit_ * dt;
+  bound = (bound - max_step_).cwiseMax(joint_torque_limit_);
+  state_.limits.joint_torque_limit_ramping = (bound.array() > joint_torque_limit_.array()).any();
+  state_.limits.joint_torque_saturated = saturate_torque(bound, state_.tau);
+  state_.limits.torque_rate_limited = limit_rate(tau_previous_, max_step_, state_.tau);
+  saturate_torque(bound, state_.tau);
+  tau_previous_ = state_.tau;
+}
+
+Status CartesianImpedanceController::fail_closed(Status status, const Fault& fault,
+                                                 double dt) noexcept {
   // No trustworthy law output: ramp the last command as fast as the rate limit allows toward
   // zero, or toward the last gravity torque when the law compensates gravity (zero would drop
   // the arm).
-  max_step_ = joint_torque_rate_limit_ * dt;
+  if (!started_) {
+    state_.tau.setZero();
+    state_.status = Status::not_started;
+    return state_.status;
+  }
+  const Range& plausible = parameters_.plausibility.dt;
+  if (!(dt >= plausible.min && dt <= plausible.max)) dt = last_valid_dt_;
   state_.tau = state_.tau_gravity;
-  state_.limits.torque_rate_limited = limit_rate(tau_previous_, max_step_, state_.tau);
-  state_.limits.joint_torque_saturated = false;
   state_.tau_cartesian.setZero();
   state_.tau_nullspace.setZero();
   state_.tau_wrench.setZero();
-  tau_previous_ = state_.tau;
+  limit_torque(dt);
   state_.status = status;
+  state_.fault = fault;
   return status;
 }
 
@@ -538,26 +653,49 @@ Status CartesianImpedanceController::update(const RobotState& robot, double dt) 
     state_.status = Status::not_started;
     return state_.status;
   }
-  if (!(dt > 0.0) || !std::isfinite(dt)) return hold_safely(Status::invalid_dt, last_valid_dt_);
-  if (!robot_state_usable(robot)) return hold_safely(Status::invalid_robot_state, dt);
+  const Range& plausible = parameters_.plausibility.dt;
+  if (!std::isfinite(dt)) {
+    return fail_closed(Status::invalid_dt, Fault{"dt", -1, dt, "is not finite"}, dt);
+  }
+  if (dt < plausible.min) {
+    return fail_closed(Status::invalid_dt,
+                       Fault{"dt", -1, dt, "is below plausibility.dt.min", plausible.min, true},
+                       dt);
+  }
+  if (dt > plausible.max) {
+    return fail_closed(Status::invalid_dt,
+                       Fault{"dt", -1, dt, "is above plausibility.dt.max", plausible.max, true},
+                       dt);
+  }
+  Fault fault;
+  if (find_fault(robot, fault)) return fail_closed(Status::invalid_robot_state, fault, dt);
   const DynamicsParameters& dynamics = parameters_.dynamics;
-  if (((dynamics.inertia_shaped_damping || dynamics.dynamically_consistent_nullspace) &&
-       robot.mass.rows() != num_joints_) ||
-      (dynamics.gravity_compensation && robot.gravity.size() != num_joints_)) {
-    return hold_safely(Status::missing_dynamics, dt);
+  if ((dynamics.inertia_shaped_damping || dynamics.dynamically_consistent_nullspace) &&
+      robot.mass.rows() != num_joints_) {
+    return fail_closed(Status::missing_dynamics,
+                       Fault{"mass", -1, static_cast<double>(robot.mass.rows()),
+                             "is missing (dynamics options need M(q))"},
+                       dt);
+  }
+  if (dynamics.gravity_compensation && robot.gravity.size() != num_joints_) {
+    return fail_closed(Status::missing_dynamics,
+                       Fault{"gravity", -1, static_cast<double>(robot.gravity.size()),
+                             "is missing (dynamics.gravity_compensation needs g(q))"},
+                       dt);
   }
   last_valid_dt_ = dt;
 
   update_gains(dt);
   filter_targets();
   compute_torque(robot);
-  if (!state_.tau.allFinite()) return hold_safely(Status::numerical_error, dt);
-
-  state_.limits.joint_torque_saturated = saturate_torque(joint_torque_limit_, state_.tau);
-  max_step_ = joint_torque_rate_limit_ * dt;
-  state_.limits.torque_rate_limited = limit_rate(tau_previous_, max_step_, state_.tau);
-  tau_previous_ = state_.tau;
+  if (!state_.tau.allFinite()) {
+    Fault numerical;
+    find_non_finite(state_.tau, "tau", numerical);
+    return fail_closed(Status::numerical_error, numerical, dt);
+  }
+  limit_torque(dt);
   state_.status = Status::ok;
+  state_.fault = Fault{};
   return state_.status;
 }
 

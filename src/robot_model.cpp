@@ -57,6 +57,29 @@ Eigen::Isometry3d checked_tool(const Eigen::Isometry3d& T_tip_tool) {
   return result;
 }
 
+// Every number of the URDF was checked against its bounds, yet what matters is that the model
+// computes: one that fails here would fail every control cycle, so it fails to load instead.
+void check_computable(const RobotModel& model, const std::string& source) {
+  ModelWorkspace workspace(model);
+  const JointVector zero = JointVector::Zero(model.num_joints());
+  Pose pose;
+  Kinematics kinematics = workspace.make_kinematics();
+  std::string failed;
+  if (!workspace.compute_pose(zero, pose)) {
+    failed = "the end-effector pose";
+  } else if (!workspace.compute(zero, zero, kinematics, false)) {
+    failed = "the Jacobian";
+  } else if (!workspace.compute(zero, zero, kinematics, true)) {
+    failed = "the mass matrix or the gravity torques (with gravity_base = " +
+             detail::format_vector(model.gravity_base()) + " m/s^2)";
+  }
+  if (!failed.empty()) {
+    throw Error(failed + " of the chain from '" + model.base_link() + "' to '" + model.tip_link() +
+                "' of " + source +
+                " is not finite at q = 0; expected a model that can be computed");
+  }
+}
+
 }  // namespace
 
 const char* to_string(JointType type) noexcept {
@@ -122,7 +145,9 @@ RobotModel RobotModel::from_urdf_source(const std::string& xml, const std::strin
   // The tool is one more fixed, massless segment, so that KDL's pose and Jacobian refer to it.
   data->urdf.chain.addSegment(
       KDL::Segment("tool", KDL::Joint("tool", KDL::Joint::None), detail::to_kdl_frame(tool)));
-  return RobotModel(std::move(data));
+  RobotModel model(std::move(data));
+  check_computable(model, source);
+  return model;
 }
 
 int RobotModel::num_joints() const noexcept {

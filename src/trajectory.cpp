@@ -116,34 +116,37 @@ void TrajectoryBuffer::assign(const JointTrajectory& trajectory,
   std::copy(times.begin(), times.end(), times_.begin());
   positions_.leftCols(num_points_) = positions;
   velocities_.leftCols(num_points_) = velocities;
+  // Every velocity but that of point 1, which depends on the start state, is derived here, in
+  // the sender's thread: begin() then costs the same for 2 points as for 10,000.
+  if (!velocities_given_) {
+    for (int k = 2; k < num_points_; ++k) derive_velocity(k);
+  }
 }
 
 void TrajectoryBuffer::begin(const JointVector& q_start, const JointVector& dq_start) noexcept {
   positions_.col(0) = q_start;
   velocities_.col(0) = dq_start;
-  if (!velocities_given_) derive_velocities();
+  if (!velocities_given_ && num_points_ > 1) derive_velocity(1);
 }
 
-void TrajectoryBuffer::derive_velocities() noexcept {
+void TrajectoryBuffer::derive_velocity(int k) noexcept {
   // Average of the neighbouring slopes, zero where the path turns, limited as Fritsch and Carlson
   // do so that a monotone stretch stays monotone: the path never overshoots its waypoints, and so
-  // stays within the joint limits the waypoints were checked against.
+  // stays within the joint limits the waypoints were checked against. Zero at the last point.
   const int last = num_points_ - 1;
-  for (int k = 1; k <= last; ++k) {
-    for (int j = 0; j < num_joints_; ++j) {
-      if (k == last) {
-        velocities_(j, k) = 0.0;
-        continue;
-      }
-      const double before = (positions_(j, k) - positions_(j, k - 1)) / (times_[k] - times_[k - 1]);
-      const double after = (positions_(j, k + 1) - positions_(j, k)) / (times_[k + 1] - times_[k]);
-      if (before * after <= 0.0) {
-        velocities_(j, k) = 0.0;
-      } else {
-        const double average = 0.5 * (before + after);
-        const double bound = 3.0 * std::min(std::abs(before), std::abs(after));
-        velocities_(j, k) = std::copysign(std::min(std::abs(average), bound), average);
-      }
+  for (int j = 0; j < num_joints_; ++j) {
+    if (k == last) {
+      velocities_(j, k) = 0.0;
+      continue;
+    }
+    const double before = (positions_(j, k) - positions_(j, k - 1)) / (times_[k] - times_[k - 1]);
+    const double after = (positions_(j, k + 1) - positions_(j, k)) / (times_[k + 1] - times_[k]);
+    if (before * after <= 0.0) {
+      velocities_(j, k) = 0.0;
+    } else {
+      const double average = 0.5 * (before + after);
+      const double bound = 3.0 * std::min(std::abs(before), std::abs(after));
+      velocities_(j, k) = std::copysign(std::min(std::abs(average), bound), average);
     }
   }
 }
@@ -175,11 +178,6 @@ void TrajectoryBuffer::sample(double time, JointVector& q, JointVector& dq) cons
       (h11 * h) * velocities_.col(k + 1);
   dq = (d00 / h) * positions_.col(k) + d10 * velocities_.col(k) +
        (d01 / h) * positions_.col(k + 1) + d11 * velocities_.col(k + 1);
-}
-
-JointVector TrajectoryBuffer::final_position() const noexcept {
-  if (num_points_ == 0) return JointVector::Zero(num_joints_);
-  return positions_.col(num_points_ - 1);
 }
 
 }  // namespace cartesian_impedance

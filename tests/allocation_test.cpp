@@ -15,8 +15,9 @@ using namespace random_cases;
 namespace {
 
 // Every feature that costs something in the cycle: filters running, a full stiffness matrix in
-// the end-effector frame (damping from a matrix square root while it is filtered), a wrench in
-// the end-effector frame, damped nullspace projection, clipping, saturation and rate limiting.
+// the end-effector frame (damping shaped by the task-space inertia, a matrix square root every
+// cycle), a wrench in the end-effector frame, dynamically consistent nullspace projection,
+// clipping, saturation and rate limiting.
 ci::CartesianImpedanceController busy_controller(int n, std::mt19937& rng,
                                                  const ci::RobotState& robot) {
   ci::Parameters parameters;
@@ -25,6 +26,7 @@ ci::CartesianImpedanceController busy_controller(int n, std::mt19937& rng,
   parameters.filter.stiffness.time = 20.0;  // still moving after 10,000 cycles at 1 kHz
   parameters.filter.pose.time = 20.0;
   parameters.nullspace.pseudo_inverse_damping = 0.05;
+  parameters.dynamics.dynamically_consistent_nullspace = true;
   parameters.limits.pose_error = {0.02, 0.05};
   parameters.limits.joint_torque = ci::JointVector::Constant(1, 5.0);
   parameters.limits.joint_torque_rate = ci::JointVector::Constant(1, 100.0);
@@ -61,6 +63,8 @@ TEST_P(AllocationFree, UpdateAllocatesNothingWithEveryFeatureOn) {
   const int n = GetParam();
   std::mt19937 rng(21);
   ci::RobotState robot = random_robot_state(n, rng);
+  const ci::JointMatrix root = ci::JointMatrix::Random(n, n);
+  robot.mass = root * root.transpose() + ci::JointMatrix::Identity(n, n);
   ci::CartesianImpedanceController controller = busy_controller(n, rng, robot);
   ci::JointVector dq_step = random_joints(n, rng, 1e-4);
   bool rate_limited = false, saturated = false, clipped = false;

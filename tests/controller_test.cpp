@@ -14,15 +14,23 @@ using namespace random_cases;
 
 namespace {
 
-// Filters off, limits out of the way: one update() evaluates the law on the commands.
-ci::Parameters bare_parameters() {
+// Default parameters for a controller without a model (no M(q)): the unit-mass damping.
+ci::Parameters modelless_parameters() {
   ci::Parameters p;
+  p.dynamics.inertia_shaped_damping = false;
+  return p;
+}
+
+// Filters off, limits as far out of the way as their ranges allow: one update() evaluates the
+// law on the commands.
+ci::Parameters bare_parameters() {
+  ci::Parameters p = modelless_parameters();
   p.filter.pose.time = p.filter.stiffness.time = p.filter.nullspace.time = p.filter.wrench.time =
       0.0;
-  p.limits.pose_error = {1e9, 1e9};
-  p.limits.wrench = {1e9, 1e9};
-  p.limits.joint_torque = ci::JointVector::Constant(1, 1e9);
-  p.limits.joint_torque_rate = ci::JointVector::Constant(1, 1e12);
+  p.limits.pose_error = {10.0, M_PI};
+  p.limits.wrench = {1e4, 1e3};
+  p.limits.joint_torque = ci::JointVector::Constant(1, 1e4);
+  p.limits.joint_torque_rate = ci::JointVector::Constant(1, 1e6);
   p.nullspace.stiffness = ci::JointVector::Constant(1, 0.0);
   p.nullspace.pseudo_inverse_damping = 0.0;
   p.minimum_damping = {0.0, 0.0, 0.0};
@@ -345,13 +353,13 @@ TEST(Saturation, JointTorqueIsClampedPerJoint) {
 // ----------------------------------------------------------------------------------
 
 // Over a long run with random command changes and a moving robot, no joint's torque ever changes
-// by more than rate * dt in a cycle (up to one rounding of tau), and when the limiter acts the
-// change points the same way as the law wanted.
-TEST(RateLimit, NeverExceededAndDirectionKeptOverLongRandomRun) {
+// by more than rate * dt in a cycle (up to one rounding of tau), and a limited joint moves the
+// way the law wanted.
+TEST(RateLimit, NeverExceededOverLongRandomRun) {
   std::mt19937 rng(16);
   for (int n : {6, 7}) {
-    ci::Parameters parameters;
-    parameters.limits.joint_torque = ci::JointVector::Constant(1, 1e6);
+    ci::Parameters parameters = modelless_parameters();
+    parameters.limits.joint_torque = ci::JointVector::Constant(1, 1e4);
     parameters.limits.joint_torque_rate = random_joints(n, rng, 800.0).cwiseAbs().array() + 100.0;
     ci::CartesianImpedanceController controller(n, parameters);
     ci::RobotState robot = random_robot_state(n, rng);
@@ -384,9 +392,7 @@ TEST(RateLimit, NeverExceededAndDirectionKeptOverLongRandomRun) {
         ++limited_cycles;
         const ci::JointVector wanted =
             state.tau_cartesian + state.tau_nullspace + state.tau_wrench - previous;
-        const double scale = change.dot(wanted) / wanted.squaredNorm();
-        ASSERT_GT(scale, 0.0);
-        ASSERT_LE((change - scale * wanted).norm(), 1e-9 * wanted.norm());
+        for (int i = 0; i < n; ++i) ASSERT_GE(change[i] * wanted[i], 0.0) << "joint " << i;
       }
     }
     EXPECT_GT(limited_cycles, 1000) << "the run must exercise the limiter";
@@ -400,7 +406,7 @@ TEST(RateLimit, NeverExceededAndDirectionKeptOverLongRandomRun) {
 // the previous command, so the first commands continue from it within the rate limit.
 TEST(Start, FirstCommandsAreContinuous) {
   std::mt19937 rng(17);
-  ci::Parameters parameters;
+  ci::Parameters parameters = modelless_parameters();
   parameters.limits.joint_torque_rate = ci::JointVector::Constant(1, 1000.0);
   ci::CartesianImpedanceController controller(7, parameters);
   const ci::RobotState robot = random_robot_state(7, rng);
@@ -419,7 +425,7 @@ TEST(Start, FirstCommandsAreContinuous) {
 // ----------------------------------------------------------
 
 TEST(FrameChange, FilteredStiffnessIsCarriedIntoTheNewFrame) {
-  ci::Parameters parameters;
+  ci::Parameters parameters = modelless_parameters();
   parameters.filter.stiffness = {0.2, 0.95};
   parameters.stiffness.translation = Eigen::Vector3d(100, 300, 500);
   ci::CartesianImpedanceController controller(6, parameters);

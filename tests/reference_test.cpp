@@ -22,15 +22,16 @@ ci::Parameters bare_law_parameters() {
        {&p.filter.pose, &p.filter.stiffness, &p.filter.nullspace, &p.filter.wrench}) {
     filter->time = 0.0;
   }
-  p.limits.stiffness.translation.max = 1e9;
-  p.limits.stiffness.rotation.max = 1e9;
-  p.limits.damping_ratio.max = 1e9;
-  p.limits.nullspace_stiffness.max = 1e9;
-  p.limits.wrench = {1e9, 1e9};
-  p.limits.pose_error = {1e9, 1e9};
-  p.limits.joint_torque = ci::JointVector::Constant(1, 1e12);
-  p.limits.joint_torque_rate = ci::JointVector::Constant(1, 1e15);
-  p.minimum_damping = {0.0, 0.0, 0.0};  // the reference has no damping floor
+  p.limits.stiffness.translation.max = 1e5;
+  p.limits.stiffness.rotation.max = 1e4;
+  p.limits.damping_ratio.max = 10.0;
+  p.limits.nullspace_stiffness.max = 1e4;
+  p.limits.wrench = {1e4, 1e3};
+  p.limits.pose_error = {10.0, M_PI};
+  p.limits.joint_torque = ci::JointVector::Constant(1, 1e4);
+  p.limits.joint_torque_rate = ci::JointVector::Constant(1, 1e6);
+  p.dynamics.inertia_shaped_damping = false;  // the published controller's unit-mass damping
+  p.minimum_damping = {0.0, 0.0, 0.0};        // the reference has no damping floor
   return p;
 }
 
@@ -77,7 +78,9 @@ TEST(ReferenceCrossCheck, LawMatchesSvdReferenceOnThousandRandomCases) {
     controller.set_reference_pose(reference);
     const ci::JointVector q_desired = robot.q + random_joints(n, rng, 0.5);
     controller.set_nullspace_target(q_desired);
-    ASSERT_EQ(controller.update(robot, 0.001), ci::Status::ok);
+    // dt = 10 ms: the rate limit (1e6 Nm/s, its largest valid value) then allows any change up
+    // to the torque limit, so tau is the bare law's sum.
+    ASSERT_EQ(controller.update(robot, 0.01), ci::Status::ok);
 
     const ci::Targets& commanded = controller.state().commanded;
     reference::Targets targets;
@@ -115,7 +118,8 @@ TEST(ReferenceCrossCheck, FilteredLimitedRunMatchesReferenceController) {
   const int n = 7;
   ci::Parameters parameters;
   parameters.minimum_damping = {0.0, 0.0, 0.0};  // the reference has no damping floor
-  parameters.limits.pose_error = {1e9, 1e9};
+  parameters.dynamics.inertia_shaped_damping = false;
+  parameters.limits.pose_error = {10.0, M_PI};
   parameters.limits.joint_torque = ci::JointVector::Constant(1, 30.0);
   parameters.limits.joint_torque_rate = ci::JointVector::Constant(1, 400.0);
   ci::RobotState robot = random_robot_state(n, rng);

@@ -80,17 +80,24 @@ class ControlLoop {
   /// Commands queued before start() are applied first, so a queued stiffness or wrench holds;
   /// a queued reference pose or nullspace target is then replaced by the measured state (send
   /// those after start()).
-  /// @throws Error for wrongly sized or non-finite q, dq, tau_previous.
+  /// @throws Error for wrongly sized or non-finite q, dq, tau_previous, a q outside the joint
+  /// limits by more than plausibility.joint_position_margin or a dq beyond
+  /// plausibility.joint_velocity.
   void start(const Eigen::Ref<const Eigen::VectorXd>& q,
              const Eigen::Ref<const Eigen::VectorXd>& dq);
   void start(const Eigen::Ref<const Eigen::VectorXd>& q,
              const Eigen::Ref<const Eigen::VectorXd>& dq,
              const Eigen::Ref<const Eigen::VectorXd>& tau_previous);
 
-  /// One control cycle: applies queued commands, advances the trajectory, computes the model at
-  /// q, evaluates the law and publishes the state. Returns the joint torque to command [Nm].
-  /// noexcept, no allocation, no lock; bad q/dq/dt give a status (state().controller.status) and a
-  /// torque that ramps toward zero (or toward gravity compensation) within the rate limit.
+  /// One control cycle: applies queued commands (at most 8; more wait for the next cycles),
+  /// advances the trajectory, computes the model at q, evaluates the law and publishes the state.
+  /// Returns the joint torque to command [Nm]. noexcept, no allocation, no lock, bounded time.
+  /// It fails closed - status in state().controller.status, the input named in
+  /// state().controller.fault, the torque ramping toward zero (or toward g(q) with
+  /// dynamics.gravity_compensation) within the rate limit - on a wrongly sized or non-finite q or
+  /// dq, a q outside the URDF limits by more than plausibility.joint_position_margin, a joint
+  /// faster than plausibility.joint_velocity, a dt outside plausibility.dt, and a model that
+  /// cannot be evaluated at q. The next good cycle resumes.
   const JointVector& step(const JointVector& q, const JointVector& dq, double dt) noexcept;
 
   /// True once start() has succeeded.
@@ -111,6 +118,7 @@ class ControlLoop {
   void set_stiffness(const Vector6d& diagonal, std::optional<Frame> frame = std::nullopt);
   void set_stiffness_matrix(const Matrix6d& stiffness, std::optional<Frame> frame = std::nullopt);
   void set_damping_ratio(const Vector6d& damping_ratio);
+  /// Nullspace target [rad], within the URDF's joint limits.
   void set_nullspace_target(const Eigen::Ref<const Eigen::VectorXd>& q_desired);
   void set_nullspace_stiffness(const Eigen::Ref<const Eigen::VectorXd>& stiffness);
   void set_nullspace_damping_ratio(double damping_ratio);
@@ -143,8 +151,15 @@ class ControlLoop {
   };
   struct Slot;
 
+  // Commands applied per step at most, so that a flood of commands cannot stretch a cycle; the
+  // rest wait in the inbox for the next steps (in order).
+  static constexpr std::size_t kCommandsPerCycle = 8;
+
   void enqueue(const Message& message);
-  void apply_messages() noexcept;
+  void apply_messages(std::size_t at_most) noexcept;
+  void check_positions(const Eigen::Ref<const Eigen::VectorXd>& q) const;
+  bool find_measurement_fault(const JointVector& q, const JointVector& dq,
+                              Fault& fault) const noexcept;
   void begin_trajectory(int buffer, std::uint64_t id) noexcept;
   void end_trajectory(TrajectoryState state, bool hold_measured) noexcept;
   void advance_trajectory(double dt) noexcept;
@@ -170,6 +185,8 @@ class ControlLoop {
   int active_buffer_ = -1;
   JointVector trajectory_q_, trajectory_dq_;
   JointVector lower_limits_, upper_limits_;
+  JointVector armature_;              // dynamics.armature per joint, added to M(q)
+  JointVector joint_velocity_bound_;  // plausibility.joint_velocity per joint
   std::uint64_t commands_applied_ = 0;
 };
 

@@ -12,6 +12,7 @@
 /// hand-off between threads).
 
 #include <optional>
+#include <string>
 
 #include "cartesian_impedance/command.hpp"
 #include "cartesian_impedance/math.hpp"
@@ -20,18 +21,36 @@
 
 namespace cartesian_impedance {
 
-/// Outcome of one control cycle.
+/// Outcome of one control cycle. Every status but ok and not_started is a cycle that failed
+/// closed: the torque ramps toward zero (toward g(q) with dynamics.gravity_compensation) within
+/// the rate limit, ControllerState::fault names the input, and the next good cycle resumes.
 enum class Status {
   ok,                   ///< torque computed from the law
   not_started,          ///< start() has not been called; torque is zero
-  invalid_dt,           ///< dt not finite or not positive; torque ramps toward zero
-  invalid_robot_state,  ///< non-finite or wrongly sized q, dq, pose or Jacobian; torque ramps to 0
-  numerical_error,      ///< the law produced a non-finite value; torque ramps toward zero
+  invalid_dt,           ///< dt not finite or outside plausibility.dt
+  invalid_robot_state,  ///< q, dq, pose or Jacobian wrongly sized, not finite or implausible
+  numerical_error,      ///< the law produced a non-finite value
   missing_dynamics,     ///< an option needs robot.mass or robot.gravity, which were not given
+  model_error,          ///< the robot model could not be evaluated at the measured q
 };
 
 /// "ok", "not_started", ...
 const char* to_string(Status status) noexcept;
+
+/// Which input made a cycle fail closed, without allocating: e.g. input "dq", index 4, value
+/// NaN, reason "is not finite"; or "dt" = 1e9 "is above plausibility.dt.max" with bound 0.02.
+struct Fault {
+  const char* input = "";  ///< "dt", "q", "dq", "pose", "jacobian", "mass", "gravity", "model", ...
+  int index = -1;          ///< element (joint) index, or -1
+  double value = 0.0;      ///< the offending value (for a wrong size: the size)
+  const char* reason = "";  ///< "is not finite", "has the wrong size", "is above ...", ...
+  double bound = 0.0;       ///< the bound it broke, where `reason` names one
+  bool has_bound = false;
+};
+
+/// "dq[4] = nan is not finite", "dt = 1000000000 is above plausibility.dt.max = 0.02"; "" if
+/// there is no fault (input empty).
+std::string to_string(const Fault& fault);
 
 /// The quantities the law is evaluated with: either as commanded or after filtering.
 struct Targets {
@@ -59,6 +78,9 @@ struct ActiveLimits {
   bool rotation_error_clipped = false;
   bool joint_torque_saturated = false;
   bool torque_rate_limited = false;
+  /// limits.joint_torque was lowered below the torque being commanded: the bound in force
+  /// (ControllerState::joint_torque_limit) is ramping down to it at the torque-rate limit.
+  bool joint_torque_limit_ramping = false;
 };
 
 /// Snapshot written by every update().
@@ -77,7 +99,11 @@ struct ControllerState {
   JointVector tau_wrench;               ///< J^T F [Nm]
   JointVector tau_gravity;              ///< g(q) if dynamics.gravity_compensation, else 0 [Nm]
   JointVector tau;                      ///< commanded torque after torque and rate limits [Nm]
+  /// Torque bound in force per joint [Nm]: limits.joint_torque, or above it while ramping down
+  /// to a lowered limit (|tau| never exceeds this, and this never falls faster than the rate).
+  JointVector joint_torque_limit;
   ActiveLimits limits;
+  Fault fault;  ///< why the last cycle failed closed (input empty when status is ok)
 
   /// Filtered K and the damping D the law used, in the base frame (rotated on request; the cycle
   /// itself works in the stiffness frame).
@@ -146,9 +172,17 @@ class CartesianImpedanceController {
 
   /// One control cycle: filters the targets with the elapsed `dt` [s], evaluates the law at the
   /// measured `robot` state and applies the limits. The result is torque() and state(). Never
-  /// throws and never allocates; on bad input it returns a status and ramps the torque toward zero
-  /// within the rate limit.
+  /// throws and never allocates. It fails closed (a status other than ok, state().fault naming
+  /// the input, the torque ramping toward zero within the rate limit) on a dt that is not finite
+  /// or outside plausibility.dt, and on a robot state that is wrongly sized, not finite, has a
+  /// non-unit orientation or a joint faster than plausibility.joint_velocity.
   Status update(const RobotState& robot, double dt) noexcept;
+
+  /// A cycle without a usable measurement, for a caller that found the fault itself (the control
+  /// loop: a position outside the joint limits, a model that could not be evaluated): ramps the
+  /// torque toward zero (or g) within the rate limit over `dt` [s] (the last valid dt if `dt` is
+  /// not plausible) and reports `status` and `fault`. noexcept, no allocation.
+  Status fail_closed(Status status, const Fault& fault, double dt) noexcept;
 
   /// Commanded joint torque of the last update() [Nm].
   const JointVector& torque() const noexcept { return state_.tau; }
@@ -162,7 +196,8 @@ class CartesianImpedanceController {
   };
 
   void check_robot_state(const RobotState& robot) const;
-  bool robot_state_usable(const RobotState& robot) const noexcept;
+  bool find_fault(const RobotState& robot, Fault& fault) const noexcept;
+  void limit_torque(double dt) noexcept;
   void apply_saturation(Targets& commanded, ActiveLimits& limits,
                         Command::Kind kind) const noexcept;
   void commit(const Parameters& parameters, Command::Kind kind, Targets commanded) noexcept;
@@ -171,12 +206,12 @@ class CartesianImpedanceController {
   void update_gains(double dt) noexcept;
   void filter_targets() noexcept;
   void compute_torque(const RobotState& robot) noexcept;
-  Status hold_safely(Status status, double dt) noexcept;
 
   int num_joints_;
   Parameters parameters_;
   JointVector joint_torque_limit_;
   JointVector joint_torque_rate_limit_;
+  JointVector joint_velocity_bound_;
   bool started_ = false;
   FilterGains gains_;
   double last_valid_dt_ = 1e-3;
@@ -188,8 +223,8 @@ class CartesianImpedanceController {
   JointVector tau_0_;
   Matrix6d damping_frame_;
   bool stiffness_diagonal_ = true;
-  Matrix6d damped_stiffness_;  // filtered K the damping was last computed for
-  Vector6d damped_ratio_;      // filtered zeta the damping was last computed for
+  Matrix6d damping_stiffness_;  // filtered K the damping was last computed for
+  Vector6d damping_ratio_;      // filtered zeta the damping was last computed for
   NullspaceProjector projector_;
 };
 

@@ -25,10 +25,11 @@ Vector6d pose_error(const Pose& current, const Pose& desired) noexcept;
 double filter_gain(double dt, double time, double fraction) noexcept;
 
 /// Scales `vector` down to `max_norm` if it is longer, keeping its direction; true if it did.
+/// Exact for any finite vector (no overflow of the squared norm).
 bool clip_norm(Eigen::Ref<Eigen::Vector3d> vector, double max_norm) noexcept;
 
-/// Limits each joint's change from `previous` to `max_step` (e.g. rate [Nm/s] * dt [s]) by scaling
-/// the whole change `tau - previous` by one factor, so its direction is kept. True if it limited.
+/// Limits each joint's change from `previous` to +-`max_step` (e.g. rate [Nm/s] * dt [s]), joint
+/// by joint; true if it limited any.
 bool limit_rate(const JointVector& previous, const JointVector& max_step,
                 JointVector& tau) noexcept;
 

@@ -13,7 +13,7 @@
 
 namespace cartesian_impedance {
 
-/// Closed interval [min, max] used for saturation limits.
+/// Closed interval [min, max] used for saturation limits and plausibility bounds.
 struct Range {
   double min = 0.0;
   double max = 0.0;
@@ -32,8 +32,12 @@ struct StiffnessParameters {
   Frame frame = Frame::base;
 };
 
+/// Damping ratio zeta per axis: 1 is critical damping of the end effector's own mass-spring
+/// system (d = 2 zeta sqrt(m k) per mode, with the task-space inertia) unless
+/// dynamics.inertia_shaped_damping is off, which gives the published controller's unit-mass
+/// "damping factor" D = 2 zeta sqrt(K).
 struct DampingRatioParameters {
-  Eigen::Vector3d translation = Eigen::Vector3d::Ones();  ///< [-], D = 2 zeta sqrt(K)
+  Eigen::Vector3d translation = Eigen::Vector3d::Ones();  ///< [-]
   Eigen::Vector3d rotation = Eigen::Vector3d::Ones();     ///< [-]
 };
 
@@ -48,7 +52,7 @@ struct NullspaceParameters {
 /// Damping that stays when the stiffness is low or zero (teaching), so a soft arm does not coast.
 /// The Cartesian damping's diagonal and the nullspace damping never fall below these.
 struct MinimumDampingParameters {
-  double translation = 10.0;  ///< [N s/m]
+  double translation = 30.0;  ///< [N s/m]
   double rotation = 1.0;      ///< [Nm s/rad]
   double nullspace = 0.5;     ///< [Nm s/rad] per joint
 };
@@ -57,17 +61,33 @@ struct MinimumDampingParameters {
 struct DynamicsParameters {
   /// Add g(q) to the command, for robots that do not compensate gravity themselves.
   bool gravity_compensation = false;
-  /// Shape the Cartesian damping with the task-space inertia (d = 2 zeta sqrt(m k) per mode)
-  /// instead of D = 2 zeta sqrt(K).
-  bool inertia_shaped_damping = false;
+  /// Damping ratios relative to the task-space inertia Lambda (d = 2 zeta sqrt(m k) per mode,
+  /// so zeta = 1 is critical damping). Off: the published controller's D = 2 zeta sqrt(K),
+  /// which takes every mass as 1 kg (1 kg m^2) and overshoots on a real arm.
+  bool inertia_shaped_damping = true;
   /// Use the dynamically consistent projector N = I - J^T Lambda J M^-1.
   bool dynamically_consistent_nullspace = false;
+  /// Reflected rotor inertia per joint [kg m^2 or kg], added to the diagonal of M(q): a URDF
+  /// does not carry it, but on a geared arm it is a large part of what the wrist joints feel.
+  /// One value for every joint, or one per joint.
+  JointVector armature = JointVector::Zero(1);
 };
 
 /// Nullspace torques that push joints away from their position limits.
 struct JointLimitAvoidanceParameters {
   double margin = 0.1;      ///< [rad or m] distance from a limit where the push starts
   double stiffness = 20.0;  ///< [Nm/rad] spring pushing out of the margin; 0 switches it off
+};
+
+/// What a measurement and the cycle's time step may be. Outside these the input is not
+/// believed: the cycle fails closed (status and fault say which input; the torque ramps toward
+/// zero, or gravity, within the rate limit) and recovers with the next plausible input.
+struct PlausibilityParameters {
+  Range dt{1e-5, 0.02};  ///< [s] time step of a cycle
+  /// Largest believable joint speed [rad/s or m/s], one value or one per joint.
+  JointVector joint_velocity = JointVector::Constant(1, 10.0);
+  /// How far a measured position may lie outside the URDF's limits [rad or m].
+  double joint_position_margin = 0.2;
 };
 
 /// Execution of joint trajectories.
@@ -128,6 +148,7 @@ struct Parameters {
   DynamicsParameters dynamics;
   JointLimitAvoidanceParameters joint_limit_avoidance;
   TrajectoryParameters trajectory;
+  PlausibilityParameters plausibility;
 };
 
 /// Pointer to the storage of one parameter inside a Parameters object.

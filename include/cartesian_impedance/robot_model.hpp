@@ -75,13 +75,27 @@ class RobotModel {
   /// Builds the model of the chain from `base_link` down to `tip_link` of the URDF document `xml`.
   /// @param T_tip_tool  tool offset: the end-effector frame expressed in the tip-link frame [m]
   /// @param gravity_base  gravitational acceleration in the base frame [m/s^2]
-  /// @throw Error if the text is not well-formed XML or not a URDF (with urdfdom's own words),
+  /// @throw Error if the text is not well-formed XML or not a URDF (with urdfdom's own words);
+  ///        if it contains a NUL byte, is not valid UTF-8 (or has U+FEFF, U+FFFE or U+FFFF after
+  ///        its start), nests XML elements more than 100 deep, has an element with more than 64
+  ///        attributes, a malformed character reference (&#...;), a comment, tag or quoted value
+  ///        that is never closed, or an XML declaration other than a plain one at its start
+  ///        (these are checked before the XML parser runs; the message gives the line);
+  ///        if its joints do not form a tree: two joints with one name, a joint from a link to
+  ///        itself, a link with two parent joints, or a loop of links anywhere in the file (the
+  ///        joints and links are named);
   ///        if base_link or tip_link is not a link of the URDF (the message lists some that are),
   ///        if tip_link is not below base_link in the tree, if the chain has no movable joint or
   ///        more than kMaxJoints, if a joint of the chain is floating, planar or a mimic joint,
-  ///        has a zero axis or inconsistent limits, if a link of the chain has a negative or
-  ///        non-finite mass or an inertia that is not positive semi-definite, if T_tip_tool is
-  ///        not a finite rigid transform or if gravity_base is not finite.
+  ///        has an axis that is not finite or whose norm is outside [1e-9, 1e9], or inconsistent
+  ///        limits (a prismatic joint's beyond +-1000 m);
+  ///        if a joint of the chain, or one that fixes a link to it, has an origin coordinate
+  ///        outside +-1000 m or a non-finite rotation; if a link of the chain or one fixed to it
+  ///        has a mass outside [0, 1e6] kg, an inertia entry outside +-1e6 kg m^2 or not
+  ///        positive semi-definite, or an inertial origin outside +-1000 m;
+  ///        if T_tip_tool is not a finite rigid transform or if gravity_base is not finite;
+  ///        and if the pose, Jacobian, mass matrix or gravity torques of the loaded model are not
+  ///        finite at q = 0.
   static RobotModel from_urdf_string(
       const std::string& xml, const std::string& base_link, const std::string& tip_link,
       const Eigen::Isometry3d& T_tip_tool = Eigen::Isometry3d::Identity(),

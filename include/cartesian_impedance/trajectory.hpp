@@ -30,8 +30,9 @@ class TrajectoryBuffer {
   TrajectoryBuffer(int num_joints, int max_points);
 
   /// Validates `trajectory` for an arm with these joints and position limits, reorders it into
-  /// the arm's joint order and stores it. A point at time 0 is taken as the start state, which
-  /// execution replaces by the actual one.
+  /// the arm's joint order and stores it, with the velocities derived if none are given (all but
+  /// that of the first point, which depends on the start state). A point at time 0 is taken as
+  /// the start state, which execution replaces by the actual one.
   /// @throws Error naming the point, joint and value for: unknown, missing or repeated joint
   ///         names, wrong sizes, non-finite values, times not strictly increasing or not
   ///         positive, positions outside [lower, upper], more than max_points points, none at all.
@@ -39,7 +40,7 @@ class TrajectoryBuffer {
               const JointVector& lower, const JointVector& upper);
 
   /// Sets point 0 to the state execution starts from and, if velocities were not given, derives
-  /// them. noexcept, no allocation.
+  /// the first point's. noexcept, no allocation, the same cost for any number of points.
   void begin(const JointVector& q_start, const JointVector& dq_start) noexcept;
 
   /// Position and velocity at `time` [s] since begin(); before 0 and after the end the trajectory
@@ -50,11 +51,9 @@ class TrajectoryBuffer {
   int num_points() const noexcept { return num_points_; }  ///< including the start point
   int max_points() const noexcept { return max_points_; }
   double duration() const noexcept { return num_points_ > 0 ? times_[num_points_ - 1] : 0.0; }
-  /// Last point [rad or m].
-  JointVector final_position() const noexcept;
 
  private:
-  void derive_velocities() noexcept;
+  void derive_velocity(int point) noexcept;
 
   int num_joints_;
   int max_points_;

@@ -99,7 +99,7 @@ inline Torques law(const Eigen::VectorXd& q, const Eigen::VectorXd& dq,
 }
 
 // The whole cycle: filters (gain from pow() each cycle), law, pose-error clipping is left out
-// (tests compare with wide limits), torque saturation and rate limit.
+// (tests compare with wide limits), torque saturation and the rate limit of each joint.
 class Controller {
  public:
   Controller(int num_joints, const ci::Parameters& parameters)
@@ -159,13 +159,10 @@ class Controller {
     Eigen::VectorXd tau = law(q, dq, position, orientation, jacobian, filtered_, parameters_).total;
     const double torque_limit = parameters_.limits.joint_torque[0];
     const double max_step = parameters_.limits.joint_torque_rate[0] * dt;
-    double scale = 1.0;
     for (Eigen::Index i = 0; i < n_; ++i) {
       tau[i] = std::clamp(tau[i], -torque_limit, torque_limit);
-      const double change = std::abs(tau[i] - tau_previous_[i]);
-      if (change > max_step) scale = std::min(scale, max_step / change);
+      tau[i] = tau_previous_[i] + std::clamp(tau[i] - tau_previous_[i], -max_step, max_step);
     }
-    tau = tau_previous_ + scale * (tau - tau_previous_);
     tau_previous_ = tau;
     return tau;
   }

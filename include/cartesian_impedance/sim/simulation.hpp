@@ -135,6 +135,13 @@ class Simulation {
   void render_png(const std::string& path, int width, int height,
                   const std::string& camera = "") const;
 
+  /// Rotor inertia (MuJoCo's armature) per exchanged joint [kg m^2 or kg]: what the controller's
+  /// dynamics.armature should be for this robot.
+  JointVector armature() const;
+  /// Coulomb friction (MuJoCo's frictionloss) per exchanged joint [Nm or N]: the torque below
+  /// which a joint at rest does not move, so a spring holds it only up to this.
+  JointVector friction_loss() const;
+
   /// MuJoCo's model name (the `model` attribute of `<mujoco>` or the URDF robot name).
   const std::string& model_name() const noexcept;
 
