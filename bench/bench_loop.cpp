@@ -3,7 +3,13 @@
 
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <vector>
+
 #include "cartesian_impedance/control_loop.hpp"
+#include "cartesian_impedance/error.hpp"
 #include "support/allocation_counter.hpp"
 
 namespace ci = cartesian_impedance;
@@ -36,11 +42,73 @@ void run_loop(benchmark::State& state, const ci::Parameters& parameters) {
       static_cast<double>(allocations.allocations()) / static_cast<double>(state.iterations());
 }
 
-// Defaults: kinematics (pose + Jacobian) from KDL, law, joint-limit avoidance, state published.
+// Defaults: kinematics (pose + Jacobian) and M(q), g(q) from KDL (damping shaped by the
+// task-space inertia), law, joint-limit avoidance, state published.
 void BM_LoopStep(benchmark::State& state) {
   run_loop(state, ci::Parameters{});
 }
 BENCHMARK(BM_LoopStep);
+
+// The published controller's unit-mass damping: kinematics only, no M(q).
+void BM_LoopStepUnitMassDamping(benchmark::State& state) {
+  ci::Parameters parameters;
+  parameters.dynamics.inertia_shaped_damping = false;
+  run_loop(state, parameters);
+}
+BENCHMARK(BM_LoopStepUnitMassDamping);
+
+// The step that starts a trajectory of range(0) points: the same cost for 10 as for 10,000,
+// because the velocities are derived when the trajectory is sent (timed: the step only).
+void BM_StepThatStartsATrajectory(benchmark::State& state) {
+  const int points = static_cast<int>(state.range(0));
+  ci::ControlLoop loop(panda(), {}, ci::LoopCapacity{64, points});
+  ci::JointVector q = ready(), dq = ci::JointVector::Zero(7);
+  loop.start(q, dq);
+  ci::JointTrajectory trajectory;
+  trajectory.joint_names = loop.model().joint_names();
+  for (int k = 1; k <= points; ++k) {
+    ci::JointVector point = q;
+    point[0] += 0.1 * std::sin(0.001 * k);
+    trajectory.times.push_back(0.001 * k);
+    trajectory.positions.emplace_back(point.data(), point.data() + point.size());
+  }
+  // The sender's copy of a long trajectory leaves the caches cold; so does this, for any length,
+  // so that the comparison shows the step's own work.
+  std::vector<char> scratch(8 << 20);
+  for (auto _ : state) {
+    loop.execute_trajectory(trajectory);
+    std::fill(scratch.begin(), scratch.end(), static_cast<char>(state.iterations()));
+    benchmark::ClobberMemory();
+    const auto begin = std::chrono::steady_clock::now();
+    benchmark::DoNotOptimize(loop.step(q, dq, 0.001).data());
+    const auto end = std::chrono::steady_clock::now();
+    state.SetIterationTime(std::chrono::duration<double>(end - begin).count());
+  }
+}
+BENCHMARK(BM_StepThatStartsATrajectory)->Arg(10)->Arg(10000)->UseManualTime();
+
+// A step that finds the inbox full (64 parameter sets queued): it applies 8 and leaves the rest
+// for the next steps (timed: the step only).
+void BM_StepWithAFullInbox(benchmark::State& state) {
+  ci::ControlLoop loop(panda());
+  ci::JointVector q = ready(), dq = ci::JointVector::Zero(7);
+  loop.start(q, dq);
+  ci::Parameters parameters;
+  for (auto _ : state) {
+    for (int i = 0; i < 64; ++i) {
+      try {
+        loop.set_parameters(parameters);
+      } catch (const ci::Error&) {
+        break;  // full
+      }
+    }
+    const auto begin = std::chrono::steady_clock::now();
+    benchmark::DoNotOptimize(loop.step(q, dq, 0.001).data());
+    const auto end = std::chrono::steady_clock::now();
+    state.SetIterationTime(std::chrono::duration<double>(end - begin).count());
+  }
+}
+BENCHMARK(BM_StepWithAFullInbox)->UseManualTime();
 
 // Every model-based option: KDL mass matrix, gravity and Coriolis as well.
 void BM_LoopStepAllDynamics(benchmark::State& state) {

@@ -2,8 +2,9 @@
 //
 // The "robot" is a body of 1 kg and 1 kg m^2 whose six joints are its translation and its
 // rotation about the base axes, so J = I and each joint torque is a component of the wrench on
-// the body. With unit mass, D = 2 zeta sqrt(K) at zeta = 1 is exactly critical damping, so the
-// numbers below can be checked by hand: a spring of K N/m under F N settles at F/K.
+// the body. Its mass matrix M = I goes to the controller with the state, which makes zeta = 1
+// critical damping of this body (D = 2 zeta sqrt(m K) with m = 1), so the numbers below can be
+// checked by hand: a spring of K N/m under F N settles at F/K.
 //
 // Usage: scripted_motion [--quiet]
 
@@ -36,6 +37,7 @@ struct Body {
     robot.dq << velocity, angular_velocity;
     robot.pose = ci::Pose{position, orientation};
     robot.jacobian = ci::Jacobian::Identity(6, 6);
+    robot.mass = ci::JointMatrix::Identity(6, 6);  // 1 kg, 1 kg m^2
     return robot;
   }
 

@@ -860,6 +860,12 @@ PYBIND11_MODULE(cartesian_impedance, m) {
   m.attr("Error").attr("__doc__") =
       "Raised for every input the library rejects; the message names the field, the value and "
       "the valid range. Derives from ValueError. A call that raises changes nothing.";
+  // Registered after Error, so that its translator is tried first.
+  py::register_exception<ci::QueueFull>(m, "QueueFull", PyExc_RuntimeError);
+  m.attr("QueueFull").attr("__doc__") =
+      "A valid command that could not be queued because the control loop's inbox was full (is "
+      "the loop stepping?). Transient: the same command may succeed later. Derives from "
+      "RuntimeError, not from Error.";
 
   // ---- enumerations ----
   py::enum_<ci::Frame>(m, "Frame", "Frame in which a stiffness or a wrench is given.")
@@ -872,7 +878,8 @@ PYBIND11_MODULE(cartesian_impedance, m) {
       .value("invalid_dt", ci::Status::invalid_dt)
       .value("invalid_robot_state", ci::Status::invalid_robot_state)
       .value("numerical_error", ci::Status::numerical_error)
-      .value("missing_dynamics", ci::Status::missing_dynamics);
+      .value("missing_dynamics", ci::Status::missing_dynamics)
+      .value("model_error", ci::Status::model_error);
   py::enum_<ci::TrajectoryState>(m, "TrajectoryState", "Where trajectory execution stands.")
       .value("idle", ci::TrajectoryState::idle)
       .value("executing", ci::TrajectoryState::executing)
@@ -1194,6 +1201,7 @@ PYBIND11_MODULE(cartesian_impedance, m) {
       .def_readonly("rotation_error_clipped", &ci::ActiveLimits::rotation_error_clipped)
       .def_readonly("joint_torque_saturated", &ci::ActiveLimits::joint_torque_saturated)
       .def_readonly("torque_rate_limited", &ci::ActiveLimits::torque_rate_limited)
+      .def_readonly("joint_torque_limit_ramping", &ci::ActiveLimits::joint_torque_limit_ramping)
       .def("__repr__", [](const ci::ActiveLimits& l) {
         std::string active;
         const std::pair<const char*, bool> flags[] = {
@@ -1204,15 +1212,39 @@ PYBIND11_MODULE(cartesian_impedance, m) {
             {"translation_error_clipped", l.translation_error_clipped},
             {"rotation_error_clipped", l.rotation_error_clipped},
             {"joint_torque_saturated", l.joint_torque_saturated},
-            {"torque_rate_limited", l.torque_rate_limited}};
+            {"torque_rate_limited", l.torque_rate_limited},
+            {"joint_torque_limit_ramping", l.joint_torque_limit_ramping}};
         for (const auto& [name, on] : flags) {
           if (on) active += (active.empty() ? "" : ", ") + std::string(name);
         }
         return "ActiveLimits(" + (active.empty() ? std::string("none") : active) + ")";
       });
 
+  py::class_<ci::Fault>(m, "Fault", "Which input made a cycle fail closed.")
+      .def_property_readonly(
+          "input", [](const ci::Fault& f) { return std::string(f.input); },
+          "'dt', 'q', 'dq', 'pose', 'jacobian', 'mass', 'gravity', ... ('' if none)")
+      .def_readonly("index", &ci::Fault::index, "element (joint) index, or -1")
+      .def_readonly("value", &ci::Fault::value, "the offending value (the size, for a wrong size)")
+      .def_property_readonly(
+          "reason", [](const ci::Fault& f) { return std::string(f.reason); },
+          "'is not finite', 'has the wrong size', 'is above plausibility.dt.max', ...")
+      .def_property_readonly(
+          "bound", [](const ci::Fault& f) { return f.has_bound ? py::cast(f.bound) : py::none(); },
+          "the bound it broke, or None")
+      .def("__str__", [](const ci::Fault& f) { return ci::to_string(f); })
+      .def("__bool__", [](const ci::Fault& f) { return f.input[0] != '\0'; })
+      .def("__repr__", [](const ci::Fault& f) { return "Fault('" + ci::to_string(f) + "')"; });
+
   py::class_<ci::ControllerState>(m, "ControllerState", "Snapshot written by every update().")
       .def_readonly("status", &ci::ControllerState::status)
+      .def_readonly("fault", &ci::ControllerState::fault,
+                    "Why the last cycle failed closed (falsy when status is ok).")
+      .def_property_readonly(
+          "joint_torque_limit",
+          [](const ci::ControllerState& s) { return vector_array(s.joint_torque_limit); },
+          "Torque bound in force per joint (n,) [Nm]: limits.joint_torque, or above it while "
+          "ramping down to a lowered limit.")
       .def_property_readonly(
           "pose", [](const ci::ControllerState& s) { return s.pose; },
           "Measured end-effector pose T_base_ee (quaternion x, y, z, w).")
@@ -1252,9 +1284,10 @@ PYBIND11_MODULE(cartesian_impedance, m) {
       .def(
           "damping_base",
           [](const ci::ControllerState& s) { return matrix_array(s.damping_base()); },
-          "D = 2 Z^(1/2) sqrt(K) Z^(1/2) (6, 6) in the base frame [N s/m, Nm s/rad].")
+          "D the law used (6, 6) in the base frame [N s/m, Nm s/rad].")
       .def("__repr__", [](const ci::ControllerState& s) {
         return std::string("ControllerState(status=") + ci::to_string(s.status) +
+               (s.fault.input[0] != '\0' ? ", fault='" + ci::to_string(s.fault) + "'" : "") +
                ", tau=" + numbers_text(s.tau) + ")";
       });
 
@@ -1790,6 +1823,12 @@ PYBIND11_MODULE(cartesian_impedance, m) {
       .def_property_readonly(
           "torque_upper_limits", [](Sim& s) { return vector_array(s.get().torque_upper_limits()); },
           "(n,) [Nm]; +inf without a limited actuator")
+      .def_property_readonly(
+          "armature", [](Sim& s) { return vector_array(s.get().armature()); },
+          "Rotor inertia per joint (n,) [kg m^2]: the value for the parameter dynamics.armature.")
+      .def_property_readonly(
+          "friction_loss", [](Sim& s) { return vector_array(s.get().friction_loss()); },
+          "Coulomb friction per joint (n,) [Nm]")
       .def_property_readonly("model_name", [](Sim& s) { return s.get().model_name(); })
       .def(
           "set_state",

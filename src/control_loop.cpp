@@ -1,6 +1,8 @@
 #include "cartesian_impedance/control_loop.hpp"
 
+#include <chrono>
 #include <cmath>
+#include <thread>
 
 #include "cartesian_impedance/error.hpp"
 #include "checks.hpp"
@@ -62,6 +64,11 @@ ControlLoop::ControlLoop(const RobotModel& model, const Parameters& parameters,
     throw Error("LoopCapacity.trajectory_points = " + std::to_string(capacity.trajectory_points) +
                 " must be at least 1");
   }
+  if (!(capacity.send_timeout >= 0.0 && capacity.send_timeout <= 60.0)) {
+    throw Error("LoopCapacity.send_timeout = " + format_number(capacity.send_timeout) +
+                " s is outside [0, 60]");
+  }
+  send_timeout_ = capacity.send_timeout;
   for (int i = 0; i < kTrajectoryBuffers; ++i) {
     buffers_.push_back(std::make_unique<Slot>(n, capacity.trajectory_points));
   }
@@ -140,10 +147,27 @@ void ControlLoop::start(const Eigen::Ref<const Eigen::VectorXd>& q,
   outbox_.publish(state_);
 }
 
+namespace {
+// Calls `attempt` until it succeeds or `timeout` [s] has passed, sleeping between attempts (the
+// sender's thread waits; the cycle never does).
+template <typename Attempt>
+bool retry_for(double timeout, Attempt attempt) {
+  if (attempt()) return true;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout);
+  while (std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+    if (attempt()) return true;
+  }
+  return false;
+}
+}  // namespace
+
 void ControlLoop::enqueue(const Message& message) {
-  if (!inbox_.push(message)) {
-    throw Error("control loop inbox is full (" + std::to_string(inbox_.capacity()) +
-                " commands): is the loop stepping?");
+  if (!retry_for(send_timeout_, [&] { return inbox_.push(message); })) {
+    throw QueueFull("control loop inbox is full (" + std::to_string(inbox_.capacity()) +
+                    " commands" +
+                    (send_timeout_ > 0.0 ? " for " + format_number(send_timeout_) + " s" : "") +
+                    "): is the loop stepping?");
   }
 }
 
@@ -207,26 +231,35 @@ void ControlLoop::start_teaching(bool keep_nullspace) {
 }
 
 std::uint64_t ControlLoop::execute_trajectory(const JointTrajectory& trajectory) {
-  for (std::size_t i = 0; i < buffers_.size(); ++i) {
-    Slot& slot = *buffers_[i];
-    int expected = Slot::free;
-    if (!slot.state.compare_exchange_strong(expected, Slot::filling)) continue;
-    try {
-      slot.buffer.assign(trajectory, model_.joint_names(), lower_limits_, upper_limits_);
-      Message message;
-      message.kind = Message::Kind::trajectory;
-      message.buffer = static_cast<int>(i);
-      message.trajectory_id = next_trajectory_id_.fetch_add(1);
-      slot.state.store(Slot::queued, std::memory_order_release);
-      enqueue(message);
-      return message.trajectory_id;
-    } catch (...) {
-      slot.state.store(Slot::free, std::memory_order_release);
-      throw;
+  int claimed = -1;
+  const bool found = retry_for(send_timeout_, [&] {
+    for (std::size_t i = 0; i < buffers_.size(); ++i) {
+      int expected = Slot::free;
+      if (buffers_[i]->state.compare_exchange_strong(expected, Slot::filling)) {
+        claimed = static_cast<int>(i);
+        return true;
+      }
     }
+    return false;
+  });
+  if (!found) {
+    throw QueueFull("all " + std::to_string(buffers_.size()) +
+                    " trajectory buffers are in use (queued or running): is the loop stepping?");
   }
-  throw Error("all " + std::to_string(buffers_.size()) +
-              " trajectory buffers are in use (queued or running): is the loop stepping?");
+  Slot& slot = *buffers_[static_cast<std::size_t>(claimed)];
+  try {
+    slot.buffer.assign(trajectory, model_.joint_names(), lower_limits_, upper_limits_);
+    Message message;
+    message.kind = Message::Kind::trajectory;
+    message.buffer = claimed;
+    message.trajectory_id = next_trajectory_id_.fetch_add(1);
+    slot.state.store(Slot::queued, std::memory_order_release);
+    enqueue(message);
+    return message.trajectory_id;
+  } catch (...) {
+    slot.state.store(Slot::free, std::memory_order_release);
+    throw;
+  }
 }
 
 void ControlLoop::cancel_trajectory() {
@@ -430,9 +463,9 @@ const JointVector& ControlLoop::step(const JointVector& q, const JointVector& dq
     joint_limit_torque();
     controller_.update(robot_, dt);
   }
-  if (controller_.started() && controller_.state().status == Status::ok) {
-    ++state_.cycle;
-    state_.time += dt;
+  if (controller_.started()) {
+    ++state_.cycle;  // every step, also those that failed closed
+    if (dt_plausible) state_.time += dt;
   }
   state_.commands_applied = commands_applied_;
   state_.controller = controller_.state();

@@ -36,12 +36,12 @@ bool clip_norm(Eigen::Ref<Eigen::Vector3d> vector, double max_norm) noexcept {
   // vector is clipped to max_norm along its direction instead of collapsing to zero.
   const double squared_norm = vector.squaredNorm();
   if (squared_norm <= max_norm * max_norm) return false;
-  double norm = std::sqrt(squared_norm);
-  if (!std::isfinite(norm)) {
-    const double largest = vector.cwiseAbs().maxCoeff();
-    norm = largest * (vector / largest).norm();
+  if (std::isfinite(squared_norm)) {
+    vector *= max_norm / std::sqrt(squared_norm);
+  } else {
+    const Eigen::Vector3d direction = vector / vector.cwiseAbs().maxCoeff();
+    vector = direction * (max_norm / direction.norm());
   }
-  vector *= max_norm / norm;
   return true;
 }
 

@@ -3,9 +3,10 @@
 examples/scripted_motion.cpp; it prints the same table).
 
 The "robot" is a body of 1 kg and 1 kg m^2 whose six joints are its translation and its rotation
-about the base axes, so J = I and each joint torque is a component of the wrench on the body. With
-unit mass, D = 2 zeta sqrt(K) at zeta = 1 is exactly critical damping, so the numbers below can be
-checked by hand: a spring of K N/m under F N settles at F/K.
+about the base axes, so J = I and each joint torque is a component of the wrench on the body. Its
+mass matrix M = I goes to the controller with the state, which makes zeta = 1 critical damping of
+this body (D = 2 zeta sqrt(m K) with m = 1), so the numbers below can be checked by hand: a
+spring of K N/m under F N settles at F/K.
 
 Usage (from the build tree): PYTHONPATH=build/python /usr/bin/python3 \\
     examples/python/scripted_motion.py [--quiet]
@@ -52,6 +53,7 @@ class Body:
         self.angular_velocity = np.zeros(3)
         self.robot = ci.make_robot_state(6)
         self.robot.jacobian = np.eye(6)
+        self.robot.mass = np.eye(6)  # 1 kg, 1 kg m^2: what the damping ratio is relative to
 
     def state(self):
         robot = self.robot

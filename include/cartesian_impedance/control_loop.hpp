@@ -49,15 +49,19 @@ struct LoopState {
   JointVector q;               ///< measured joint positions [rad or m]
   JointVector dq;              ///< measured joint velocities [rad/s or m/s]
   TrajectoryProgress trajectory;
-  std::uint64_t cycle = 0;             ///< steps since start()
-  double time = 0.0;                   ///< [s] sum of dt since start()
+  std::uint64_t cycle = 0;             ///< steps since start(), including failed ones
+  double time = 0.0;                   ///< [s] sum of the plausible dt since start()
   std::uint64_t commands_applied = 0;  ///< commands taken from the inbox since construction
 };
 
 /// Sizes fixed at construction.
 struct LoopCapacity {
-  int commands = 64;              ///< inbox slots; a full inbox makes senders throw
+  int commands = 64;              ///< inbox slots
   int trajectory_points = 10000;  ///< largest trajectory accepted
+  /// [s] how long a sender waits for room in a full inbox (or for a free trajectory buffer),
+  /// sleeping in its own thread, before it throws QueueFull; 0 = throw at once. The cycle
+  /// applies 8 commands per step, so at 1 kHz a full inbox of 64 has room again within 8 ms.
+  double send_timeout = 0.0;
 };
 
 class ControlLoop {
@@ -110,7 +114,8 @@ class ControlLoop {
 
   // ---- commands: any thread ------------------------------------------------------------------
   // Each validates (throwing Error on bad input, which queues nothing) and queues the command for
-  // the next step. They throw Error too if the inbox is full.
+  // the next step. If the inbox stays full for LoopCapacity::send_timeout they throw QueueFull
+  // (an Error), and nothing is queued.
 
   void send(const Command& command);
   void set_parameters(const Parameters& parameters);
@@ -132,7 +137,8 @@ class ControlLoop {
   /// into preallocated storage and queues it. It starts at the next step from the current
   /// state (or from where the running trajectory is, which it preempts, so nothing jumps).
   /// Returns its id, as reported in LoopState::trajectory.
-  /// @throws Error on a bad trajectory, or if all trajectory buffers are in use.
+  /// @throws Error on a bad trajectory; QueueFull if all trajectory buffers or the inbox stay in
+  /// use for LoopCapacity::send_timeout.
   std::uint64_t execute_trajectory(const JointTrajectory& trajectory);
   /// Stops a running trajectory; the robot holds where it is.
   void cancel_trajectory();
@@ -181,6 +187,7 @@ class ControlLoop {
   // Trajectory buffers: a sender claims a free one, fills it, and queues its index; the cycle
   // releases it when another replaces it. Only atomics change hands, so the cycle never frees.
   std::vector<std::unique_ptr<Slot>> buffers_;
+  double send_timeout_ = 0.0;
   std::atomic<std::uint64_t> next_trajectory_id_{1};
   int active_buffer_ = -1;
   JointVector trajectory_q_, trajectory_dq_;

@@ -1,7 +1,7 @@
 #pragma once
 /// @file
-/// The one exception type the library throws. Only setters, loaders and constructors throw; the
-/// control cycle never does (it reports a status instead).
+/// The one exception type the library throws (and its one refinement, QueueFull). Only setters,
+/// loaders and constructors throw; the control cycle never does (it reports a status instead).
 
 #include <stdexcept>
 #include <string>
@@ -14,6 +14,14 @@ namespace cartesian_impedance {
 class Error : public std::runtime_error {
  public:
   explicit Error(const std::string& message) : std::runtime_error(message) {}
+};
+
+/// A valid command that could not be queued because the control loop's inbox stayed full (the
+/// loop is not stepping, or commands arrive faster than it applies them). Unlike other errors it
+/// is transient: the same command may succeed later.
+class QueueFull : public Error {
+ public:
+  using Error::Error;
 };
 
 }  // namespace cartesian_impedance

@@ -21,7 +21,7 @@ def loop(panda, ready):
 def test_error_is_a_value_error_with_the_library_message():
     assert issubclass(ci.Error, ValueError)
     with pytest.raises(ValueError,
-                       match=r"^stiffness\.translation\.x = -5 N/m is outside \[0, inf\)$"):
+                       match=r"^stiffness\.translation\.x = -5 N/m is outside \[0, 100000\]$"):
         ci.Parameters({"stiffness.translation": [-5, 1, 1]})
 
 
@@ -73,7 +73,7 @@ def test_any_real_dtype_and_layout_is_converted(panda, ready):
               tuple([0.0] * 7), [np.float32(0)] * 7, np.zeros(7, dtype=">f8")):
         loop = ci.ControlLoop(panda)
         loop.start(ready, np.zeros(7))
-        loop.set_nullspace_target(q)
+        loop.set_nullspace_target(ready + q)
         loop.step(ready, q, 0.001)
         results.append(loop.step(ready, q, 0.001))
     for result in results[1:]:
@@ -171,7 +171,7 @@ def test_bad_poses_and_transforms(loop):
 def test_rejected_commands_change_nothing(loop, ready):
     loop.step(ready, np.zeros(7), 0.001)
     before = loop.state.controller.commanded.stiffness
-    with pytest.raises(ci.Error, match=r"stiffness.translation.x = -5 N/m is outside \[0, inf\)"):
+    with pytest.raises(ci.Error, match=r"stiffness.translation.x = -5 N/m is outside \[0, 100000\]"):
         loop.set_stiffness([-5, 500, 500, 50, 50, 50])
     with pytest.raises(ValueError,
                        match=r"stiffness must have shape \(6,\) or \(6, 6\), got length 5"):
@@ -275,7 +275,7 @@ def test_unknown_and_malformed_parameter_keys():
     ("stiffness.translation", "500", TypeError, "stiffness.translation must be real numbers"),
     ("filter.pose.time", True, TypeError, "filter.pose.time must be a real number, got bool"),
     ("filter.pose.time", [0.1], TypeError, "filter.pose.time must be a real number, got list"),
-    ("filter.pose.fraction", 0, ci.Error, r"filter.pose.fraction = 0 is outside \(0, 1\]"),
+    ("filter.pose.fraction", 0, ci.Error, r"filter.pose.fraction = 0 is outside \[0.5, 1\]"),
     ("nullspace.stiffness", np.ones(ci.MAX_JOINTS + 1), ValueError,
      r"1 <= n <= %d or be one number" % ci.MAX_JOINTS),
     ("nullspace.stiffness", [1, -1], ci.Error, r"nullspace.stiffness\[1\] = -1 Nm/rad"),

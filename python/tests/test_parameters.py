@@ -20,9 +20,12 @@ def other_value(row):
     if row["kind"] == "switch":
         return not default
 
+    low, high = max(row["min"], 0.0), row["max"]
+
     def number(d, i=0):
-        # Half the default stays in range for every [0, ..] or (0, ..] row; 0.25 for zero defaults.
-        return d * 0.5 if d != 0 else 0.25 * (i + 1)
+        # Halfway from the default to the bottom of the range (or, for a default at the bottom,
+        # a little above it): different from the default and valid.
+        return (d + low) / 2 if d > low else min(low + 0.25 * (i + 1) * max(low, 1e-3), high)
 
     if row["kind"] == "number":
         return number(default)
@@ -124,7 +127,7 @@ def test_update_applies_all_or_nothing():
     p = ci.Parameters()
     p.update({"filter": {"pose": {"time": 0.5}}})
     assert p["filter.pose.time"] == 0.5
-    with pytest.raises(ci.Error, match=r"stiffness.rotation.y = -1 Nm/rad is outside \[0, inf\)"):
+    with pytest.raises(ci.Error, match=r"stiffness.rotation.y = -1 Nm/rad is outside \[0, 10000\]"):
         p.update({"filter.pose.time": 0.7, "stiffness.rotation": [1, -1, 1]})
     assert p["filter.pose.time"] == 0.5
 

@@ -184,15 +184,8 @@ void fill_state_message(const ci::LoopState& state, const std::vector<std::strin
   vector_to_wrench(controller.commanded.stiffness.diagonal(),
                    message.commanded_cartesian_stiffness);
   vector_to_wrench(controller.filtered.damping_ratio, message.damping_ratio);
-  // The damping the law used, rotated back from the base frame into the stiffness frame.
-  ci::Matrix6d damping = controller.damping_base();
-  if (controller.stiffness_frame == ci::Frame::end_effector) {
-    ci::Matrix6d R = ci::Matrix6d::Zero();
-    R.topLeftCorner<3, 3>() = controller.pose.orientation.toRotationMatrix();
-    R.bottomRightCorner<3, 3>() = R.topLeftCorner<3, 3>();
-    damping = R.transpose() * damping * R;
-  }
-  vector_to_wrench(damping.diagonal(), message.cartesian_damping);
+  // The damping the law used, in the stiffness frame.
+  vector_to_wrench(controller.damping.diagonal(), message.cartesian_damping);
 
   message.wrench_frame = std::string(ci::frame_name(controller.wrench_frame));
   vector_to_wrench(controller.commanded.wrench, message.commanded_wrench);

@@ -88,7 +88,12 @@ CartesianImpedanceNode::CartesianImpedanceNode(const ros::NodeHandle& node,
                     "robot_description\" textfile=\"models/panda/panda.urdf\"/>");
   }
   model_.emplace(ci::RobotModel::from_urdf_string(urdf, settings_.base_link, settings_.tip_link));
-  loop_ = std::make_unique<ci::ControlLoop>(*model_, configuration_.parameters);
+  // Callbacks wait up to 0.1 s for room in a full inbox (the cycle drains 8 commands per step),
+  // so a burst of commands is delayed rather than lost; only a loop that stopped stepping makes
+  // a callback give up, with a warning naming the command.
+  ci::LoopCapacity capacity;
+  capacity.send_timeout = 0.1;
+  loop_ = std::make_unique<ci::ControlLoop>(*model_, configuration_.parameters, capacity);
   const int n = model_->num_joints();
 
   if (settings_.mode == Mode::sim) {
@@ -188,7 +193,8 @@ void CartesianImpedanceNode::create_command_interface() {
   const ros::TransportHints hints = ros::TransportHints().tcpNoDelay();
   using Self = CartesianImpedanceNode;
   ros::NodeHandle& p = private_node_;
-  // Only the newest reference matters; other commands are queued so that none is lost.
+  // Only the newest reference matters; other commands are queued by ROS (10 deep) and then by the
+  // loop, whose senders wait for room rather than drop a command.
   command_subscribers_.push_back(
       p.subscribe("reference_pose", 1, &Self::on_reference_pose, this, hints));
   command_subscribers_.push_back(

@@ -6,7 +6,10 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
+#include <cstdio>
+#include <iterator>
 #include <limits>
+#include <random>
 #include <string>
 
 #include <cartesian_impedance/config.hpp>
@@ -157,7 +160,7 @@ TEST(RosParameters, ErrorsNameParameterValueAndRange) {
     root["stiffness"]["translation"] = -5;
     EXPECT_EQ(error_of(root), "ROS parameter " + kNamespace +
                                   "/stiffness/translation: stiffness.translation = -5 N/m is "
-                                  "outside [0, inf)");
+                                  "outside [0, 100000]");
   }
   {
     XmlRpcValue root = required_settings();
@@ -413,10 +416,9 @@ TEST(Conversions, StateMessageFromALoopStep) {
   EXPECT_EQ(message.stiffness_frame, "end_effector");
   EXPECT_EQ(message.commanded_cartesian_stiffness.force.y, 200.0);
   EXPECT_EQ(message.commanded_cartesian_stiffness.torque.z, 30.0);
-  // Damping in the stiffness frame: d = 2 zeta sqrt(k) for the filtered diagonal.
-  EXPECT_NEAR(message.cartesian_damping.force.x,
-              2.0 * message.damping_ratio.force.x * std::sqrt(message.cartesian_stiffness.force.x),
-              1e-6);
+  // Damping in the stiffness frame: the diagonal of the D the law used.
+  EXPECT_EQ(message.cartesian_damping.force.x, loop.state().controller.damping(0, 0));
+  EXPECT_EQ(message.cartesian_damping.torque.z, loop.state().controller.damping(5, 5));
   ASSERT_EQ(message.external_torques.size(), 7u);
   EXPECT_NEAR(message.external_torques[0], 1.0 - message.commanded_torques[0], 1e-12);
   EXPECT_EQ(message.trajectory_state, "idle");
@@ -424,4 +426,176 @@ TEST(Conversions, StateMessageFromALoopStep) {
   cir::fill_state_message(loop.state(), model.joint_names(), nullptr, message);
   EXPECT_TRUE(message.external_torques.empty());
   EXPECT_TRUE(message.joint_state.effort.empty());
+}
+
+// ---- fuzz -----------------------------------------------------------------------------------
+// Thousands of hostile messages through the conversions and into a running loop, as the node's
+// callbacks pass them on: every one is either accepted or rejected with the library's Error,
+// nothing else is thrown, and the cycle keeps producing finite torques within its bounds. Run
+// under ASan + UBSan in CI.
+
+namespace {
+
+// Numbers a broken or hostile publisher could send.
+double hostile_number(std::mt19937& rng) {
+  static const double kSpecial[] = {0.0,
+                                    -0.0,
+                                    1.0,
+                                    -1.0,
+                                    0.5,
+                                    1e-300,
+                                    5e-324,
+                                    1e154,
+                                    1.5e154,
+                                    1e300,
+                                    -1e308,
+                                    std::numeric_limits<double>::max(),
+                                    std::numeric_limits<double>::infinity(),
+                                    -std::numeric_limits<double>::infinity(),
+                                    std::numeric_limits<double>::quiet_NaN()};
+  std::uniform_int_distribution<int> pick(0, 8 * static_cast<int>(std::size(kSpecial)));
+  const int k = pick(rng);
+  if (k < static_cast<int>(std::size(kSpecial))) return kSpecial[k];
+  return std::uniform_real_distribution<double>(-3.0, 3.0)(rng);
+}
+
+std::vector<double> hostile_array(std::mt19937& rng, int usual_size) {
+  std::uniform_int_distribution<int> size(0, 7);
+  const int choice = size(rng);
+  const int n = choice == 0 ? 0 : choice == 1 ? usual_size + 1 : usual_size;
+  std::vector<double> values(static_cast<std::size_t>(n));
+  for (double& value : values) value = hostile_number(rng);
+  return values;
+}
+
+}  // namespace
+
+TEST(Fuzz, HostileMessagesAreAcceptedOrRejectedWithErrorAndTheCycleStaysSafe) {
+  const ci::RobotModel model = ci::RobotModel::from_urdf_file(kSource + "/models/panda/panda.urdf",
+                                                              "panda_link0", "panda_link8");
+  ci::ControlLoop loop(model, ci::load_parameters(kSource + "/config/panda.yaml"));
+  const ci::JointVector ready =
+      (ci::JointVector(7) << 0, -M_PI / 4, 0, -3 * M_PI / 4, 0, M_PI / 2, M_PI / 4).finished();
+  loop.start(ready, ci::JointVector::Zero(7));
+  const cir::JointStateMapper mapper(model.joint_names());
+  std::mt19937 rng(20261123);
+  int accepted = 0, rejected = 0;
+  const int kMessages = 4000;
+  for (int k = 0; k < kMessages; ++k) {
+    try {
+      switch (k % 6) {
+        case 0: {
+          geometry_msgs::Pose pose;
+          pose.position.x = hostile_number(rng);
+          pose.position.y = hostile_number(rng);
+          pose.position.z = hostile_number(rng);
+          pose.orientation.x = hostile_number(rng);
+          pose.orientation.y = hostile_number(rng);
+          pose.orientation.z = hostile_number(rng);
+          pose.orientation.w = hostile_number(rng);
+          geometry_msgs::Transform transform;
+          transform.translation.x = hostile_number(rng);
+          transform.rotation.w = hostile_number(rng);
+          transform.rotation.z = hostile_number(rng);
+          const ci::Pose in_frame = cir::pose_from_message(pose);
+          loop.set_reference_pose(
+              k % 12 == 0 ? cir::transform_pose(cir::isometry_from_transform(transform), in_frame)
+                          : in_frame);
+          break;
+        }
+        case 1: {
+          geometry_msgs::Wrench wrench;
+          wrench.force.x = hostile_number(rng);
+          wrench.force.y = hostile_number(rng);
+          wrench.force.z = hostile_number(rng);
+          wrench.torque.x = hostile_number(rng);
+          wrench.torque.y = hostile_number(rng);
+          wrench.torque.z = hostile_number(rng);
+          const ci::Vector6d values = cir::vector_from_wrench(wrench);
+          switch (k % 4) {
+            case 0:
+              loop.set_wrench(values);
+              break;
+            case 1:
+              loop.set_stiffness(values.cwiseAbs());
+              break;
+            case 2: {
+              const Eigen::Matrix3d rotation =
+                  Eigen::AngleAxisd(hostile_number(rng), Eigen::Vector3d::UnitZ()).matrix();
+              loop.set_stiffness_matrix(cir::rotate_stiffness(rotation, values.cwiseAbs()));
+              break;
+            }
+            default:
+              loop.set_damping_ratio(values.cwiseAbs());
+          }
+          break;
+        }
+        case 2: {
+          sensor_msgs::JointState message;
+          message.name = model.joint_names();
+          if (k % 5 == 0) std::swap(message.name[1], message.name[4]);
+          if (k % 7 == 0) message.name.pop_back();
+          message.position = hostile_array(rng, 7);
+          message.velocity = hostile_array(rng, 7);
+          message.effort = hostile_array(rng, 7);
+          cir::JointSample sample;
+          sample.q = ready;
+          sample.dq = ci::JointVector::Zero(7);
+          if (mapper.map(message, sample)) {
+            // As the node's control thread: the sample goes to the cycle as it is.
+            loop.step(sample.q, sample.dq, 0.001);
+          }
+          break;
+        }
+        case 3: {
+          trajectory_msgs::JointTrajectory message;
+          message.joint_names = model.joint_names();
+          if (k % 9 == 0) message.joint_names[2] = "elbow";
+          const int points = std::uniform_int_distribution<int>(0, 4)(rng);
+          double time = 0.0;
+          for (int p = 0; p < points; ++p) {
+            trajectory_msgs::JointTrajectoryPoint point;
+            for (int j = 0; j < 7; ++j) {
+              point.positions.push_back(k % 3 == 0 ? hostile_number(rng)
+                                                   : ready[j] + 0.01 * hostile_number(rng));
+            }
+            if (k % 2 == 0) point.velocities = hostile_array(rng, 7);
+            time += k % 4 == 0 ? hostile_number(rng) : 0.2;
+            point.time_from_start =
+                ros::Duration(std::isfinite(time) && std::abs(time) < 1e6 ? time : 0.1);
+            message.points.push_back(point);
+          }
+          loop.execute_trajectory(cir::trajectory_from_message(message));
+          break;
+        }
+        case 4: {
+          const std::vector<double> target = hostile_array(rng, 7);
+          loop.set_nullspace_target(Eigen::Map<const Eigen::VectorXd>(
+              target.data(), static_cast<Eigen::Index>(target.size())));
+          break;
+        }
+        default: {
+          const std::vector<double> stiffness = hostile_array(rng, 7);
+          loop.set_nullspace_stiffness(Eigen::Map<const Eigen::VectorXd>(
+              stiffness.data(), static_cast<Eigen::Index>(stiffness.size())));
+        }
+      }
+      ++accepted;
+    } catch (const ci::Error&) {
+      ++rejected;
+    }
+    // The robot holds still here; whatever was accepted, the cycle stays finite and bounded.
+    const ci::JointVector& tau = loop.step(ready, ci::JointVector::Zero(7), 0.001);
+    ASSERT_TRUE(tau.allFinite()) << "message " << k;
+    ASSERT_TRUE(
+        (tau.cwiseAbs().array() <= loop.state().controller.joint_torque_limit.array() + 1e-12)
+            .all())
+        << "message " << k;
+  }
+  std::printf("ros conversions fuzz: %d messages, %d accepted, %d rejected\n", kMessages, accepted,
+              rejected);
+  RecordProperty("accepted", accepted);
+  RecordProperty("rejected", rejected);
+  EXPECT_GT(accepted, kMessages / 10);
+  EXPECT_GT(rejected, kMessages / 10);
 }
