@@ -12,8 +12,10 @@ namespace cartesian_impedance {
 
 /// Reads parameters from a YAML file. Keys not given keep their defaults; a per-joint or
 /// three-axis field may be given as one number for all entries.
-/// @throws Error for a missing or malformed file, an unknown key (named, with its line), a value
-///         of the wrong shape, or a value outside its range.
+/// @throws Error for a missing or malformed file, an unknown or repeated key (named, with its
+///         line), a second YAML document, a key that is not a plain name, a value of the wrong
+///         shape, a number or switch written as a string (quoted, tagged or a block scalar), or
+///         a value outside its range.
 Parameters load_parameters(const std::string& path);
 
 /// As load_parameters(), from YAML text; `source` names it in messages.
