@@ -40,6 +40,10 @@ void run_loop(benchmark::State& state, const ci::Parameters& parameters) {
   }
   state.counters["allocs_per_step"] =
       static_cast<double>(allocations.allocations()) / static_cast<double>(state.iterations());
+  // A step that fails closed skips the law: the figure would mean nothing.
+  if (loop.state().controller.status != ci::Status::ok) {
+    state.SkipWithError(ci::to_string(loop.state().controller.fault).c_str());
+  }
 }
 
 // Defaults: kinematics (pose + Jacobian) and M(q), g(q) from KDL (damping shaped by the

@@ -315,9 +315,11 @@ TEST(ControlLoop, ConcurrentCommandsAreAppliedWholeAndInOrder) {
   };
   constexpr int kCommands = 3000;
   std::atomic<bool> stepping{true};
+  // Raised before each send: the stepping thread may apply a pose before its send returns.
   std::atomic<int> sent{0};
   std::thread sender([&] {
     for (int id = 1; id <= kCommands; ++id) {
+      sent = id;
       for (;;) {
         try {
           loop.set_reference_pose(pose_for(id));
@@ -326,7 +328,6 @@ TEST(ControlLoop, ConcurrentCommandsAreAppliedWholeAndInOrder) {
           std::this_thread::yield();  // inbox full: the stepping thread will drain it
         }
       }
-      sent = id;
     }
   });
   std::atomic<int> reader_bad{0};
