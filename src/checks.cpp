@@ -22,6 +22,13 @@ void size(std::string_view name, Eigen::Index size, Eigen::Index expected) {
   }
 }
 
+void one_or_per_joint(std::string_view name, Eigen::Index size, Eigen::Index num_joints) {
+  if (size != 1 && size != num_joints) {
+    throw Error(std::string(name) + " has " + std::to_string(size) +
+                " values; expected 1 (all joints) or " + std::to_string(num_joints));
+  }
+}
+
 void finite_vector(std::string_view name, const Eigen::Ref<const Eigen::VectorXd>& values,
                    std::string_view unit) {
   for (Eigen::Index i = 0; i < values.size(); ++i) finite(indexed(name, i), values[i], unit);

@@ -20,6 +20,8 @@ inline constexpr double kMaxJointPosition = 1000.0;
 std::string indexed(std::string_view name, Eigen::Index i);
 void finite(std::string_view name, double value, std::string_view unit = "");
 void size(std::string_view name, Eigen::Index size, Eigen::Index expected);
+/// A per-joint value given once for all joints or once per joint.
+void one_or_per_joint(std::string_view name, Eigen::Index size, Eigen::Index num_joints);
 /// Every element finite; elements named name[i].
 void finite_vector(std::string_view name, const Eigen::Ref<const Eigen::VectorXd>& values,
                    std::string_view unit = "");

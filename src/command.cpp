@@ -8,22 +8,34 @@
 
 namespace cartesian_impedance {
 
-Command Command::reference_pose(const Pose& pose_base) {
-  Command command(Kind::reference_pose);
-  command.pose_ = checks::pose("reference_pose", pose_base);
-  return command;
+namespace {
+
+template <typename... Ts>
+struct Overloaded : Ts... {
+  using Ts::operator()...;
+};
+template <typename... Ts>
+Overloaded(Ts...) -> Overloaded<Ts...>;
+
+bool off_diagonal_zero(const Matrix6d& matrix) {
+  for (int row = 0; row < 6; ++row) {
+    for (int col = 0; col < 6; ++col) {
+      if (row != col && matrix(row, col) != 0.0) return false;
+    }
+  }
+  return true;
 }
 
-Command Command::stiffness(const Vector6d& diagonal, std::optional<Frame> frame) {
-  checks::axes(parameter_info("stiffness.translation"), diagonal.head<3>());
-  checks::axes(parameter_info("stiffness.rotation"), diagonal.tail<3>());
-  Command command(Kind::stiffness);
-  command.matrix_ = diagonal.asDiagonal();
-  command.frame_ = frame;
-  return command;
-}
-
-Command Command::stiffness_matrix(const Matrix6d& stiffness, std::optional<Frame> frame) {
+// A diagonal stiffness is checked axis by axis against its parameter rows (the messages a user
+// of set_stiffness() expects); a full one element by element, then for symmetry and
+// positive semi-definiteness.
+void check_stiffness(Stiffness& command) {
+  Matrix6d& stiffness = command.stiffness;
+  if (off_diagonal_zero(stiffness)) {
+    checks::axes(parameter_info("stiffness.translation"), stiffness.diagonal().head<3>());
+    checks::axes(parameter_info("stiffness.rotation"), stiffness.diagonal().tail<3>());
+    return;
+  }
   // Entries are bounded like the diagonal stiffness parameters (the largest of their ranges), so
   // that the eigen-decompositions of saturation and damping stay far from overflow.
   const double bound = parameter_info("stiffness.translation").max;
@@ -49,75 +61,73 @@ Command Command::stiffness_matrix(const Matrix6d& stiffness, std::optional<Frame
       }
     }
   }
-  const Matrix6d symmetric = 0.5 * (stiffness + stiffness.transpose());
-  const double smallest = Eigen::SelfAdjointEigenSolver<Matrix6d>(symmetric).eigenvalues()[0];
+  stiffness = 0.5 * (stiffness + stiffness.transpose()).eval();
+  const double smallest = Eigen::SelfAdjointEigenSolver<Matrix6d>(stiffness).eigenvalues()[0];
   if (smallest < -1e-9 * scale) {
     throw Error("stiffness is not positive semi-definite: smallest eigenvalue " +
                 format_number(smallest) + " is below 0");
   }
-  Command command(Kind::stiffness);
-  command.matrix_ = symmetric;
-  command.full_matrix_ = true;
-  command.frame_ = frame;
-  return command;
 }
 
-Command Command::damping_ratio(const Vector6d& damping_ratio) {
-  checks::axes(parameter_info("damping_ratio.translation"), damping_ratio.head<3>());
-  checks::axes(parameter_info("damping_ratio.rotation"), damping_ratio.tail<3>());
-  Command command(Kind::damping_ratio);
-  command.vector_ = damping_ratio;
-  return command;
+}  // namespace
+
+ValidCommand validate_command(Command command, int num_joints) {
+  // How many joints the command was checked for, where that matters.
+  const int joints = std::visit(
+      Overloaded{
+          [](ReferencePose& c) {
+            c.pose_base = checks::pose("reference_pose", c.pose_base);
+            return 0;
+          },
+          [](Stiffness& c) {
+            check_stiffness(c);
+            return 0;
+          },
+          [](DampingRatio& c) {
+            checks::axes(parameter_info("damping_ratio.translation"), c.ratio.head<3>());
+            checks::axes(parameter_info("damping_ratio.rotation"), c.ratio.tail<3>());
+            return 0;
+          },
+          [num_joints](NullspaceTarget& c) {
+            checks::size("nullspace_target", c.q_desired.size(), num_joints);
+            checks::bounded_vector("nullspace_target", c.q_desired, checks::kMaxJointPosition,
+                                   "rad");
+            return num_joints;
+          },
+          [num_joints](NullspaceStiffness& c) {
+            checks::one_or_per_joint("nullspace.stiffness", c.stiffness.size(), num_joints);
+            const ParameterInfo& info = parameter_info("nullspace.stiffness");
+            for (Eigen::Index i = 0; i < c.stiffness.size(); ++i) {
+              info.check(checks::indexed(info.name, i), c.stiffness[i]);
+            }
+            return num_joints;
+          },
+          [](NullspaceDampingRatio& c) {
+            parameter_info("nullspace.damping_ratio").check("nullspace.damping_ratio", c.ratio);
+            return 0;
+          },
+          [](Wrench& c) {
+            checks::axes(parameter_info("wrench.force"), c.wrench.head<3>());
+            checks::axes(parameter_info("wrench.torque"), c.wrench.tail<3>());
+            return 0;
+          },
+          [num_joints](Parameters& c) {
+            validate(c, num_joints);
+            return num_joints;
+          },
+      },
+      command);
+  return ValidCommand(std::move(command), joints);
 }
 
-Command Command::nullspace_target(const Eigen::Ref<const Eigen::VectorXd>& q_desired,
-                                  int num_joints) {
-  checks::size("nullspace_target", q_desired.size(), num_joints);
-  checks::bounded_vector("nullspace_target", q_desired, checks::kMaxJointPosition, "rad");
-  Command command(Kind::nullspace_target);
-  command.num_joints_ = num_joints;
-  command.joints_ = q_desired;
-  return command;
-}
-
-Command Command::nullspace_stiffness(const Eigen::Ref<const Eigen::VectorXd>& stiffness,
-                                     int num_joints) {
-  if (stiffness.size() != 1 && stiffness.size() != num_joints) {
-    throw Error("nullspace.stiffness has " + std::to_string(stiffness.size()) +
-                " values; expected 1 (all joints) or " + std::to_string(num_joints));
-  }
-  const ParameterInfo& info = parameter_info("nullspace.stiffness");
-  for (Eigen::Index i = 0; i < stiffness.size(); ++i) {
-    info.check(checks::indexed(info.name, i), stiffness[i]);
-  }
-  Command command(Kind::nullspace_stiffness);
-  command.num_joints_ = num_joints;
-  command.joints_ = stiffness;
-  return command;
-}
-
-Command Command::nullspace_damping_ratio(double damping_ratio) {
-  parameter_info("nullspace.damping_ratio").check("nullspace.damping_ratio", damping_ratio);
-  Command command(Kind::nullspace_damping_ratio);
-  command.scalar_ = damping_ratio;
-  return command;
-}
-
-Command Command::wrench(const Vector6d& wrench, std::optional<Frame> frame) {
-  checks::axes(parameter_info("wrench.force"), wrench.head<3>());
-  checks::axes(parameter_info("wrench.torque"), wrench.tail<3>());
-  Command command(Kind::wrench);
-  command.vector_ = wrench;
-  command.frame_ = frame;
-  return command;
-}
-
-Command Command::parameters(const Parameters& parameters, int num_joints) {
-  validate(parameters, num_joints);
-  Command command(Kind::parameters);
-  command.num_joints_ = num_joints;
-  command.parameters_ = parameters;
-  return command;
+const char* command_name(const Command& command) noexcept {
+  static constexpr const char* kNames[] = {
+      "reference_pose",   "stiffness",           "damping_ratio",
+      "nullspace_target", "nullspace_stiffness", "nullspace_damping_ratio",
+      "wrench",           "parameters",
+  };
+  static_assert(std::size(kNames) == std::variant_size_v<Command>);
+  return kNames[command.index()];
 }
 
 }  // namespace cartesian_impedance

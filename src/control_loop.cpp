@@ -11,6 +11,9 @@ namespace cartesian_impedance {
 
 namespace {
 constexpr int kTrajectoryBuffers = 4;  // running, queued, being written, one spare
+// Parameter sets are large (every field of the configuration); they wait in their own slots, and
+// the inbox carries only the slot's index. The cycle applies at most kCommandsPerCycle per step.
+constexpr int kParameterSets = 8;
 
 // Error text for a joint position outside [lower - margin, upper + margin].
 std::string outside_limits(std::string_view name, int joint, double value, double lower,
@@ -24,13 +27,19 @@ std::string outside_limits(std::string_view name, int joint, double value, doubl
 }
 }  // namespace
 
-// A trajectory buffer and who owns it: free -> (sender) filling -> queued -> (cycle) running ->
-// free. Only the owner touches the buffer; ownership changes through `state`.
+// Storage a sender fills and the cycle reads, and who owns it: free -> (sender) filling ->
+// queued -> (cycle) running -> free. Only the owner touches the contents; ownership changes
+// through `state`, so the cycle never allocates or frees.
 struct ControlLoop::Slot {
   enum State : int { free, filling, queued, running };
-  Slot(int num_joints, int max_points) : buffer(num_joints, max_points) {}
-  TrajectoryBuffer buffer;
   std::atomic<int> state{free};
+};
+struct ControlLoop::TrajectorySlot : Slot {
+  TrajectorySlot(int num_joints, int max_points) : buffer(num_joints, max_points) {}
+  TrajectoryBuffer buffer;
+};
+struct ControlLoop::ParameterSlot : Slot {
+  std::optional<ValidCommand> parameters;
 };
 
 const char* to_string(TrajectoryState state) noexcept {
@@ -70,8 +79,10 @@ ControlLoop::ControlLoop(const RobotModel& model, const Parameters& parameters,
   }
   send_timeout_ = capacity.send_timeout;
   for (int i = 0; i < kTrajectoryBuffers; ++i) {
-    buffers_.push_back(std::make_unique<Slot>(n, capacity.trajectory_points));
+    buffers_.push_back(std::make_unique<TrajectorySlot>(n, capacity.trajectory_points));
   }
+  for (int i = 0; i < kParameterSets; ++i)
+    parameter_sets_.push_back(std::make_unique<ParameterSlot>());
   trajectory_q_ = JointVector::Zero(n);
   trajectory_dq_ = JointVector::Zero(n);
   lower_limits_ = model_.limits().position_lower;
@@ -171,91 +182,107 @@ void ControlLoop::enqueue(const Message& message) {
   }
 }
 
-void ControlLoop::send(const Command& command) {
-  if (command.num_joints() != 0 && command.num_joints() != num_joints()) {
-    throw Error("command was validated for " + std::to_string(command.num_joints()) +
-                " joints; this loop has " + std::to_string(num_joints()));
-  }
-  if (command.kind() == Command::Kind::nullspace_target) {
-    // A target outside the limits would have the nullspace spring fight the joint limit.
-    const JointVector& target = command.joints();
-    for (int i = 0; i < num_joints(); ++i) {
-      if (target[i] < lower_limits_[i] || target[i] > upper_limits_[i]) {
-        throw Error(outside_limits("nullspace_target", i, target[i], lower_limits_[i],
-                                   upper_limits_[i], 0.0, ""));
-      }
-    }
-  }
-  Message message;
-  message.command = command;
-  enqueue(message);
-}
-
-void ControlLoop::set_parameters(const Parameters& parameters) {
-  send(Command::parameters(parameters, num_joints()));
-}
-void ControlLoop::set_reference_pose(const Pose& pose_base) {
-  send(Command::reference_pose(pose_base));
-}
-void ControlLoop::set_stiffness(const Vector6d& diagonal, std::optional<Frame> frame) {
-  send(Command::stiffness(diagonal, frame));
-}
-void ControlLoop::set_stiffness_matrix(const Matrix6d& stiffness, std::optional<Frame> frame) {
-  send(Command::stiffness_matrix(stiffness, frame));
-}
-void ControlLoop::set_damping_ratio(const Vector6d& damping_ratio) {
-  send(Command::damping_ratio(damping_ratio));
-}
-void ControlLoop::set_nullspace_target(const Eigen::Ref<const Eigen::VectorXd>& q_desired) {
-  send(Command::nullspace_target(q_desired, num_joints()));
-}
-void ControlLoop::set_nullspace_stiffness(const Eigen::Ref<const Eigen::VectorXd>& stiffness) {
-  send(Command::nullspace_stiffness(stiffness, num_joints()));
-}
-void ControlLoop::set_nullspace_damping_ratio(double damping_ratio) {
-  send(Command::nullspace_damping_ratio(damping_ratio));
-}
-void ControlLoop::set_wrench(const Vector6d& wrench, std::optional<Frame> frame) {
-  send(Command::wrench(wrench, frame));
-}
-
-void ControlLoop::start_teaching(bool keep_nullspace) {
-  const Command stiffness = Command::stiffness(Vector6d::Zero());
-  if (keep_nullspace) {
-    send(stiffness);
-    return;
-  }
-  const Command nullspace = Command::nullspace_stiffness(Eigen::VectorXd::Zero(1), num_joints());
-  send(stiffness);
-  send(nullspace);
-}
-
-std::uint64_t ControlLoop::execute_trajectory(const JointTrajectory& trajectory) {
+template <typename SlotType>
+int ControlLoop::claim(std::vector<std::unique_ptr<SlotType>>& slots) const {
   int claimed = -1;
-  const bool found = retry_for(send_timeout_, [&] {
-    for (std::size_t i = 0; i < buffers_.size(); ++i) {
+  retry_for(send_timeout_, [&] {
+    for (std::size_t i = 0; i < slots.size(); ++i) {
       int expected = Slot::free;
-      if (buffers_[i]->state.compare_exchange_strong(expected, Slot::filling)) {
+      if (slots[i]->state.compare_exchange_strong(expected, Slot::filling)) {
         claimed = static_cast<int>(i);
         return true;
       }
     }
     return false;
   });
-  if (!found) {
+  return claimed;
+}
+
+void ControlLoop::send(const Command& command) {
+  if (const auto* target = std::get_if<NullspaceTarget>(&command)) {
+    checks::size("nullspace_target", target->q_desired.size(), num_joints());
+    // A target outside the limits would have the nullspace spring fight the joint limit.
+    for (int i = 0; i < num_joints(); ++i) {
+      const double value = target->q_desired[i];
+      if (value < lower_limits_[i] || value > upper_limits_[i]) {
+        throw Error(outside_limits("nullspace_target", i, value, lower_limits_[i], upper_limits_[i],
+                                   0.0, ""));
+      }
+    }
+  }
+  ValidCommand valid = validate_command(command, num_joints());
+  if (!std::holds_alternative<Parameters>(valid.command())) {
+    std::visit(
+        [this](const auto& small) {
+          if constexpr (std::is_constructible_v<Message, decltype(small)>) enqueue(Message(small));
+        },
+        valid.command());
+    return;
+  }
+  const int claimed = claim(parameter_sets_);
+  if (claimed < 0) {
+    throw QueueFull("all " + std::to_string(parameter_sets_.size()) +
+                    " parameter sets are queued: is the loop stepping?");
+  }
+  ParameterSlot& slot = *parameter_sets_[static_cast<std::size_t>(claimed)];
+  slot.parameters = std::move(valid);
+  slot.state.store(Slot::queued, std::memory_order_release);
+  try {
+    enqueue(ParameterSet{claimed});
+  } catch (...) {
+    slot.state.store(Slot::free, std::memory_order_release);
+    throw;
+  }
+}
+
+void ControlLoop::set_parameters(const Parameters& parameters) {
+  send(parameters);
+}
+void ControlLoop::set_reference_pose(const Pose& pose_base) {
+  send(ReferencePose{pose_base});
+}
+void ControlLoop::set_stiffness(const Vector6d& diagonal, std::optional<Frame> frame) {
+  send(Stiffness::diagonal(diagonal, frame));
+}
+void ControlLoop::set_stiffness_matrix(const Matrix6d& stiffness, std::optional<Frame> frame) {
+  send(Stiffness{stiffness, frame});
+}
+void ControlLoop::set_damping_ratio(const Vector6d& damping_ratio) {
+  send(DampingRatio{damping_ratio});
+}
+void ControlLoop::set_nullspace_target(const Eigen::Ref<const Eigen::VectorXd>& q_desired) {
+  checks::size("nullspace_target", q_desired.size(), num_joints());  // before it is copied
+  send(NullspaceTarget{q_desired});
+}
+void ControlLoop::set_nullspace_stiffness(const Eigen::Ref<const Eigen::VectorXd>& stiffness) {
+  checks::one_or_per_joint("nullspace.stiffness", stiffness.size(), num_joints());
+  send(NullspaceStiffness{stiffness});
+}
+void ControlLoop::set_nullspace_damping_ratio(double damping_ratio) {
+  send(NullspaceDampingRatio{damping_ratio});
+}
+void ControlLoop::set_wrench(const Vector6d& wrench, std::optional<Frame> frame) {
+  send(Wrench{wrench, frame});
+}
+
+void ControlLoop::start_teaching(bool keep_nullspace) {
+  send(Stiffness{});
+  if (!keep_nullspace) send(NullspaceStiffness{JointVector::Zero(1)});
+}
+
+std::uint64_t ControlLoop::execute_trajectory(const JointTrajectory& trajectory) {
+  const int claimed = claim(buffers_);
+  if (claimed < 0) {
     throw QueueFull("all " + std::to_string(buffers_.size()) +
                     " trajectory buffers are in use (queued or running): is the loop stepping?");
   }
-  Slot& slot = *buffers_[static_cast<std::size_t>(claimed)];
+  TrajectorySlot& slot = *buffers_[static_cast<std::size_t>(claimed)];
   try {
     slot.buffer.assign(trajectory, model_.joint_names(), lower_limits_, upper_limits_);
-    Message message;
-    message.kind = Message::Kind::trajectory;
-    message.buffer = claimed;
-    message.trajectory_id = next_trajectory_id_.fetch_add(1);
+    const TrajectoryStart start{claimed, next_trajectory_id_.fetch_add(1)};
     slot.state.store(Slot::queued, std::memory_order_release);
-    enqueue(message);
-    return message.trajectory_id;
+    enqueue(start);
+    return start.id;
   } catch (...) {
     slot.state.store(Slot::free, std::memory_order_release);
     throw;
@@ -263,9 +290,7 @@ std::uint64_t ControlLoop::execute_trajectory(const JointTrajectory& trajectory)
 }
 
 void ControlLoop::cancel_trajectory() {
-  Message message;
-  message.kind = Message::Kind::cancel_trajectory;
-  enqueue(message);
+  enqueue(TrajectoryCancel{});
 }
 
 LoopState ControlLoop::latest_state() const {
@@ -280,25 +305,31 @@ void ControlLoop::apply_messages(std::size_t at_most) noexcept {
   bool parameters_changed = false;
   for (std::size_t applied = 0; applied < at_most && inbox_.pop(message); ++applied) {
     ++commands_applied_;
-    switch (message.kind) {
-      case Message::Kind::command: {
-        const Command& command = *message.command;
-        // A new reference or nullspace target from outside ends a running trajectory, which would
-        // otherwise overwrite it in the same cycle.
-        if (active_buffer_ >= 0 && (command.kind() == Command::Kind::reference_pose ||
-                                    command.kind() == Command::Kind::nullspace_target)) {
-          end_trajectory(TrajectoryState::cancelled, false);
-        }
-        controller_.apply(command);
-        parameters_changed = true;
-        break;
+    if (const auto* start = std::get_if<TrajectoryStart>(&message)) {
+      begin_trajectory(start->buffer, start->id);
+    } else if (std::holds_alternative<TrajectoryCancel>(message)) {
+      if (active_buffer_ >= 0) end_trajectory(TrajectoryState::cancelled, true);
+    } else if (const auto* set = std::get_if<ParameterSet>(&message)) {
+      ParameterSlot& slot = *parameter_sets_[static_cast<std::size_t>(set->slot)];
+      controller_.apply(*slot.parameters);
+      slot.state.store(Slot::free, std::memory_order_release);
+      parameters_changed = true;
+    } else {
+      // A new reference or nullspace target from outside ends a running trajectory, which would
+      // otherwise overwrite it in the same cycle.
+      if (active_buffer_ >= 0 && (std::holds_alternative<ReferencePose>(message) ||
+                                  std::holds_alternative<NullspaceTarget>(message))) {
+        end_trajectory(TrajectoryState::cancelled, false);
       }
-      case Message::Kind::trajectory:
-        begin_trajectory(message.buffer, message.trajectory_id);
-        break;
-      case Message::Kind::cancel_trajectory:
-        if (active_buffer_ >= 0) end_trajectory(TrajectoryState::cancelled, true);
-        break;
+      std::visit(
+          [this](const auto& alternative) {
+            using T = std::decay_t<decltype(alternative)>;
+            if constexpr (std::is_constructible_v<Command, T>) {
+              controller_.apply(ValidCommand(Command(alternative), num_joints()));
+            }
+          },
+          message);
+      parameters_changed = true;
     }
   }
   if (parameters_changed) {
@@ -318,7 +349,7 @@ void ControlLoop::begin_trajectory(int buffer, std::uint64_t id) noexcept {
     trajectory_q_ = state_.q;
     trajectory_dq_ = state_.dq;
   }
-  Slot& slot = *buffers_[static_cast<std::size_t>(buffer)];
+  TrajectorySlot& slot = *buffers_[static_cast<std::size_t>(buffer)];
   slot.state.store(Slot::running, std::memory_order_relaxed);
   slot.buffer.begin(trajectory_q_, trajectory_dq_);
   active_buffer_ = buffer;

@@ -122,35 +122,35 @@ CartesianImpedanceController::CartesianImpedanceController(int num_joints,
 }
 
 void CartesianImpedanceController::apply_saturation(Targets& commanded, ActiveLimits& limits,
-                                                    Command::Kind kind) const noexcept {
+                                                    const Command& command) const noexcept {
   // Every commanded value is brought within the (possibly new) limits. A quantity's flag says
   // whether its last command was saturated: it is set afresh for the quantity just commanded
   // (all of them for new parameters) and otherwise only raised, never cleared by an unrelated
   // command.
   const LimitParameters& l = parameters_.limits;
-  const bool all = kind == Command::Kind::parameters;
-  auto update = [all, kind](bool& flag, bool saturated, std::initializer_list<Command::Kind> own) {
-    bool commanded_now = all;
-    for (Command::Kind k : own) commanded_now |= k == kind;
-    flag = commanded_now ? saturated : (flag || saturated);
+  const bool all = std::holds_alternative<Parameters>(command);
+  auto update = [all](bool& flag, bool saturated, bool commanded_now) {
+    flag = (all || commanded_now) ? saturated : (flag || saturated);
   };
   update(limits.stiffness_saturated,
          saturate_stiffness(commanded.stiffness, l.stiffness.translation.min,
                             l.stiffness.translation.max, l.stiffness.rotation.min,
                             l.stiffness.rotation.max),
-         {Command::Kind::stiffness});
+         std::holds_alternative<Stiffness>(command));
   Eigen::Matrix<double, 1, 1> nullspace_zeta(commanded.nullspace_damping_ratio);
   const bool cartesian_zeta = clamp_each(commanded.damping_ratio, l.damping_ratio);
   const bool nullspace_zeta_clamped = clamp_each(nullspace_zeta, l.damping_ratio);
   commanded.nullspace_damping_ratio = nullspace_zeta[0];
   update(limits.damping_ratio_saturated, cartesian_zeta || nullspace_zeta_clamped,
-         {Command::Kind::damping_ratio, Command::Kind::nullspace_damping_ratio});
+         std::holds_alternative<DampingRatio>(command) ||
+             std::holds_alternative<NullspaceDampingRatio>(command));
   update(limits.nullspace_stiffness_saturated,
          clamp_each(commanded.nullspace_stiffness, l.nullspace_stiffness),
-         {Command::Kind::nullspace_stiffness});
+         std::holds_alternative<NullspaceStiffness>(command));
   const bool force_clipped = clip_norm(commanded.wrench.head<3>(), l.wrench.force);
   const bool torque_clipped = clip_norm(commanded.wrench.tail<3>(), l.wrench.torque);
-  update(limits.wrench_saturated, force_clipped || torque_clipped, {Command::Kind::wrench});
+  update(limits.wrench_saturated, force_clipped || torque_clipped,
+         std::holds_alternative<Wrench>(command));
 }
 
 void CartesianImpedanceController::change_frames(Frame stiffness_frame,
@@ -177,7 +177,7 @@ void CartesianImpedanceController::change_frames(Frame stiffness_frame,
   }
 }
 
-void CartesianImpedanceController::commit(const Parameters& parameters, Command::Kind kind,
+void CartesianImpedanceController::commit(const Parameters& parameters, const Command& command,
                                           Targets commanded) noexcept {
   // Callers have validated everything; from here on nothing can fail, so a rejected command
   // never leaves a half-applied change behind.
@@ -185,7 +185,7 @@ void CartesianImpedanceController::commit(const Parameters& parameters, Command:
   parameters_ = parameters;
   state_.stiffness_frame = parameters.stiffness.frame;
   state_.wrench_frame = parameters.wrench.frame;
-  apply_saturation(commanded, state_.limits, kind);
+  apply_saturation(commanded, state_.limits, command);
   state_.commanded = commanded;
   if (!started_) state_.filtered = state_.commanded;
   refresh_damping_mode();
@@ -213,7 +213,7 @@ void CartesianImpedanceController::refresh_damping_mode() noexcept {
 }
 
 void CartesianImpedanceController::set_parameters(const Parameters& parameters) {
-  apply(Command::parameters(parameters, num_joints_));
+  apply(parameters);
 }
 
 void CartesianImpedanceController::check_robot_state(const RobotState& robot) const {
@@ -350,90 +350,87 @@ void CartesianImpedanceController::start(const RobotState& robot,
 }
 
 void CartesianImpedanceController::set_reference_pose(const Pose& pose_base) {
-  apply(Command::reference_pose(pose_base));
+  apply(ReferencePose{pose_base});
 }
-
 void CartesianImpedanceController::set_stiffness(const Vector6d& diagonal,
                                                  std::optional<Frame> frame) {
-  apply(Command::stiffness(diagonal, frame));
+  apply(Stiffness::diagonal(diagonal, frame));
 }
-
 void CartesianImpedanceController::set_stiffness_matrix(const Matrix6d& stiffness,
                                                         std::optional<Frame> frame) {
-  apply(Command::stiffness_matrix(stiffness, frame));
+  apply(Stiffness{stiffness, frame});
 }
-
 void CartesianImpedanceController::set_damping_ratio(const Vector6d& damping_ratio) {
-  apply(Command::damping_ratio(damping_ratio));
+  apply(DampingRatio{damping_ratio});
 }
-
 void CartesianImpedanceController::set_nullspace_target(
     const Eigen::Ref<const Eigen::VectorXd>& q_desired) {
-  apply(Command::nullspace_target(q_desired, num_joints_));
+  checks::size("nullspace_target", q_desired.size(), num_joints_);  // before it is copied
+  apply(NullspaceTarget{q_desired});
 }
-
 void CartesianImpedanceController::set_nullspace_stiffness(
     const Eigen::Ref<const Eigen::VectorXd>& stiffness) {
-  apply(Command::nullspace_stiffness(stiffness, num_joints_));
+  checks::one_or_per_joint("nullspace.stiffness", stiffness.size(), num_joints_);
+  apply(NullspaceStiffness{stiffness});
 }
-
 void CartesianImpedanceController::set_nullspace_damping_ratio(double damping_ratio) {
-  apply(Command::nullspace_damping_ratio(damping_ratio));
+  apply(NullspaceDampingRatio{damping_ratio});
 }
-
 void CartesianImpedanceController::set_wrench(const Vector6d& wrench, std::optional<Frame> frame) {
-  apply(Command::wrench(wrench, frame));
+  apply(Wrench{wrench, frame});
 }
 
-bool CartesianImpedanceController::apply(const Command& command) noexcept {
-  if (command.num_joints() != 0 && command.num_joints() != num_joints_) return false;
+void CartesianImpedanceController::apply(const Command& command) {
+  apply(validate_command(command, num_joints_));
+}
+
+bool CartesianImpedanceController::apply(const ValidCommand& valid) noexcept {
+  if (valid.num_joints() != 0 && valid.num_joints() != num_joints_) return false;
+  const Command& command = valid.command();
+  // The reference pose and nullspace target are filtered toward directly; every other command
+  // also changes the configuration (parameters() keeps what was commanded) and is saturated.
+  if (const auto* reference = std::get_if<ReferencePose>(&command)) {
+    state_.commanded.pose = reference->pose_base;
+    return true;
+  }
+  if (const auto* target = std::get_if<NullspaceTarget>(&command)) {
+    state_.commanded.nullspace_q = target->q_desired;
+    return true;
+  }
   Parameters parameters = parameters_;
   Targets commanded = state_.commanded;
-  switch (command.kind()) {
-    case Command::Kind::reference_pose:
-      state_.commanded.pose = command.pose_;
-      return true;
-    case Command::Kind::nullspace_target:
-      state_.commanded.nullspace_q = command.joints_;
-      return true;
-    case Command::Kind::stiffness:
-      // parameters() keeps the diagonal; a full matrix lives in the commanded targets.
-      parameters.stiffness.translation = command.matrix_.diagonal().head<3>();
-      parameters.stiffness.rotation = command.matrix_.diagonal().tail<3>();
-      parameters.stiffness.frame = command.frame_.value_or(parameters_.stiffness.frame);
-      commanded.stiffness = command.matrix_;
-      break;
-    case Command::Kind::damping_ratio:
-      parameters.damping_ratio.translation = command.vector_.head<3>();
-      parameters.damping_ratio.rotation = command.vector_.tail<3>();
-      commanded.damping_ratio = command.vector_;
-      break;
-    case Command::Kind::nullspace_stiffness:
-      parameters.nullspace.stiffness = command.joints_;
-      commanded.nullspace_stiffness = per_joint(command.joints_, num_joints_);
-      break;
-    case Command::Kind::nullspace_damping_ratio:
-      parameters.nullspace.damping_ratio = command.scalar_;
-      commanded.nullspace_damping_ratio = command.scalar_;
-      break;
-    case Command::Kind::wrench:
-      parameters.wrench.force = command.vector_.head<3>();
-      parameters.wrench.torque = command.vector_.tail<3>();
-      parameters.wrench.frame = command.frame_.value_or(parameters_.wrench.frame);
-      commanded.wrench = command.vector_;
-      break;
-    case Command::Kind::parameters:
-      parameters = command.parameters_;
-      commanded.stiffness =
-          stacked(parameters.stiffness.translation, parameters.stiffness.rotation).asDiagonal();
-      commanded.damping_ratio =
-          stacked(parameters.damping_ratio.translation, parameters.damping_ratio.rotation);
-      commanded.nullspace_stiffness = per_joint(parameters.nullspace.stiffness, num_joints_);
-      commanded.nullspace_damping_ratio = parameters.nullspace.damping_ratio;
-      commanded.wrench << parameters.wrench.force, parameters.wrench.torque;
-      break;
+  if (const auto* c = std::get_if<Stiffness>(&command)) {
+    // parameters() keeps the diagonal; a full matrix lives in the commanded targets.
+    parameters.stiffness.translation = c->stiffness.diagonal().head<3>();
+    parameters.stiffness.rotation = c->stiffness.diagonal().tail<3>();
+    parameters.stiffness.frame = c->frame.value_or(parameters_.stiffness.frame);
+    commanded.stiffness = c->stiffness;
+  } else if (const auto* c = std::get_if<DampingRatio>(&command)) {
+    parameters.damping_ratio.translation = c->ratio.head<3>();
+    parameters.damping_ratio.rotation = c->ratio.tail<3>();
+    commanded.damping_ratio = c->ratio;
+  } else if (const auto* c = std::get_if<NullspaceStiffness>(&command)) {
+    parameters.nullspace.stiffness = c->stiffness;
+    commanded.nullspace_stiffness = per_joint(c->stiffness, num_joints_);
+  } else if (const auto* c = std::get_if<NullspaceDampingRatio>(&command)) {
+    parameters.nullspace.damping_ratio = c->ratio;
+    commanded.nullspace_damping_ratio = c->ratio;
+  } else if (const auto* c = std::get_if<Wrench>(&command)) {
+    parameters.wrench.force = c->wrench.head<3>();
+    parameters.wrench.torque = c->wrench.tail<3>();
+    parameters.wrench.frame = c->frame.value_or(parameters_.wrench.frame);
+    commanded.wrench = c->wrench;
+  } else if (const auto* c = std::get_if<Parameters>(&command)) {
+    parameters = *c;
+    commanded.stiffness =
+        stacked(parameters.stiffness.translation, parameters.stiffness.rotation).asDiagonal();
+    commanded.damping_ratio =
+        stacked(parameters.damping_ratio.translation, parameters.damping_ratio.rotation);
+    commanded.nullspace_stiffness = per_joint(parameters.nullspace.stiffness, num_joints_);
+    commanded.nullspace_damping_ratio = parameters.nullspace.damping_ratio;
+    commanded.wrench << parameters.wrench.force, parameters.wrench.torque;
   }
-  commit(parameters, command.kind(), commanded);
+  commit(parameters, command, commanded);
   return true;
 }
 

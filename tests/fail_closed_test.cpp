@@ -298,14 +298,15 @@ TEST(FailClosed, ClippingHugeVectorsKeepsTheirDirectionAndHugePosesAreRejected) 
 
   ci::Pose far;
   far.position.x() = 1e308;
-  EXPECT_THROW(ci::Command::reference_pose(far), ci::Error);
+  EXPECT_THROW(ci::validate_command(ci::ReferencePose{far}, 7), ci::Error);
   far.position.x() = 1001.0;
-  EXPECT_THROW(ci::Command::reference_pose(far), ci::Error);
+  EXPECT_THROW(ci::validate_command(ci::ReferencePose{far}, 7), ci::Error);
   far.position.x() = 999.0;
-  EXPECT_NO_THROW(ci::Command::reference_pose(far));
-  EXPECT_THROW(ci::Command::nullspace_target(Eigen::VectorXd::Constant(7, 1e308), 7), ci::Error);
+  EXPECT_NO_THROW(ci::validate_command(ci::ReferencePose{far}, 7));
+  EXPECT_THROW(ci::validate_command(ci::NullspaceTarget{ci::JointVector::Constant(7, 1e308)}, 7),
+               ci::Error);
   ci::Matrix6d stiffness = ci::Matrix6d::Identity() * 1e300;
-  EXPECT_THROW(ci::Command::stiffness_matrix(stiffness), ci::Error);
+  EXPECT_THROW(ci::validate_command(ci::Stiffness{stiffness}, 7), ci::Error);
 }
 
 TEST(FailClosed, FaultTextNamesInputValueAndBound) {

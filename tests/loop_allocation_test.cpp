@@ -37,9 +37,9 @@ TEST(LoopAllocation, StepAllocatesNothingWithEveryOptionOn) {
     trajectory.positions.emplace_back(point.data(), point.data() + 7);
   }
   loop.execute_trajectory(trajectory);
-  const ci::Command wrench = ci::Command::wrench((ci::Vector6d() << 2, 0, -3, 0, 0, 0).finished());
+  const ci::Command wrench = ci::Wrench{(ci::Vector6d() << 2, 0, -3, 0, 0, 0).finished()};
   const ci::Command stiffness =
-      ci::Command::stiffness((ci::Vector6d() << 800, 800, 800, 60, 60, 60).finished());
+      ci::Stiffness::diagonal((ci::Vector6d() << 800, 800, 800, 60, 60, 60).finished());
 
   long allocations = 0;
   for (int k = 0; k < 6000; ++k) {

@@ -271,7 +271,7 @@ TEST(ControlLoop, CommandsApplyAtTheNextStepAndBadOnesAreRejectedBySender) {
   EXPECT_EQ(loop.controller().state().commanded.stiffness(0, 0), 100.0);
   EXPECT_THROW(loop.set_stiffness(ci::Vector6d::Constant(-1)), ci::Error);
   EXPECT_THROW(loop.set_nullspace_target(Eigen::VectorXd::Zero(6)), ci::Error);
-  EXPECT_THROW(loop.send(ci::Command::nullspace_target(Eigen::VectorXd::Zero(6), 6)), ci::Error);
+  EXPECT_THROW(loop.send(ci::NullspaceTarget{Eigen::VectorXd::Zero(6)}), ci::Error);
   const std::uint64_t applied = loop.state().commands_applied;
   loop.step(sim.q, sim.dq, 0.001);
   EXPECT_EQ(loop.state().commands_applied, applied);

@@ -1,81 +1,109 @@
 #pragma once
 /// @file
-/// A validated command for the controller. The factory functions check everything (and throw
-/// Error naming the field, value and range); a Command that exists is known to be good, so
-/// CartesianImpedanceController::apply() can take it inside the control cycle without checks,
-/// allocation or exceptions. This is how commands cross from other threads into the cycle.
+/// What can be commanded while the robot runs: one plain value type per kind of command, and
+/// `Command`, the variant of them all. `validate_command()` is the one place a command is checked
+/// (it throws Error naming the field, value and range); what it returns, a ValidCommand, can be
+/// applied inside the control cycle without checks, allocation or exceptions. This is how
+/// commands cross from other threads into the cycle:
+///
+///     controller.apply(ci::Wrench{{0, 0, -5, 0, 0, 0}});           // validates, then applies
+///     loop.send(ci::Stiffness::diagonal({800, 800, 800, 60, 60, 60}));  // validates, queues
+///
+/// The setters of CartesianImpedanceController and ControlLoop (set_wrench(), ...) are one-line
+/// wrappers around these.
 
 #include <optional>
+#include <variant>
 
 #include "cartesian_impedance/parameters.hpp"
 #include "cartesian_impedance/types.hpp"
 
 namespace cartesian_impedance {
 
-class CartesianImpedanceController;
+/// Reference pose T_base_ref. The quaternion must have unit norm within 1e-3 (it is normalised);
+/// the position must be within 1000 m of the base.
+struct ReferencePose {
+  Pose pose_base;
+};
 
-class Command {
+/// Cartesian stiffness [N/m, N/rad; N, Nm/rad]: symmetric positive semi-definite, diagonal or
+/// full, in `frame` (none: the configured stiffness.frame). Each entry within the range of the
+/// stiffness parameters.
+struct Stiffness {
+  Matrix6d stiffness = Matrix6d::Zero();
+  std::optional<Frame> frame;
+
+  Stiffness() = default;
+  explicit Stiffness(const Matrix6d& stiffness_, std::optional<Frame> frame_ = std::nullopt)
+      : stiffness(stiffness_), frame(frame_) {}
+  /// Diagonal stiffness [N/m x3, Nm/rad x3].
+  static Stiffness diagonal(const Vector6d& diagonal, std::optional<Frame> frame = std::nullopt) {
+    return Stiffness(diagonal.asDiagonal(), frame);
+  }
+};
+
+/// Damping ratio per axis of the stiffness frame [-].
+struct DampingRatio {
+  Vector6d ratio = Vector6d::Ones();
+};
+
+/// Nullspace target q_d [rad or m], one value per joint, within the joint limits (checked by a
+/// ControlLoop, which knows them).
+struct NullspaceTarget {
+  JointVector q_desired;
+};
+
+/// Nullspace stiffness [Nm/rad]: one value for all joints or one per joint.
+struct NullspaceStiffness {
+  JointVector stiffness;
+};
+
+/// Nullspace damping ratio [-].
+struct NullspaceDampingRatio {
+  double ratio = 1.0;
+};
+
+/// Commanded wrench [N; Nm] in `frame` (none: the configured wrench.frame).
+struct Wrench {
+  Vector6d wrench = Vector6d::Zero();
+  std::optional<Frame> frame;
+
+  Wrench() = default;
+  explicit Wrench(const Vector6d& wrench_, std::optional<Frame> frame_ = std::nullopt)
+      : wrench(wrench_), frame(frame_) {}
+};
+
+/// Any command. `Parameters` replaces the whole configuration, including the commanded
+/// stiffness (as a diagonal), damping ratios, nullspace stiffness and damping and the wrench.
+using Command = std::variant<ReferencePose, Stiffness, DampingRatio, NullspaceTarget,
+                             NullspaceStiffness, NullspaceDampingRatio, Wrench, Parameters>;
+
+/// A command that passed validate_command() for an arm of num_joints() joints; only that
+/// function (and the control loop, which hands validated commands to its cycle) makes one.
+class ValidCommand {
  public:
-  enum class Kind {
-    reference_pose,
-    stiffness,
-    damping_ratio,
-    nullspace_target,
-    nullspace_stiffness,
-    nullspace_damping_ratio,
-    wrench,
-    parameters,
-  };
-
-  /// Reference pose T_base_ref; the quaternion must have unit norm within 1e-3.
-  static Command reference_pose(const Pose& pose_base);
-  /// Diagonal stiffness [N/m x3, Nm/rad x3] in `frame` (default: the configured frame).
-  static Command stiffness(const Vector6d& diagonal, std::optional<Frame> frame = std::nullopt);
-  /// Full symmetric positive semi-definite stiffness in `frame` (default: the configured frame).
-  static Command stiffness_matrix(const Matrix6d& stiffness,
-                                  std::optional<Frame> frame = std::nullopt);
-  /// Damping ratio per axis of the stiffness frame [-].
-  static Command damping_ratio(const Vector6d& damping_ratio);
-  /// Nullspace target q_d [rad], one value per joint of a `num_joints` arm.
-  static Command nullspace_target(const Eigen::Ref<const Eigen::VectorXd>& q_desired,
-                                  int num_joints);
-  /// Nullspace stiffness [Nm/rad]: one value for all joints or one per joint.
-  static Command nullspace_stiffness(const Eigen::Ref<const Eigen::VectorXd>& stiffness,
-                                     int num_joints);
-  static Command nullspace_damping_ratio(double damping_ratio);
-  /// Commanded wrench [N; Nm] in `frame` (default: the configured frame).
-  static Command wrench(const Vector6d& wrench, std::optional<Frame> frame = std::nullopt);
-  /// The whole configuration, validated for a `num_joints` arm.
-  static Command parameters(const Parameters& parameters, int num_joints);
-
-  Kind kind() const noexcept { return kind_; }
-  /// Joint count the command was validated for (0 if it does not depend on it).
+  const Command& command() const noexcept { return command_; }
+  /// Joint count it was validated for (0 if it does not depend on it).
   int num_joints() const noexcept { return num_joints_; }
 
-  // Read access, for logging and tests.
-  const Pose& pose() const noexcept { return pose_; }
-  const Vector6d& vector() const noexcept { return vector_; }
-  const Matrix6d& matrix() const noexcept { return matrix_; }
-  const JointVector& joints() const noexcept { return joints_; }
-  double scalar() const noexcept { return scalar_; }
-  std::optional<Frame> frame() const noexcept { return frame_; }
-  const Parameters& parameter_values() const noexcept { return parameters_; }
-
  private:
-  explicit Command(Kind kind) : kind_(kind) {}
+  ValidCommand(Command command, int num_joints) noexcept
+      : command_(std::move(command)), num_joints_(num_joints) {}
 
-  Kind kind_;
+  Command command_;
   int num_joints_ = 0;
-  Pose pose_;
-  Vector6d vector_ = Vector6d::Zero();
-  Matrix6d matrix_ = Matrix6d::Zero();
-  bool full_matrix_ = false;
-  JointVector joints_;
-  double scalar_ = 0.0;
-  std::optional<Frame> frame_;
-  Parameters parameters_;
 
-  friend class CartesianImpedanceController;
+  friend ValidCommand validate_command(Command command, int num_joints);
+  friend class ControlLoop;
 };
+
+/// Checks `command` for an arm of `num_joints` joints and returns it normalised (unit quaternion,
+/// symmetric stiffness).
+/// @throws Error naming the field, the value and the valid range; e.g.
+///         `stiffness.translation.x = -5 N/m is outside [0, 100000]`.
+ValidCommand validate_command(Command command, int num_joints);
+
+/// "reference_pose", "stiffness", ..., "parameters": the command's name in messages and logs.
+const char* command_name(const Command& command) noexcept;
 
 }  // namespace cartesian_impedance

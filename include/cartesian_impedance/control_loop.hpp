@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <variant>
 #include <vector>
 
 #include "cartesian_impedance/command.hpp"
@@ -117,6 +118,8 @@ class ControlLoop {
   // the next step. If the inbox stays full for LoopCapacity::send_timeout they throw QueueFull
   // (an Error), and nothing is queued.
 
+  /// Any command (see command.hpp); the setters below are one-line wrappers around it. A
+  /// nullspace target is also checked against the URDF's joint limits.
   void send(const Command& command);
   void set_parameters(const Parameters& parameters);
   void set_reference_pose(const Pose& pose_base);
@@ -149,19 +152,31 @@ class ControlLoop {
   Parameters latest_parameters() const;
 
  private:
-  struct Message {
-    enum class Kind { command, trajectory, cancel_trajectory } kind = Kind::command;
-    std::optional<Command> command;
-    int buffer = -1;
-    std::uint64_t trajectory_id = 0;
-  };
   struct Slot;
+  struct TrajectorySlot;
+  struct ParameterSlot;
+  struct ParameterSet {
+    int slot = -1;
+  };
+  struct TrajectoryStart {
+    int buffer = -1;
+    std::uint64_t id = 0;
+  };
+  struct TrajectoryCancel {};
+  // What crosses the inbox into the cycle: a small command as it is (validated by the sender);
+  // a parameter set, which is large, by the index of the slot it waits in; a trajectory by the
+  // index of its buffer.
+  using Message =
+      std::variant<ReferencePose, Stiffness, DampingRatio, NullspaceTarget, NullspaceStiffness,
+                   NullspaceDampingRatio, Wrench, ParameterSet, TrajectoryStart, TrajectoryCancel>;
 
   // Commands applied per step at most, so that a flood of commands cannot stretch a cycle; the
   // rest wait in the inbox for the next steps (in order).
   static constexpr std::size_t kCommandsPerCycle = 8;
 
   void enqueue(const Message& message);
+  template <typename SlotType>
+  int claim(std::vector<std::unique_ptr<SlotType>>& slots) const;
   void apply_messages(std::size_t at_most) noexcept;
   void check_positions(const Eigen::Ref<const Eigen::VectorXd>& q) const;
   bool find_measurement_fault(const JointVector& q, const JointVector& dq,
@@ -186,7 +201,8 @@ class ControlLoop {
 
   // Trajectory buffers: a sender claims a free one, fills it, and queues its index; the cycle
   // releases it when another replaces it. Only atomics change hands, so the cycle never frees.
-  std::vector<std::unique_ptr<Slot>> buffers_;
+  std::vector<std::unique_ptr<TrajectorySlot>> buffers_;
+  std::vector<std::unique_ptr<ParameterSlot>> parameter_sets_;
   double send_timeout_ = 0.0;
   std::atomic<std::uint64_t> next_trajectory_id_{1};
   int active_buffer_ = -1;

@@ -154,11 +154,13 @@ class CartesianImpedanceController {
   /// Commanded wrench [N; Nm] in `frame` (default: the configured frame).
   void set_wrench(const Vector6d& wrench, std::optional<Frame> frame = std::nullopt);
 
-  /// Applies a validated command (see command.hpp): noexcept and allocation-free, so a control
-  /// loop can apply commands handed over from other threads inside its cycle. The setters above
-  /// are this with the validation in front. Returns false (and changes nothing) if the command
-  /// was validated for a different joint count.
-  bool apply(const Command& command) noexcept;
+  /// Validates and applies any command (see command.hpp); the setters above are this.
+  /// @throws Error naming the field, value and valid range; nothing changes then.
+  void apply(const Command& command);
+  /// Applies a validated command: noexcept and allocation-free, so a control loop can apply
+  /// commands handed over from other threads inside its cycle. Returns false (and changes
+  /// nothing) if the command was validated for a different joint count.
+  bool apply(const ValidCommand& command) noexcept;
 
   /// Drives the reference directly, bypassing the pose and nullspace filters, for a caller that
   /// already produces a smooth reference (trajectory execution): reference pose and twist
@@ -199,8 +201,8 @@ class CartesianImpedanceController {
   bool find_fault(const RobotState& robot, Fault& fault) const noexcept;
   void limit_torque(double dt) noexcept;
   void apply_saturation(Targets& commanded, ActiveLimits& limits,
-                        Command::Kind kind) const noexcept;
-  void commit(const Parameters& parameters, Command::Kind kind, Targets commanded) noexcept;
+                        const Command& command) const noexcept;
+  void commit(const Parameters& parameters, const Command& command, Targets commanded) noexcept;
   void refresh_damping_mode() noexcept;
   void change_frames(Frame stiffness_frame, Frame wrench_frame) noexcept;
   void update_gains(double dt) noexcept;
