@@ -1,0 +1,424 @@
+// Python bindings of the enumerations, Pose, the states the controller and the loop report
+// (RobotState, Targets, ActiveLimits, Fault, ControllerState, TrajectoryProgress, LoopState) and
+// CartesianImpedanceController.
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <memory>
+#include <string>
+#include <utility>
+
+#include "cartesian_impedance/control_loop.hpp"
+#include "cartesian_impedance/controller.hpp"
+#include "cartesian_impedance/error.hpp"
+#include "cartesian_impedance/types.hpp"
+#include "commands.hpp"
+#include "conversions.hpp"
+#include "module.hpp"
+#include "parameters.hpp"
+
+namespace cartesian_impedance::python {
+
+void bind_enums_and_pose(py::module_& m) {
+  // ---- enumerations ----
+  py::enum_<ci::Frame>(m, "Frame", "Frame in which a stiffness or a wrench is given.")
+      .value("base", ci::Frame::base, "the root link of the kinematic chain")
+      .value("end_effector", ci::Frame::end_effector,
+             "the end-effector frame, rotated into the base frame every cycle");
+  py::enum_<ci::Status>(m, "Status", "Outcome of one control cycle.")
+      .value("ok", ci::Status::ok)
+      .value("not_started", ci::Status::not_started)
+      .value("invalid_dt", ci::Status::invalid_dt)
+      .value("invalid_robot_state", ci::Status::invalid_robot_state)
+      .value("numerical_error", ci::Status::numerical_error)
+      .value("missing_dynamics", ci::Status::missing_dynamics)
+      .value("model_error", ci::Status::model_error);
+  py::enum_<ci::TrajectoryState>(m, "TrajectoryState", "Where trajectory execution stands.")
+      .value("idle", ci::TrajectoryState::idle)
+      .value("executing", ci::TrajectoryState::executing)
+      .value("finished", ci::TrajectoryState::finished)
+      .value("aborted", ci::TrajectoryState::aborted)
+      .value("cancelled", ci::TrajectoryState::cancelled);
+  py::enum_<ci::JointType>(m, "JointType")
+      .value("revolute", ci::JointType::revolute)
+      .value("continuous", ci::JointType::continuous)
+      .value("prismatic", ci::JointType::prismatic);
+
+  // ---- Pose ----
+  py::class_<ci::Pose>(m, "Pose",
+                       "A frame's position [m] and orientation (unit quaternion, x, y, z, w), in "
+                       "the base frame. Unpacks as `position, quaternion_xyzw = pose`.")
+      .def(py::init([](ArrayLike position, ArrayLike orientation) {
+             ci::Pose pose;
+             if (!position.is_none()) read_vector(position, "position", Length{3}, pose.position);
+             if (!orientation.is_none()) {
+               pose.orientation = quaternion_xyzw(orientation, "orientation (x, y, z, w)");
+             }
+             return pose;
+           }),
+           py::arg("position") = py::none(), py::arg("orientation") = py::none(),
+           "position (3,) [m] (default 0); orientation: quaternion (4,) in the order x, y, z, w "
+           "(default identity). Stored as given; the library checks the quaternion's norm "
+           "(within 1e-3) where a pose is commanded.")
+      .def_static(
+          "from_matrix", [](ArrayLike matrix) { return read_pose(matrix, "matrix"); },
+          py::arg("matrix"),
+          "Pose (quaternion x, y, z, w) from a 4x4 homogeneous transform T_base_frame [m]. "
+          "Raises Error if the rotation "
+          "part is not a rotation (within 1e-3) or the last row is not [0, 0, 0, 1].")
+      .def_property(
+          "position", [](const ci::Pose& pose) { return vector_array(pose.position); },
+          [](ci::Pose& pose, py::handle value) {
+            read_vector(value, "position", Length{3}, pose.position);
+          },
+          "Position (3,) [m], base frame.")
+      .def_property(
+          "orientation", [](const ci::Pose& pose) { return xyzw_array(pose.orientation); },
+          [](ci::Pose& pose, py::handle value) {
+            pose.orientation = quaternion_xyzw(value, "orientation (x, y, z, w)");
+          },
+          "Orientation as a quaternion (4,) in the order x, y, z, w.")
+      .def(
+          "matrix", [](const ci::Pose& pose) { return matrix_array(pose_matrix(pose)); },
+          "The 4x4 homogeneous transform T_base_frame [m] (the quaternion normalised).")
+      .def(
+          "rotation_matrix",
+          [](const ci::Pose& pose) {
+            return matrix_array(pose.orientation.normalized().toRotationMatrix());
+          },
+          "The 3x3 rotation matrix R_base_frame (the quaternion normalised).")
+      .def("__iter__",
+           [](const ci::Pose& pose) {
+             return py::iter(
+                 py::make_tuple(vector_array(pose.position), xyzw_array(pose.orientation)));
+           })
+      .def("__repr__", &pose_repr)
+      .def(py::pickle(
+          [](const ci::Pose& pose) {
+            return py::make_tuple(vector_array(pose.position), xyzw_array(pose.orientation));
+          },
+          [](const py::tuple& state) {
+            ci::Pose pose;
+            read_vector(state[0], "position", Length{3}, pose.position);
+            pose.orientation = quaternion_xyzw(state[1], "orientation");
+            return pose;
+          }));
+}
+
+void bind_states(py::module_& m) {
+  // ---- states ----
+  py::class_<ci::RobotState>(
+      m, "RobotState",
+      "What the controller reads each cycle: measured joints and the kinematics at them.")
+      .def(py::init([](ArrayLike q, ArrayLike dq, PoseLike pose, ArrayLike jacobian, ArrayLike mass,
+                       ArrayLike gravity, ArrayLike nullspace_torque) {
+             ci::RobotState state;
+             read_vector(q, "q", Length{}, state.q);
+             read_vector(dq, "dq", Length{}, state.dq);
+             state.pose = read_pose(pose, "pose");
+             read_matrix(jacobian, "jacobian", Length{6}, Length{}, state.jacobian);
+             if (!mass.is_none()) read_matrix(mass, "mass", Length{}, Length{}, state.mass, true);
+             if (!gravity.is_none()) read_vector(gravity, "gravity", Length{}, state.gravity);
+             if (!nullspace_torque.is_none()) {
+               read_vector(nullspace_torque, "nullspace_torque", Length{}, state.nullspace_torque);
+             }
+             return state;
+           }),
+           py::arg("q"), py::arg("dq"), py::arg("pose"), py::arg("jacobian"),
+           py::arg("mass") = py::none(), py::arg("gravity") = py::none(),
+           py::arg("nullspace_torque") = py::none(),
+           "q (n,) [rad], dq (n,) [rad/s], pose T_base_ee (Pose, (position, quaternion x, y, z, "
+           "w) or 4x4), jacobian (6, n): geometric, rows [linear; angular], reference point the "
+           "end-effector origin, base frame. Optional: mass M(q) (n, n) [kg m^2], gravity g(q) "
+           "(n,) [Nm], nullspace_torque (n,) [Nm]. 1 <= n <= MAX_JOINTS.")
+      .def_property(
+          "q", [](const ci::RobotState& s) { return vector_array(s.q); },
+          [](ci::RobotState& s, py::handle v) { read_vector(v, "q", Length{}, s.q); },
+          "Joint positions (n,) [rad].")
+      .def_property(
+          "dq", [](const ci::RobotState& s) { return vector_array(s.dq); },
+          [](ci::RobotState& s, py::handle v) { read_vector(v, "dq", Length{}, s.dq); },
+          "Joint velocities (n,) [rad/s].")
+      .def_property(
+          "pose", [](const ci::RobotState& s) { return s.pose; },
+          [](ci::RobotState& s, py::handle v) { s.pose = read_pose(v, "pose"); },
+          "End-effector pose T_base_ee (quaternion x, y, z, w).")
+      .def_property(
+          "jacobian", [](const ci::RobotState& s) { return matrix_array(s.jacobian); },
+          [](ci::RobotState& s, py::handle v) {
+            read_matrix(v, "jacobian", Length{6}, Length{}, s.jacobian);
+          },
+          "Geometric Jacobian (6, n), rows [linear; angular], base frame.")
+      .def_property(
+          "mass",
+          [](const ci::RobotState& s) -> py::object {
+            if (s.mass.size() == 0) return py::none();
+            return matrix_array(s.mass);
+          },
+          [](ci::RobotState& s, py::handle v) {
+            if (v.is_none()) {
+              s.mass.resize(0, 0);
+            } else {
+              read_matrix(v, "mass", Length{}, Length{}, s.mass, true);
+            }
+          },
+          "Mass matrix M(q) (n, n) [kg m^2], or None.")
+      .def_property(
+          "gravity", [](const ci::RobotState& s) { return optional_array(s.gravity); },
+          [](ci::RobotState& s, py::handle v) {
+            if (v.is_none()) {
+              s.gravity.resize(0);
+            } else {
+              read_vector(v, "gravity", Length{}, s.gravity);
+            }
+          },
+          "Gravity torques g(q) (n,) [Nm], or None.")
+      .def_property(
+          "nullspace_torque",
+          [](const ci::RobotState& s) { return optional_array(s.nullspace_torque); },
+          [](ci::RobotState& s, py::handle v) {
+            if (v.is_none()) {
+              s.nullspace_torque.resize(0);
+            } else {
+              read_vector(v, "nullspace_torque", Length{}, s.nullspace_torque);
+            }
+          },
+          "Extra nullspace torque tau_0 (n,) [Nm], or None.")
+      .def("__repr__", [](const ci::RobotState& s) {
+        return "RobotState(q=" + numbers_text(s.q) + ", dq=" + numbers_text(s.dq) +
+               ", pose=" + pose_repr(s.pose) + ")";
+      });
+  m.def(
+      "make_robot_state",
+      [](int num_joints) {
+        if (num_joints < 1 || num_joints > ci::kMaxJoints) {
+          throw ci::Error("num_joints = " + std::to_string(num_joints) + " is outside [1, " +
+                          std::to_string(ci::kMaxJoints) + "]");
+        }
+        return ci::make_robot_state(num_joints);
+      },
+      py::arg("num_joints"),
+      "A RobotState for num_joints joints, all zero, identity pose (quaternion x, y, z, w = 0, "
+      "0, 0, 1), zero Jacobian.");
+
+  py::class_<ci::Targets>(m, "Targets",
+                          "Quantities the law is evaluated with (commanded or filtered).")
+      .def_property_readonly(
+          "pose", [](const ci::Targets& t) { return t.pose; },
+          "Reference pose T_base_ref (quaternion x, y, z, w).")
+      .def_property_readonly(
+          "stiffness", [](const ci::Targets& t) { return matrix_array(t.stiffness); },
+          "K (6, 6) in the stiffness frame [N/m, Nm/rad].")
+      .def_property_readonly(
+          "damping_ratio", [](const ci::Targets& t) { return vector_array(t.damping_ratio); },
+          "zeta per axis of the stiffness frame (6,) [-].")
+      .def_property_readonly(
+          "nullspace_q", [](const ci::Targets& t) { return vector_array(t.nullspace_q); },
+          "Nullspace target q_d (n,) [rad].")
+      .def_property_readonly(
+          "nullspace_stiffness",
+          [](const ci::Targets& t) { return vector_array(t.nullspace_stiffness); },
+          "K_ns per joint (n,) [Nm/rad].")
+      .def_readonly("nullspace_damping_ratio", &ci::Targets::nullspace_damping_ratio,
+                    "zeta_ns [-].")
+      .def_property_readonly(
+          "wrench", [](const ci::Targets& t) { return vector_array(t.wrench); },
+          "F = [force; torque] (6,) in the wrench frame [N, Nm].")
+      .def_property_readonly(
+          "twist", [](const ci::Targets& t) { return vector_array(t.twist); },
+          "Reference twist feed-forward (6,) [m/s; rad/s], base frame.")
+      .def_property_readonly(
+          "nullspace_dq", [](const ci::Targets& t) { return vector_array(t.nullspace_dq); },
+          "Nullspace target velocity (n,) [rad/s].");
+
+  py::class_<ci::ActiveLimits>(m, "ActiveLimits", "Which limits shaped the last command.")
+      .def_readonly("stiffness_saturated", &ci::ActiveLimits::stiffness_saturated)
+      .def_readonly("damping_ratio_saturated", &ci::ActiveLimits::damping_ratio_saturated)
+      .def_readonly("nullspace_stiffness_saturated",
+                    &ci::ActiveLimits::nullspace_stiffness_saturated)
+      .def_readonly("wrench_saturated", &ci::ActiveLimits::wrench_saturated)
+      .def_readonly("translation_error_clipped", &ci::ActiveLimits::translation_error_clipped)
+      .def_readonly("rotation_error_clipped", &ci::ActiveLimits::rotation_error_clipped)
+      .def_readonly("joint_torque_saturated", &ci::ActiveLimits::joint_torque_saturated)
+      .def_readonly("torque_rate_limited", &ci::ActiveLimits::torque_rate_limited)
+      .def_readonly("joint_torque_limit_ramping", &ci::ActiveLimits::joint_torque_limit_ramping)
+      .def("__repr__", [](const ci::ActiveLimits& l) {
+        std::string active;
+        const std::pair<const char*, bool> flags[] = {
+            {"stiffness_saturated", l.stiffness_saturated},
+            {"damping_ratio_saturated", l.damping_ratio_saturated},
+            {"nullspace_stiffness_saturated", l.nullspace_stiffness_saturated},
+            {"wrench_saturated", l.wrench_saturated},
+            {"translation_error_clipped", l.translation_error_clipped},
+            {"rotation_error_clipped", l.rotation_error_clipped},
+            {"joint_torque_saturated", l.joint_torque_saturated},
+            {"torque_rate_limited", l.torque_rate_limited},
+            {"joint_torque_limit_ramping", l.joint_torque_limit_ramping}};
+        for (const auto& [name, on] : flags) {
+          if (on) active += (active.empty() ? "" : ", ") + std::string(name);
+        }
+        return "ActiveLimits(" + (active.empty() ? std::string("none") : active) + ")";
+      });
+
+  py::class_<ci::Fault>(m, "Fault", "Which input made a cycle fail closed.")
+      .def_property_readonly(
+          "input", [](const ci::Fault& f) { return std::string(f.input); },
+          "'dt', 'q', 'dq', 'pose', 'jacobian', 'mass', 'gravity', ... ('' if none)")
+      .def_readonly("index", &ci::Fault::index, "element (joint) index, or -1")
+      .def_readonly("value", &ci::Fault::value, "the offending value (the size, for a wrong size)")
+      .def_property_readonly(
+          "reason", [](const ci::Fault& f) { return std::string(f.reason); },
+          "'is not finite', 'has the wrong size', 'is above plausibility.dt.max', ...")
+      .def_property_readonly(
+          "bound", [](const ci::Fault& f) { return f.has_bound ? py::cast(f.bound) : py::none(); },
+          "the bound it broke, or None")
+      .def("__str__", [](const ci::Fault& f) { return ci::to_string(f); })
+      .def("__bool__", [](const ci::Fault& f) { return f.input[0] != '\0'; })
+      .def("__repr__", [](const ci::Fault& f) { return "Fault('" + ci::to_string(f) + "')"; });
+
+  py::class_<ci::ControllerState>(m, "ControllerState", "Snapshot written by every update().")
+      .def_readonly("status", &ci::ControllerState::status)
+      .def_readonly("fault", &ci::ControllerState::fault,
+                    "Why the last cycle failed closed (falsy when status is ok).")
+      .def_property_readonly(
+          "joint_torque_limit",
+          [](const ci::ControllerState& s) { return vector_array(s.joint_torque_limit); },
+          "Torque bound in force per joint (n,) [Nm]: limits.joint_torque, or above it while "
+          "ramping down to a lowered limit.")
+      .def_property_readonly(
+          "pose", [](const ci::ControllerState& s) { return s.pose; },
+          "Measured end-effector pose T_base_ee (quaternion x, y, z, w).")
+      .def_property_readonly(
+          "pose_error", [](const ci::ControllerState& s) { return vector_array(s.pose_error); },
+          "e = [p - p_d; log(R R_d^T)] (6,) [m; rad], base frame, after clipping.")
+      .def_readonly("commanded", &ci::ControllerState::commanded,
+                    "Targets as last commanded (after validation and saturation).")
+      .def_readonly("filtered", &ci::ControllerState::filtered, "Targets the law used.")
+      .def_readonly("stiffness_frame", &ci::ControllerState::stiffness_frame)
+      .def_readonly("wrench_frame", &ci::ControllerState::wrench_frame)
+      .def_property_readonly(
+          "wrench_base", [](const ci::ControllerState& s) { return vector_array(s.wrench_base); },
+          "Filtered F (6,) in the base frame [N; Nm].")
+      .def_property_readonly(
+          "tau_cartesian",
+          [](const ci::ControllerState& s) { return vector_array(s.tau_cartesian); },
+          "J^T (-K e - D J dq) (n,) [Nm].")
+      .def_property_readonly(
+          "tau_nullspace",
+          [](const ci::ControllerState& s) { return vector_array(s.tau_nullspace); },
+          "N tau_0 (n,) [Nm].")
+      .def_property_readonly(
+          "tau_wrench", [](const ci::ControllerState& s) { return vector_array(s.tau_wrench); },
+          "J^T F (n,) [Nm].")
+      .def_property_readonly(
+          "tau_gravity", [](const ci::ControllerState& s) { return vector_array(s.tau_gravity); },
+          "g(q) if dynamics.gravity_compensation, else 0 (n,) [Nm].")
+      .def_property_readonly(
+          "tau", [](const ci::ControllerState& s) { return vector_array(s.tau); },
+          "Commanded torque after the torque and rate limits (n,) [Nm].")
+      .def_readonly("limits", &ci::ControllerState::limits)
+      .def(
+          "stiffness_base",
+          [](const ci::ControllerState& s) { return matrix_array(s.stiffness_base()); },
+          "Filtered K (6, 6) in the base frame [N/m, Nm/rad].")
+      .def(
+          "damping_base",
+          [](const ci::ControllerState& s) { return matrix_array(s.damping_base()); },
+          "D the law used (6, 6) in the base frame [N s/m, Nm s/rad].")
+      .def("__repr__", [](const ci::ControllerState& s) {
+        return std::string("ControllerState(status=") + ci::to_string(s.status) +
+               (s.fault.input[0] != '\0' ? ", fault='" + ci::to_string(s.fault) + "'" : "") +
+               ", tau=" + numbers_text(s.tau) + ")";
+      });
+
+  py::class_<ci::TrajectoryProgress>(m, "TrajectoryProgress")
+      .def_readonly("state", &ci::TrajectoryProgress::state)
+      .def_readonly("id", &ci::TrajectoryProgress::id,
+                    "id returned by execute_trajectory() of the one reported")
+      .def_readonly("time", &ci::TrajectoryProgress::time, "[s] since it started")
+      .def_readonly("duration", &ci::TrajectoryProgress::duration, "[s] of its last point")
+      .def_readonly("goal_error", &ci::TrajectoryProgress::goal_error,
+                    "[rad] largest |q - q_goal| (once past the end)")
+      .def("__repr__", [](const ci::TrajectoryProgress& p) {
+        return "TrajectoryProgress(" + trajectory_text(p) +
+               ", goal_error=" + ci::format_number(p.goal_error) + ")";
+      });
+
+  py::class_<ci::LoopState>(m, "LoopState", "What one ControlLoop step publishes.")
+      .def_readonly("controller", &ci::LoopState::controller,
+                    "The law's snapshot: errors, targets, torque parts, limits.")
+      .def_property_readonly(
+          "q", [](const ci::LoopState& s) { return vector_array(s.q); },
+          "Measured joint positions (n,) [rad].")
+      .def_property_readonly(
+          "dq", [](const ci::LoopState& s) { return vector_array(s.dq); },
+          "Measured joint velocities (n,) [rad/s].")
+      .def_readonly("trajectory", &ci::LoopState::trajectory)
+      .def_readonly("cycle", &ci::LoopState::cycle, "steps since start()")
+      .def_readonly("time", &ci::LoopState::time, "[s] sum of dt since start()")
+      .def_readonly("commands_applied", &ci::LoopState::commands_applied)
+      .def("__repr__", [](const ci::LoopState& s) {
+        return "LoopState(cycle=" + std::to_string(s.cycle) +
+               ", time=" + ci::format_number(s.time) +
+               " s, status=" + ci::to_string(s.controller.status) +
+               ", trajectory=" + trajectory_text(s.trajectory) + ")";
+      });
+}
+
+void bind_controller(py::module_& m) {
+  // ---- controller ----
+  using Controller = ci::CartesianImpedanceController;
+  py::class_<Controller> controller(
+      m, "CartesianImpedanceController",
+      "The control law on its own: tau = J^T(-K e - D J dq) + N tau_0 + J^T F, with filters and "
+      "limits. You provide the RobotState (kinematics) each cycle; ControlLoop does that from a "
+      "RobotModel. Setters validate and raise Error (a rejected command changes nothing).");
+  def_commands<Controller, Controller>(
+      controller, [](Controller& self) -> Controller& { return self; }, "Sets");
+  controller
+      .def(py::init([](int num_joints, ParametersLike parameters) {
+             return std::make_unique<Controller>(num_joints, read_parameters(parameters));
+           }),
+           py::arg("num_joints"), py::arg("parameters") = py::none(),
+           "num_joints in [1, MAX_JOINTS]; parameters: Parameters, dict or None (defaults).")
+      .def_property_readonly("num_joints", &Controller::num_joints)
+      .def_property_readonly(
+          "parameters", [](const Controller& c) { return c.parameters(); },
+          "A copy of the configuration in force.")
+      .def(
+          "set_parameters",
+          [](Controller& c, ParametersLike parameters) {
+            c.set_parameters(read_parameters(parameters));
+          },
+          py::arg("parameters"), "Replaces the whole configuration (Parameters or dict).")
+      .def(
+          "start",
+          [](Controller& c, const ci::RobotState& robot, ArrayLike tau_previous) {
+            if (tau_previous.is_none()) return c.start(robot);
+            ci::JointVector tau;
+            read_vector(tau_previous, "tau_previous", Length{c.num_joints()}, tau);
+            c.start(robot, tau);
+          },
+          py::arg("robot"), py::arg("tau_previous") = py::none(),
+          "Starts from the measured state: reference pose = current pose, nullspace target = q. "
+          "tau_previous (n,) [Nm]: the torque the robot receives now (default zero).")
+      .def_property_readonly("started", &Controller::started)
+      .def(
+          "update",
+          [](Controller& c, const ci::RobotState& robot, Real dt) {
+            return c.update(robot, read_scalar(dt, "dt"));
+          },
+          py::arg("robot"), py::arg("dt"),
+          "One control cycle with the elapsed dt [s]. Never raises for bad values: returns a "
+          "Status and ramps the torque toward zero instead.")
+      .def_property_readonly(
+          "torque", [](const Controller& c) { return vector_array(c.torque()); },
+          "Commanded joint torque of the last update() (n,) [Nm].")
+      .def_property_readonly(
+          "state", [](const Controller& c) { return c.state(); },
+          "A copy of the snapshot of the last update() (ControllerState).");
+}
+
+}  // namespace cartesian_impedance::python

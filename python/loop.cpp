@@ -1,0 +1,371 @@
+// Python bindings of the robot model (JointLimits, Kinematics, RobotModel) and ControlLoop.
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <ctime>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "cartesian_impedance/control_loop.hpp"
+#include "cartesian_impedance/error.hpp"
+#include "cartesian_impedance/robot_model.hpp"
+#include "cartesian_impedance/types.hpp"
+#include "commands.hpp"
+#include "conversions.hpp"
+#include "module.hpp"
+#include "parameters.hpp"
+#include "wrappers.hpp"
+
+namespace cartesian_impedance::python {
+
+namespace {
+
+Eigen::Isometry3d isometry(const ci::Pose& pose) {
+  Eigen::Isometry3d transform = Eigen::Isometry3d::Identity();
+  transform.linear() = pose.orientation.toRotationMatrix();
+  transform.translation() = pose.position;
+  return transform;
+}
+
+std::unique_ptr<Model> load_model(bool from_file, const std::string& source,
+                                  const std::string& base_link, const std::string& tip_link,
+                                  py::handle tool, py::handle gravity) {
+  const Eigen::Isometry3d tool_transform =
+      tool.is_none() ? Eigen::Isometry3d::Identity() : isometry(read_pose(tool, "tool"));
+  const auto load = [&](auto&&... gravity_argument) {
+    return from_file ? ci::RobotModel::from_urdf_file(source, base_link, tip_link, tool_transform,
+                                                      gravity_argument...)
+                     : ci::RobotModel::from_urdf_string(source, base_link, tip_link, tool_transform,
+                                                        gravity_argument...);
+  };
+  if (gravity.is_none()) return std::make_unique<Model>(load());
+  Eigen::Vector3d gravity_base;
+  read_vector(gravity, "gravity", Length{3}, gravity_base);
+  return std::make_unique<Model>(load(gravity_base));
+}
+
+ci::JointVector finite_joints(py::handle object, std::string_view name, int num_joints) {
+  ci::JointVector values;
+  read_vector(object, name, Length{num_joints}, values);
+  for (Eigen::Index i = 0; i < values.size(); ++i) {
+    if (!std::isfinite(values[i])) {
+      throw ci::Error(std::string(name) + "[" + std::to_string(i) +
+                      "] = " + ci::format_number(values[i]) + " is not finite");
+    }
+  }
+  return values;
+}
+
+}  // namespace
+
+void bind_robot_model(py::module_& m) {
+  // ---- robot model ----
+  py::class_<ci::JointLimits>(m, "JointLimits", "Joint limits from the URDF, base to tip.")
+      .def_property_readonly(
+          "position_lower", [](const ci::JointLimits& l) { return vector_array(l.position_lower); },
+          "[rad or m]; -inf for continuous joints")
+      .def_property_readonly(
+          "position_upper", [](const ci::JointLimits& l) { return vector_array(l.position_upper); },
+          "[rad or m]; +inf for continuous joints")
+      .def_property_readonly(
+          "velocity", [](const ci::JointLimits& l) { return vector_array(l.velocity); },
+          "[rad/s or m/s]; +inf where the URDF gives none")
+      .def_property_readonly(
+          "effort", [](const ci::JointLimits& l) { return vector_array(l.effort); },
+          "[Nm or N]; +inf where the URDF gives none");
+
+  py::class_<ci::Kinematics>(m, "Kinematics", "What RobotModel.compute() returns.")
+      .def_property_readonly(
+          "pose", [](const ci::Kinematics& k) { return k.pose; },
+          "T_base_ee (quaternion x, y, z, w): tip link times the tool offset, base frame.")
+      .def_property_readonly(
+          "jacobian", [](const ci::Kinematics& k) { return matrix_array(k.jacobian); },
+          "Geometric Jacobian (6, n), rows [linear; angular], reference point the end-effector "
+          "origin, base frame.")
+      .def_property_readonly(
+          "mass",
+          [](const ci::Kinematics& k) -> py::object {
+            if (!k.has_dynamics) return py::none();
+            return matrix_array(k.mass);
+          },
+          "M(q) (n, n) [kg m^2], or None without dynamics.")
+      .def_property_readonly(
+          "gravity",
+          [](const ci::Kinematics& k) -> py::object {
+            if (!k.has_dynamics) return py::none();
+            return vector_array(k.gravity);
+          },
+          "g(q) (n,) [Nm]: torques that hold the arm against gravity, or None without dynamics.")
+      .def_property_readonly(
+          "coriolis",
+          [](const ci::Kinematics& k) -> py::object {
+            if (!k.has_dynamics) return py::none();
+            return vector_array(k.coriolis);
+          },
+          "C(q, dq) dq (n,) [Nm], or None without dynamics.")
+      .def_readonly("has_dynamics", &ci::Kinematics::has_dynamics)
+      .def("__repr__", [](const ci::Kinematics& k) {
+        return "Kinematics(pose=" + pose_repr(k.pose) +
+               (k.has_dynamics ? ", with dynamics)" : ", kinematics only)");
+      });
+
+  py::class_<Model>(
+      m, "RobotModel",
+      "The chain base_link -> tip_link of a URDF (urdfdom + KDL), plus a fixed tool offset. "
+      "Poses, Jacobians and gravity torques are in the base frame (the frame of base_link).")
+      .def_static(
+          "from_urdf_file",
+          [](PathLike path, const std::string& base_link, const std::string& tip_link,
+             PoseLike tool, ArrayLike gravity) {
+            return load_model(true, read_path(path, "path"), base_link, tip_link, tool, gravity);
+          },
+          py::arg("path"), py::arg("base_link"), py::arg("tip_link"), py::arg("tool") = py::none(),
+          py::arg("gravity") = py::none(),
+          "Loads a URDF file. tool: T_tip_tool, the end-effector frame in the tip-link frame "
+          "(Pose, (position [m], quaternion x, y, z, w) or 4x4; default identity). gravity: "
+          "acceleration (3,) [m/s^2] in the base frame (default (0, 0, -9.81)). Raises Error "
+          "naming the path for a missing file, unknown links, an unsupported chain, ...")
+      .def_static(
+          "from_urdf_string",
+          [](const std::string& xml, const std::string& base_link, const std::string& tip_link,
+             PoseLike tool, ArrayLike gravity) {
+            return load_model(false, xml, base_link, tip_link, tool, gravity);
+          },
+          py::arg("xml"), py::arg("base_link"), py::arg("tip_link"), py::arg("tool") = py::none(),
+          py::arg("gravity") = py::none(), "As from_urdf_file(), from URDF text.")
+      .def_property_readonly("num_joints", [](const Model& s) { return s.model.num_joints(); })
+      .def_property_readonly(
+          "joint_names", [](const Model& s) { return s.model.joint_names(); },
+          "Movable joints, base to tip: the order of every joint vector.")
+      .def_property_readonly("joint_types", [](const Model& s) { return s.model.joint_types(); })
+      .def_property_readonly("limits", [](const Model& s) { return s.model.limits(); })
+      .def_property_readonly("robot_name", [](const Model& s) { return s.model.robot_name(); })
+      .def_property_readonly("base_link", [](const Model& s) { return s.model.base_link(); })
+      .def_property_readonly("tip_link", [](const Model& s) { return s.model.tip_link(); })
+      .def_property_readonly(
+          "tool",
+          [](const Model& s) {
+            const Eigen::Isometry3d& tool = s.model.tool();
+            return ci::Pose{tool.translation(), Eigen::Quaterniond(tool.rotation())};
+          },
+          "T_tip_tool (quaternion x, y, z, w).")
+      .def_property_readonly(
+          "gravity", [](const Model& s) { return vector_array(s.model.gravity_base()); },
+          "Gravitational acceleration (3,) [m/s^2], base frame.")
+      .def_property_readonly(
+          "moving_mass", [](const Model& s) { return s.model.moving_mass(); },
+          "Mass the dynamics include [kg].")
+      .def(
+          "compute",
+          [](Model& s, ArrayLike q, ArrayLike dq, bool dynamics) {
+            const int n = s.model.num_joints();
+            const ci::JointVector joints = finite_joints(q, "q", n);
+            const ci::JointVector velocities =
+                dq.is_none() ? ci::JointVector::Zero(n) : finite_joints(dq, "dq", n);
+            ci::Kinematics kinematics = s.workspace.make_kinematics();
+            if (!s.workspace.compute(joints, velocities, kinematics, dynamics)) {
+              throw ci::Error("RobotModel.compute: the result at q = " + numbers_text(joints) +
+                              " is not finite");
+            }
+            return kinematics;
+          },
+          py::arg("q"), py::arg("dq") = py::none(), py::arg("dynamics") = true,
+          "Kinematics at q (n,) [rad] and dq (n,) [rad/s] (default zero): pose T_base_ee "
+          "(quaternion x, y, z, w), "
+          "Jacobian (6, n) and, if dynamics, mass M(q), gravity g(q) and coriolis C(q, dq) dq. "
+          "Raises Error for non-finite q or dq.")
+      .def(
+          "compute_pose",
+          [](Model& s, ArrayLike q) {
+            const ci::JointVector joints = finite_joints(q, "q", s.model.num_joints());
+            ci::Pose pose;
+            if (!s.workspace.compute_pose(joints, pose)) {
+              throw ci::Error("RobotModel.compute_pose: the result is not finite");
+            }
+            return pose;
+          },
+          py::arg("q"), "Forward kinematics T_base_ee at q (n,) [rad] (quaternion x, y, z, w).")
+      .def("__repr__", [](const Model& s) {
+        return "RobotModel('" + s.model.robot_name() + "', " + s.model.base_link() + " -> " +
+               s.model.tip_link() + ", " + std::to_string(s.model.num_joints()) + " joints)";
+      });
+}
+
+void bind_control_loop(py::module_& m) {
+  // ---- control loop ----
+  const ci::LoopCapacity default_capacity;
+  py::class_<Loop> control_loop(
+      m, "ControlLoop",
+      "A robot model, the controller and a trajectory executor behind step(q, dq, dt) -> tau.\n\n"
+      "One thread runs start()/step(); any thread may send commands (the set_* methods, "
+      "execute_trajectory, cancel_trajectory) and read latest_state(). Commands are validated "
+      "when sent (Error on bad input) and applied at the next step.");
+  def_commands<Loop, ci::ControlLoop>(
+      control_loop, [](Loop& self) -> ci::ControlLoop& { return self.loop; }, "Queues");
+  control_loop
+      .def(py::init([](py::object model, ParametersLike parameters, int commands, int points) {
+             if (!py::isinstance<Model>(model)) {
+               throw py::type_error("model must be a RobotModel, got " + type_name(model));
+             }
+             return std::make_unique<Loop>(std::move(model), read_parameters(parameters),
+                                           ci::LoopCapacity{commands, points});
+           }),
+           py::arg("model"), py::arg("parameters") = py::none(),
+           py::arg("command_capacity") = default_capacity.commands,
+           py::arg("max_trajectory_points") = default_capacity.trajectory_points,
+           "model: RobotModel; parameters: Parameters, dict or None (defaults). Raises Error if "
+           "the parameters are invalid for the model's joint count.")
+      .def_property_readonly(
+          "model", [](const Loop& self) { return self.model_object; }, "The RobotModel.")
+      .def_property_readonly("num_joints", [](const Loop& self) { return self.loop.num_joints(); })
+      .def_property_readonly(
+          "started", [](Loop& self) { return self.cycle().started(); },
+          "True once start() has been called.")
+      .def(
+          "start",
+          [](Loop& self, ArrayLike q, ArrayLike dq, ArrayLike tau_previous) {
+            ci::ControlLoop& loop = self.cycle();
+            const int n = loop.num_joints();
+            ci::JointVector joints, velocities;
+            read_vector(q, "q", Length{n}, joints);
+            read_vector(dq, "dq", Length{n}, velocities);
+            if (tau_previous.is_none()) return loop.start(joints, velocities);
+            ci::JointVector tau;
+            read_vector(tau_previous, "tau_previous", Length{n}, tau);
+            loop.start(joints, velocities, tau);
+          },
+          py::arg("q"), py::arg("dq"), py::arg("tau_previous") = py::none(),
+          "Starts (or restarts) from the measured q (n,) [rad] and dq (n,) [rad/s]: reference "
+          "pose = current pose, nullspace target = q. tau_previous (n,) [Nm]: the torque the "
+          "robot receives now (default g(q) with dynamics.gravity_compensation, else zero). "
+          "Raises Error for non-finite values.")
+      .def(
+          "step",
+          [](Loop& self, ArrayLike q, ArrayLike dq, Real dt) {
+            ci::ControlLoop& loop = self.cycle();
+            const int n = loop.num_joints();
+            ci::JointVector joints, velocities;
+            read_vector(q, "q", Length{n}, joints);
+            read_vector(dq, "dq", Length{n}, velocities);
+            return vector_array(loop.step(joints, velocities, read_scalar(dt, "dt")));
+          },
+          py::arg("q"), py::arg("dq"), py::arg("dt"),
+          "One control cycle: q (n,) [rad], dq (n,) [rad/s], dt [s] since the last step. Returns "
+          "the joint torque to command (n,) [Nm] (a new array). Wrong shapes or types raise; "
+          "non-finite values do not: like the C++ cycle it then reports a Status "
+          "(state.controller.status) and ramps the torque toward zero within the rate limit.")
+      .def_property_readonly(
+          "state", [](Loop& self) { return self.cycle().state(); },
+          "A copy of the state after the last step (LoopState; cycle thread).")
+      .def_property_readonly(
+          "torque", [](Loop& self) { return vector_array(self.cycle().state().controller.tau); },
+          "Torque of the last step (n,) [Nm].")
+      .def(
+          "latest_state", [](const Loop& self) { return self.loop.latest_state(); },
+          "A copy of the newest published LoopState (any thread).")
+      .def(
+          "latest_parameters", [](const Loop& self) { return self.loop.latest_parameters(); },
+          "Parameters in force as of the last step (any thread).")
+      .def(
+          "set_parameters",
+          [](Loop& self, ParametersLike parameters) {
+            self.loop.set_parameters(read_parameters(parameters));
+          },
+          py::arg("parameters"), "Queues a whole new configuration (Parameters or dict).")
+      .def(
+          "start_teaching",
+          [](Loop& self, bool keep_nullspace) { self.loop.start_teaching(keep_nullspace); },
+          py::arg("keep_nullspace") = false,
+          "Kinesthetic teaching: zero Cartesian stiffness (and nullspace stiffness unless "
+          "keep_nullspace). Any later stiffness command ends it.")
+      .def(
+          "execute_trajectory",
+          [](Loop& self, ArrayLike times, ArrayLike positions, ArrayLike velocities,
+             std::optional<std::vector<std::string>> joint_names) {
+            ci::JointTrajectory trajectory;
+            trajectory.joint_names = joint_names ? *joint_names : self.loop.model().joint_names();
+            const Length columns{static_cast<Eigen::Index>(trajectory.joint_names.size()),
+                                 ci::kMaxJoints};
+            Eigen::VectorXd time_values;
+            read_vector(times, "times", Length{-1, kUnbounded}, time_values);
+            trajectory.times.assign(time_values.data(), time_values.data() + time_values.size());
+            const auto rows = [&](py::handle object, const char* name) {
+              Eigen::MatrixXd matrix;
+              read_matrix(object, name, Length{-1, kUnbounded}, columns, matrix, false, "points");
+              std::vector<std::vector<double>> points(static_cast<std::size_t>(matrix.rows()));
+              for (Eigen::Index i = 0; i < matrix.rows(); ++i) {
+                points[static_cast<std::size_t>(i)].resize(static_cast<std::size_t>(matrix.cols()));
+                for (Eigen::Index j = 0; j < matrix.cols(); ++j) {
+                  points[static_cast<std::size_t>(i)][static_cast<std::size_t>(j)] = matrix(i, j);
+                }
+              }
+              return points;
+            };
+            trajectory.positions = rows(positions, "positions");
+            if (!velocities.is_none()) trajectory.velocities = rows(velocities, "velocities");
+            return self.loop.execute_trajectory(trajectory);
+          },
+          py::arg("times"), py::arg("positions"), py::arg("velocities") = py::none(),
+          py::arg("joint_names") = py::none(),
+          "Queues a joint trajectory and returns its id. times (m,) [s] from the start, strictly "
+          "increasing (a point at 0 is taken as the start state); positions (m, k) [rad]; "
+          "velocities (m, k) [rad/s] or None (smooth, shape-preserving); joint_names: k names in "
+          "any order (default: the model's joint names). It starts at the next step from where "
+          "the arm is (or from where a running trajectory is, which it preempts). Raises Error "
+          "for unknown joints, times not increasing, positions outside the URDF limits, ...")
+      .def(
+          "cancel_trajectory", [](Loop& self) { self.loop.cancel_trajectory(); },
+          "Stops a running trajectory; the arm holds where it is.")
+      .def(
+          "_benchmark_steps",
+          [](Loop& self, ArrayLike q, ArrayLike dq, double dt, std::int64_t count) {
+            ci::ControlLoop& loop = self.cycle();
+            const int n = loop.num_joints();
+            ci::JointVector joints, velocities;
+            read_vector(q, "q", Length{n}, joints);
+            read_vector(dq, "dq", Length{n}, velocities);
+            Claim claim(self.running, "this ControlLoop");
+            double sink = 0.0, cpu = 0.0;
+            std::chrono::duration<double> elapsed{};
+            {
+              py::gil_scoped_release release;
+              const auto begin = std::chrono::steady_clock::now();
+              const std::clock_t cpu_begin = std::clock();
+              for (std::int64_t k = 0; k < count; ++k) {
+                sink += loop.step(joints, velocities, dt)[0];
+              }
+              cpu = static_cast<double>(std::clock() - cpu_begin) / CLOCKS_PER_SEC;
+              elapsed = std::chrono::steady_clock::now() - begin;
+            }
+            return py::make_tuple(elapsed.count(), cpu, sink);  // with the GIL again
+          },
+          py::arg("q"), py::arg("dq"), py::arg("dt"), py::arg("count"),
+          "Internal (python/benchmarks): `count` steps in C++ with the same q, dq, dt; returns "
+          "(wall seconds, CPU seconds, checksum).")
+      .def("__repr__", [](const Loop& self) {
+        const ci::RobotModel& model = self.loop.model();
+        std::string text = "ControlLoop(robot='" + model.robot_name() + "', " +
+                           std::to_string(model.num_joints()) + " joints, ";
+        if (self.running.load()) return text + "running in Simulation.run())";
+        const ci::LoopState& state = self.loop.state();
+        if (!self.loop.started()) {
+          text += "not started";
+        } else {
+          text += "started, cycle " + std::to_string(state.cycle) +
+                  ", t = " + ci::format_number(state.time) + " s, status " +
+                  ci::to_string(state.controller.status);
+        }
+        return text + ", trajectory " + trajectory_text(state.trajectory) + ")";
+      });
+}
+
+}  // namespace cartesian_impedance::python

@@ -1,0 +1,365 @@
+// Python bindings of the MuJoCo simulation: the submodule cartesian_impedance.sim (Box,
+// Simulation, make_scene, offscreen_rendering_available). Built when the simulation library is
+// (CARTESIAN_IMPEDANCE_PYTHON_SIM).
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <atomic>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <string>
+#include <tuple>
+#include <utility>
+#include <vector>
+
+#include "cartesian_impedance/control_loop.hpp"
+#include "cartesian_impedance/error.hpp"
+#include "cartesian_impedance/sim/simulation.hpp"
+#include "cartesian_impedance/types.hpp"
+#include "conversions.hpp"
+#include "module.hpp"
+#include "wrappers.hpp"
+
+namespace cartesian_impedance::python {
+
+namespace {
+
+/// Simulation plus the run() claim.
+struct Sim {
+  explicit Sim(ci::sim::Simulation loaded) : sim(std::move(loaded)) {}
+  ci::sim::Simulation& get() {
+    check_free(running, "this Simulation");
+    return sim;
+  }
+  ci::sim::Simulation sim;
+  std::atomic<bool> running{false};
+};
+
+ci::sim::SimulationOptions simulation_options(py::handle timestep, bool gravity_compensation,
+                                              const std::string& keyframe,
+                                              const std::optional<std::vector<std::string>>& names,
+                                              bool multi_point_contacts) {
+  ci::sim::SimulationOptions options;
+  options.timestep = read_scalar(timestep, "timestep");
+  options.gravity_compensation = gravity_compensation;
+  options.keyframe = keyframe;
+  if (names) options.joint_names = *names;
+  options.multi_point_contacts = multi_point_contacts;
+  return options;
+}
+
+// Simulation.run() takes the GIL back this often to let Ctrl+C (KeyboardInterrupt) through.
+constexpr std::int64_t kSignalCheckSteps = 1000;
+
+}  // namespace
+
+void bind_simulation(py::module_& m) {
+  // ---- simulation ----
+  py::module_ sim = m.def_submodule(
+      "sim",
+      "MuJoCo simulation of a torque-controlled arm: joint torques in, joint state out, gravity "
+      "compensated like Panda and iiwa firmware (on by default), pushes, static boxes, contact "
+      "wrenches, offscreen rendering. Poses and wrenches are in MuJoCo's world frame, which is "
+      "the controller's base frame for the project's robot files; wrenches are [force; torque].");
+  // `import cartesian_impedance.sim` works too.
+  py::module_::import("sys").attr("modules")["cartesian_impedance.sim"] = sim;
+
+  const ci::sim::SimulationOptions default_options;
+  const auto option_args = [&default_options]() {
+    return std::make_tuple(py::arg("timestep") = default_options.timestep,
+                           py::arg("gravity_compensation") = default_options.gravity_compensation,
+                           py::arg("keyframe") = default_options.keyframe,
+                           py::arg("joint_names") = py::none(),
+                           py::arg("multi_point_contacts") = default_options.multi_point_contacts);
+  };
+  const char* options_doc =
+      " Options: timestep [s] (replaces the model's); gravity_compensation: each joint receives "
+      "tau + g(q), as robot firmware does; keyframe to reset to ('' or missing: the model's "
+      "default qpos); joint_names: order of q, dq and tau (default: the model's hinge and slide "
+      "joints); multi_point_contacts: steadier face-on-face contact forces.";
+
+  py::class_<ci::sim::Box>(sim, "Box",
+                           "A static box (table, wall, step) that collides with the robot.")
+      .def(py::init([](ArrayLike center, ArrayLike half_size, ArrayLike orientation,
+                       const std::string& name) {
+             ci::sim::Box box;
+             box.name = name;
+             read_vector(center, "center", Length{3}, box.center);
+             read_vector(half_size, "half_size", Length{3}, box.half_size);
+             if (!orientation.is_none()) {
+               box.orientation = quaternion_xyzw(orientation, "orientation (x, y, z, w)");
+             }
+             return box;
+           }),
+           py::arg("center"), py::arg("half_size"), py::arg("orientation") = py::none(),
+           py::arg("name") = "",
+           "center (3,) [m] in the world frame, half_size (3,) [m] along the box axes, "
+           "orientation: quaternion (4,) x, y, z, w of the box axes (default identity); name: "
+           "geom name ('' = scene_box_<index>).")
+      .def_static(
+          "table",
+          [](ArrayLike center_xy, ArrayLike half_size_xy, Real top_z, const std::string& name) {
+            Eigen::Vector2d center, half;
+            read_vector(center_xy, "center_xy", Length{2}, center);
+            read_vector(half_size_xy, "half_size_xy", Length{2}, half);
+            return ci::sim::Box::table(center, half, read_scalar(top_z, "top_z"), name);
+          },
+          py::arg("center_xy"), py::arg("half_size_xy"), py::arg("top_z"), py::arg("name") = "",
+          "A table on the floor whose top is at top_z [m], centred at center_xy (2,) [m], half "
+          "extents half_size_xy (2,) [m].")
+      .def_readwrite("name", &ci::sim::Box::name)
+      .def_property(
+          "center", [](const ci::sim::Box& b) { return vector_array(b.center); },
+          [](ci::sim::Box& b, py::handle v) { read_vector(v, "center", Length{3}, b.center); },
+          "(3,) [m], world frame")
+      .def_property(
+          "half_size", [](const ci::sim::Box& b) { return vector_array(b.half_size); },
+          [](ci::sim::Box& b, py::handle v) {
+            read_vector(v, "half_size", Length{3}, b.half_size);
+          },
+          "(3,) [m]")
+      .def_property(
+          "orientation", [](const ci::sim::Box& b) { return xyzw_array(b.orientation); },
+          [](ci::sim::Box& b, py::handle v) {
+            b.orientation = quaternion_xyzw(v, "orientation (x, y, z, w)");
+          },
+          "quaternion (4,) in the order x, y, z, w")
+      .def("__repr__", [](const ci::sim::Box& b) {
+        return "Box(name='" + b.name + "', center=" + numbers_text(b.center) +
+               ", half_size=" + numbers_text(b.half_size) +
+               ", orientation_xyzw=" + numbers_text(b.orientation.coeffs()) + ")";
+      });
+
+  py::class_<Sim> simulation(
+      sim, "Simulation",
+      "A simulated robot (MuJoCo). Not thread-safe: one thread drives it. Loaders and setters "
+      "raise Error on bad input.");
+  std::apply(
+      [&](auto... args) {
+        simulation.def_static(
+            "from_mjcf_file",
+            [](PathLike path, Real timestep, bool gravity_compensation, const std::string& keyframe,
+               std::optional<std::vector<std::string>> names, bool multi_point_contacts) {
+              return std::make_unique<Sim>(ci::sim::Simulation::from_mjcf_file(
+                  read_path(path, "path"),
+                  simulation_options(timestep, gravity_compensation, keyframe, names,
+                                     multi_point_contacts)));
+            },
+            py::arg("path"), args...,
+            (std::string("Loads an MJCF file (e.g. models/panda/panda.xml); each joint is "
+                         "driven by its <motor>, or through qfrc_applied without one.") +
+             options_doc)
+                .c_str());
+        simulation.def_static(
+            "from_urdf_file",
+            [](PathLike path, Real timestep, bool gravity_compensation, const std::string& keyframe,
+               std::optional<std::vector<std::string>> names, bool multi_point_contacts) {
+              return std::make_unique<Sim>(ci::sim::Simulation::from_urdf_file(
+                  read_path(path, "path"),
+                  simulation_options(timestep, gravity_compensation, keyframe, names,
+                                     multi_point_contacts)));
+            },
+            py::arg("path"), args...,
+            (std::string("Loads a URDF with MuJoCo's importer (no actuators, no floor, no "
+                         "keyframe).") +
+             options_doc)
+                .c_str());
+        sim.def(
+            "make_scene",
+            [](PathLike path, const std::vector<ci::sim::Box>& boxes, Real timestep,
+               bool gravity_compensation, const std::string& keyframe,
+               std::optional<std::vector<std::string>> names, bool multi_point_contacts) {
+              return std::make_unique<Sim>(
+                  ci::sim::make_scene(read_path(path, "robot_mjcf"), boxes,
+                                      simulation_options(timestep, gravity_compensation, keyframe,
+                                                         names, multi_point_contacts)));
+            },
+            py::arg("robot_mjcf"), py::arg("boxes"), args...,
+            (std::string("Loads the MJCF robot file with the boxes (a list of Box) added to its "
+                         "world, writing no file.") +
+             options_doc)
+                .c_str());
+      },
+      option_args());
+
+  simulation.def_property_readonly("num_joints", [](Sim& s) { return s.get().num_joints(); })
+      .def_property_readonly(
+          "joint_names", [](Sim& s) { return s.get().joint_names(); },
+          "Joint names in the order q, dq and tau are exchanged.")
+      .def_property_readonly(
+          "time", [](Sim& s) { return s.get().time(); }, "Simulated time [s].")
+      .def_property_readonly(
+          "timestep", [](Sim& s) { return s.get().timestep(); }, "Integration step [s].")
+      .def_property_readonly(
+          "q", [](Sim& s) { return vector_array(s.get().q()); }, "Joint positions (n,) [rad].")
+      .def_property_readonly(
+          "dq", [](Sim& s) { return vector_array(s.get().dq()); }, "Joint velocities (n,) [rad/s].")
+      .def_property_readonly(
+          "torque", [](Sim& s) { return vector_array(s.get().torque()); },
+          "Applied commanded torque after clipping (n,) [Nm], without gravity compensation.")
+      .def_property_readonly(
+          "torque_lower_limits", [](Sim& s) { return vector_array(s.get().torque_lower_limits()); },
+          "(n,) [Nm]; -inf without a limited actuator")
+      .def_property_readonly(
+          "torque_upper_limits", [](Sim& s) { return vector_array(s.get().torque_upper_limits()); },
+          "(n,) [Nm]; +inf without a limited actuator")
+      .def_property_readonly(
+          "armature", [](Sim& s) { return vector_array(s.get().armature()); },
+          "Rotor inertia per joint (n,) [kg m^2]: the value for the parameter dynamics.armature.")
+      .def_property_readonly(
+          "friction_loss", [](Sim& s) { return vector_array(s.get().friction_loss()); },
+          "Coulomb friction per joint (n,) [Nm]")
+      .def_property_readonly("model_name", [](Sim& s) { return s.get().model_name(); })
+      .def(
+          "set_state",
+          [](Sim& s, ArrayLike q, ArrayLike dq) {
+            ci::sim::Simulation& simulation = s.get();
+            ci::JointVector joints, velocities;
+            read_vector(q, "q", Length{simulation.num_joints()}, joints);
+            read_vector(dq, "dq", Length{simulation.num_joints()}, velocities);
+            simulation.set_state(joints, velocities);
+          },
+          py::arg("q"), py::arg("dq"),
+          "Sets joint positions (n,) [rad] and velocities (n,) [rad/s]; time is kept.")
+      .def(
+          "reset", [](Sim& s) { s.get().reset(); },
+          "Back to the keyframe at time 0: zero torque, no pushes.")
+      .def(
+          "set_torque",
+          [](Sim& s, ArrayLike tau) {
+            ci::sim::Simulation& simulation = s.get();
+            ci::JointVector values;
+            read_vector(tau, "tau", Length{simulation.num_joints()}, values);
+            return simulation.set_torque(values);
+          },
+          py::arg("tau"),
+          "Commands joint torques (n,) [Nm] from the next step on (gravity compensation comes on "
+          "top), clipped to the actuator ranges. Returns True if any value was clipped.")
+      .def(
+          "step",
+          [](Sim& s, std::int64_t count) {
+            ci::sim::Simulation& simulation = s.get();
+            if (count < 0) throw ci::Error("count = " + std::to_string(count) + " must be >= 0");
+            if (count == 1) return simulation.step();
+            Claim claim(s.running, "this Simulation");
+            py::gil_scoped_release release;
+            for (std::int64_t k = 0; k < count; ++k) simulation.step();
+          },
+          py::arg("count") = 1,
+          "Advances by `count` timesteps at the commanded torque (releases the GIL).")
+      .def(
+          "run",
+          [](Sim& self, Loop& control, Real seconds_object, bool until_trajectory_done) {
+            ci::sim::Simulation& simulation = self.get();
+            ci::ControlLoop& loop = control.cycle();
+            const double seconds = read_scalar(seconds_object, "seconds");
+            if (!(seconds >= 0.0) || !std::isfinite(seconds)) {
+              throw ci::Error("seconds = " + ci::format_number(seconds) +
+                              " must be finite and >= 0");
+            }
+            if (simulation.joint_names() != loop.model().joint_names()) {
+              throw ci::Error("the simulation exchanges joints " +
+                              std::string(py::str(py::cast(simulation.joint_names()))) +
+                              " but the control loop's model has " +
+                              std::string(py::str(py::cast(loop.model().joint_names()))) +
+                              ": load the simulation with joint_names=loop.model.joint_names");
+            }
+            if (!loop.started()) {
+              throw std::runtime_error(
+                  "the control loop has not been started: call loop.start(sim.q, sim.dq) first");
+            }
+            const std::int64_t steps = std::llround(seconds / simulation.timestep());
+            const double dt = simulation.timestep();
+            Claim simulation_claim(self.running, "this Simulation");
+            Claim loop_claim(control.running, "this ControlLoop");
+            std::int64_t done = 0;
+            py::gil_scoped_release release;
+            while (done < steps) {
+              simulation.set_torque(loop.step(simulation.q(), simulation.dq(), dt));
+              simulation.step();
+              ++done;
+              if (until_trajectory_done) {
+                const ci::TrajectoryState state = loop.state().trajectory.state;
+                if (state != ci::TrajectoryState::executing && state != ci::TrajectoryState::idle) {
+                  break;
+                }
+              }
+              if (done % kSignalCheckSteps == 0) {
+                py::gil_scoped_acquire acquire;
+                if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+              }
+            }
+            return done;
+          },
+          py::arg("loop"), py::arg("seconds"), py::arg("until_trajectory_done") = false,
+          "Closed loop for `seconds` of simulated time, in C++ with the GIL released: each "
+          "timestep tau = loop.step(sim.q, sim.dq, timestep), set_torque(tau), step(). Other "
+          "threads may send the loop commands meanwhile. until_trajectory_done: stop early once "
+          "a trajectory is no longer executing (finished, aborted or cancelled). The loop must "
+          "be started and have the simulation's joints in the same order. Returns the number of "
+          "steps run. Ctrl+C interrupts it (checked every 1000 steps).")
+      .def(
+          "push",
+          [](Sim& s, const std::string& name, ArrayLike wrench, Real duration) {
+            ci::Vector6d values;
+            read_vector(wrench, "wrench", Length{6}, values);
+            s.get().push(name, values, read_scalar(duration, "duration"));
+          },
+          py::arg("body_or_site"), py::arg("wrench"),
+          py::arg("duration") = std::numeric_limits<double>::infinity(),
+          "Applies wrench [force; torque] (6,) [N; Nm], world frame, at the origin of the named "
+          "site (or body) for `duration` [s] of simulated time from the next step (default: "
+          "until clear_pushes()). The point moves with the body; pushes add up.")
+      .def(
+          "clear_pushes", [](Sim& s) { s.get().clear_pushes(); }, "Removes every push.")
+      .def(
+          "site_pose", [](Sim& s, const std::string& name) { return s.get().site_pose(name); },
+          py::arg("site"), "Pose of a site in the world frame (quaternion x, y, z, w).")
+      .def(
+          "body_pose", [](Sim& s, const std::string& name) { return s.get().body_pose(name); },
+          py::arg("body"), "Pose of a body in the world frame (quaternion x, y, z, w).")
+      .def(
+          "contact_wrench",
+          [](Sim& s, const std::string& body) {
+            return vector_array(s.get().contact_wrench(body));
+          },
+          py::arg("body"),
+          "Total contact wrench [force; torque] (6,) [N; Nm] that everything else exerts on the "
+          "body (and bodies welded to it): world frame, torque about the body origin.")
+      .def(
+          "render_png",
+          [](Sim& s, PathLike path, int width, int height, const std::string& camera) {
+            const ci::sim::Simulation& simulation = s.get();
+            const std::string file = read_path(path, "path");
+            Claim claim(s.running, "this Simulation");
+            py::gil_scoped_release release;
+            simulation.render_png(file, width, height, camera);
+          },
+          py::arg("path"), py::arg("width") = 640, py::arg("height") = 480, py::arg("camera") = "",
+          "Renders offscreen (EGL) to an RGB PNG of width x height pixels; camera: an MJCF "
+          "camera name, '' = a free camera from the robot's right. Releases the GIL.")
+      .def("__repr__", [](Sim& s) {
+        if (s.running.load()) return std::string("Simulation(running in Simulation.run())");
+        const ci::sim::Simulation& simulation = s.sim;
+        return "Simulation('" + simulation.model_name() + "', " +
+               std::to_string(simulation.num_joints()) +
+               " joints, t = " + ci::format_number(simulation.time()) + " s, timestep " +
+               ci::format_number(simulation.timestep()) + " s)";
+      });
+
+  sim.def(
+      "offscreen_rendering_available",
+      []() {
+        std::string reason;
+        const bool available = ci::sim::offscreen_rendering_available(&reason);
+        return std::make_pair(available, reason);
+      },
+      "(available, reason): whether render_png() can work in this process, and why not.");
+}
+
+}  // namespace cartesian_impedance::python

@@ -1,0 +1,70 @@
+#pragma once
+// Wrappers that own what Python needs beside the library object, shared by the binding files.
+
+#include <pybind11/pybind11.h>
+
+#include <atomic>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+#include "cartesian_impedance/control_loop.hpp"
+#include "cartesian_impedance/parameters.hpp"
+#include "cartesian_impedance/robot_model.hpp"
+
+namespace cartesian_impedance::python {
+
+namespace py = pybind11;
+namespace ci = cartesian_impedance;
+
+/// Marks an object as in use by a call that has released the GIL; other threads then get a
+/// RuntimeError instead of racing with it.
+class Claim {
+ public:
+  Claim(std::atomic<bool>& flag, const char* what) : flag_(flag) {
+    if (flag_.exchange(true)) {
+      throw std::runtime_error(std::string(what) +
+                               " is in use by Simulation.run() in another thread");
+    }
+  }
+  ~Claim() { flag_.store(false); }
+  Claim(const Claim&) = delete;
+  Claim& operator=(const Claim&) = delete;
+
+ private:
+  std::atomic<bool>& flag_;
+};
+
+inline void check_free(const std::atomic<bool>& flag, const char* what) {
+  if (flag.load()) {
+    throw std::runtime_error(std::string(what) +
+                             " is in use by Simulation.run() in another thread");
+  }
+}
+
+/// RobotModel plus a workspace for compute() from Python.
+struct Model {
+  explicit Model(ci::RobotModel loaded) : model(std::move(loaded)), workspace(model) {}
+  ci::RobotModel model;
+  ci::ModelWorkspace workspace;
+};
+
+/// ControlLoop plus the Python model object it was made from and the run() claim.
+class Loop {
+ public:
+  Loop(py::object model_object, const ci::Parameters& parameters, ci::LoopCapacity capacity)
+      : model_object(std::move(model_object)),
+        loop(this->model_object.cast<Model&>().model, parameters, capacity) {}
+
+  /// The loop for cycle-thread calls (start, step, state): refused while run() uses it.
+  ci::ControlLoop& cycle() {
+    check_free(running, "this ControlLoop");
+    return loop;
+  }
+
+  py::object model_object;
+  ci::ControlLoop loop;
+  std::atomic<bool> running{false};
+};
+
+}  // namespace cartesian_impedance::python
