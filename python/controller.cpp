@@ -113,7 +113,7 @@ void bind_states(py::module_& m) {
       m, "RobotState",
       "What the controller reads each cycle: measured joints and the kinematics at them.")
       .def(py::init([](ArrayLike q, ArrayLike dq, PoseLike pose, ArrayLike jacobian, ArrayLike mass,
-                       ArrayLike gravity, ArrayLike nullspace_torque) {
+                       ArrayLike gravity, ArrayLike secondary_torque) {
              ci::RobotState state;
              read_vector(q, "q", Length{}, state.q);
              read_vector(dq, "dq", Length{}, state.dq);
@@ -121,18 +121,18 @@ void bind_states(py::module_& m) {
              read_matrix(jacobian, "jacobian", Length{6}, Length{}, state.jacobian);
              if (!mass.is_none()) read_matrix(mass, "mass", Length{}, Length{}, state.mass, true);
              if (!gravity.is_none()) read_vector(gravity, "gravity", Length{}, state.gravity);
-             if (!nullspace_torque.is_none()) {
-               read_vector(nullspace_torque, "nullspace_torque", Length{}, state.nullspace_torque);
+             if (!secondary_torque.is_none()) {
+               read_vector(secondary_torque, "secondary_torque", Length{}, state.secondary_torque);
              }
              return state;
            }),
            py::arg("q"), py::arg("dq"), py::arg("pose"), py::arg("jacobian"),
            py::arg("mass") = py::none(), py::arg("gravity") = py::none(),
-           py::arg("nullspace_torque") = py::none(),
+           py::arg("secondary_torque") = py::none(),
            "q (n,) [rad], dq (n,) [rad/s], pose T_base_ee (Pose, (position, quaternion x, y, z, "
            "w) or 4x4), jacobian (6, n): geometric, rows [linear; angular], reference point the "
            "end-effector origin, base frame. Optional: mass M(q) (n, n) [kg m^2], gravity g(q) "
-           "(n,) [Nm], nullspace_torque (n,) [Nm]. 1 <= n <= MAX_JOINTS.")
+           "(n,) [Nm], secondary_torque (n,) [Nm]. 1 <= n <= MAX_JOINTS.")
       .def_property(
           "q", [](const ci::RobotState& s) { return vector_array(s.q); },
           [](ci::RobotState& s, py::handle v) { read_vector(v, "q", Length{}, s.q); },
@@ -176,13 +176,13 @@ void bind_states(py::module_& m) {
           },
           "Gravity torques g(q) (n,) [Nm], or None.")
       .def_property(
-          "nullspace_torque",
-          [](const ci::RobotState& s) { return optional_array(s.nullspace_torque); },
+          "secondary_torque",
+          [](const ci::RobotState& s) { return optional_array(s.secondary_torque); },
           [](ci::RobotState& s, py::handle v) {
             if (v.is_none()) {
-              s.nullspace_torque.resize(0);
+              s.secondary_torque.resize(0);
             } else {
-              read_vector(v, "nullspace_torque", Length{}, s.nullspace_torque);
+              read_vector(v, "secondary_torque", Length{}, s.secondary_torque);
             }
           },
           "Extra nullspace torque tau_0 (n,) [Nm], or None.")

@@ -49,6 +49,10 @@ PYBIND11_MODULE(cartesian_impedance, m) {
       "A valid command that could not be queued because the control loop's inbox was full (is "
       "the loop stepping?). Transient: the same command may succeed later. Derives from "
       "RuntimeError, not from Error.";
+  py::register_exception<ci::LoadError>(m, "LoadError", m.attr("Error"));
+  m.attr("LoadError").attr("__doc__") =
+      "A URDF or parameter file (or text) that cannot be read, is malformed or lacks what was "
+      "asked of it; the message names the file and, where known, the line. Derives from Error.";
 
   // In this order: pybind11 names a type in a signature or a default value only once it is bound.
   namespace python = cartesian_impedance::python;

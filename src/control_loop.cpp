@@ -89,7 +89,7 @@ ControlLoop::ControlLoop(const RobotModel& model, const Parameters& parameters,
   upper_limits_ = model_.limits().position_upper;
   robot_.mass = JointMatrix::Zero(n, n);
   robot_.gravity = JointVector::Zero(n);
-  robot_.nullspace_torque = JointVector::Zero(n);
+  robot_.secondary_torque = JointVector::Zero(n);
   armature_ = per_joint(controller_.parameters().dynamics.armature, n);
   joint_velocity_bound_ = per_joint(controller_.parameters().plausibility.joint_velocity, n);
   state_.controller = controller_.state();
@@ -396,7 +396,7 @@ void ControlLoop::joint_limit_torque() noexcept {
   // A spring that pushes each joint out of the margin next to its limits, added to tau_0 so the
   // end effector does not feel it. Joints without limits (continuous) have infinite bounds.
   const JointLimitAvoidanceParameters& avoidance = controller_.parameters().joint_limit_avoidance;
-  JointVector& torque = robot_.nullspace_torque;
+  JointVector& torque = robot_.secondary_torque;
   if (!(avoidance.stiffness > 0.0)) {
     torque.resize(0);
     return;

@@ -116,8 +116,8 @@ CartesianImpedanceController::CartesianImpedanceController(int num_joints,
   tau_0_ = JointVector::Zero(n);
   damping_frame_.setZero();
   state_.damping.setZero();
-  damping_stiffness_.setConstant(std::nan(""));
-  damping_ratio_.setConstant(std::nan(""));
+  damping_computed_for_stiffness_.setConstant(std::nan(""));
+  damping_computed_for_ratio_.setConstant(std::nan(""));
   set_parameters(parameters);
 }
 
@@ -209,7 +209,7 @@ void CartesianImpedanceController::refresh_damping_mode() noexcept {
   stiffness_diagonal_ =
       is_diagonal(state_.commanded.stiffness) && is_diagonal(state_.filtered.stiffness);
   if (stiffness_diagonal_) damping_frame_.setZero();
-  damping_stiffness_.setConstant(std::nan(""));
+  damping_computed_for_stiffness_.setConstant(std::nan(""));
 }
 
 void CartesianImpedanceController::set_parameters(const Parameters& parameters) {
@@ -298,15 +298,15 @@ bool CartesianImpedanceController::find_fault(const RobotState& robot,
   if (robot.gravity.size() != 0 && robot.gravity.size() != n) {
     return set_fault(fault, "gravity", -1, robot.gravity.size(), "has the wrong size");
   }
-  if (robot.nullspace_torque.size() != 0 && robot.nullspace_torque.size() != n) {
-    return set_fault(fault, "nullspace_torque", -1, robot.nullspace_torque.size(),
+  if (robot.secondary_torque.size() != 0 && robot.secondary_torque.size() != n) {
+    return set_fault(fault, "secondary_torque", -1, robot.secondary_torque.size(),
                      "has the wrong size");
   }
-  const double optional_sum = robot.mass.sum() + robot.gravity.sum() + robot.nullspace_torque.sum();
+  const double optional_sum = robot.mass.sum() + robot.gravity.sum() + robot.secondary_torque.sum();
   if (!std::isfinite(optional_sum)) {
     if (find_non_finite(robot.mass, "mass", fault) ||
         find_non_finite(robot.gravity, "gravity", fault) ||
-        find_non_finite(robot.nullspace_torque, "nullspace_torque", fault)) {
+        find_non_finite(robot.secondary_torque, "secondary_torque", fault)) {
       return true;
     }
     return set_fault(fault, "robot state", -1, optional_sum, "overflows");
@@ -510,15 +510,16 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
       inertia = rotation6.transpose() * inertia * rotation6;
     }
     damping_frame_ = inertia_shaped_damping(filtered.stiffness, filtered.damping_ratio, inertia);
-    damping_stiffness_.setConstant(std::nan(""));
+    damping_computed_for_stiffness_.setConstant(std::nan(""));
     damping_diagonal = false;
   } else if (stiffness_diagonal_) {
     damping_frame_.diagonal() =
         2.0 * filtered.damping_ratio.cwiseProduct(filtered.stiffness.diagonal().cwiseSqrt());
-  } else if (filtered.stiffness != damping_stiffness_ || filtered.damping_ratio != damping_ratio_) {
+  } else if (filtered.stiffness != damping_computed_for_stiffness_ ||
+             filtered.damping_ratio != damping_computed_for_ratio_) {
     damping_frame_ = damping_from_stiffness(filtered.stiffness, filtered.damping_ratio);
-    damping_stiffness_ = filtered.stiffness;
-    damping_ratio_ = filtered.damping_ratio;
+    damping_computed_for_stiffness_ = filtered.stiffness;
+    damping_computed_for_ratio_ = filtered.damping_ratio;
   }
 
   // The damping floor keeps a soft arm (teaching: K = 0, so D = 0) from coasting. Raising the
@@ -564,7 +565,7 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
            ((2.0 * filtered.nullspace_damping_ratio) * stiffness_ns.cwiseSqrt())
                .cwiseMax(parameters_.minimum_damping.nullspace)
                .cwiseProduct(robot.dq - filtered.nullspace_dq);
-  if (robot.nullspace_torque.size() == num_joints_) tau_0_ += robot.nullspace_torque;
+  if (robot.secondary_torque.size() == num_joints_) tau_0_ += robot.secondary_torque;
   const double lambda = parameters_.nullspace.pseudo_inverse_damping;
   if (dynamics.dynamically_consistent_nullspace) {
     if (!projector_.project_dynamic(jacobian, robot.mass, lambda, tau_0_, state_.tau_nullspace)) {

@@ -74,9 +74,9 @@ void check_computable(const RobotModel& model, const std::string& source) {
              detail::format_vector(model.gravity_base()) + " m/s^2)";
   }
   if (!failed.empty()) {
-    throw Error(failed + " of the chain from '" + model.base_link() + "' to '" + model.tip_link() +
-                "' of " + source +
-                " is not finite at q = 0; expected a model that can be computed");
+    throw LoadError(failed + " of the chain from '" + model.base_link() + "' to '" +
+                    model.tip_link() + "' of " + source +
+                    " is not finite at q = 0; expected a model that can be computed");
   }
 }
 
@@ -106,15 +106,15 @@ RobotModel RobotModel::from_urdf_file(const std::string& path, const std::string
                                       const Eigen::Vector3d& gravity_base) {
   std::error_code code;
   if (!std::filesystem::exists(path, code)) {
-    throw Error("URDF file '" + path + "' does not exist");
+    throw LoadError("URDF file '" + path + "' does not exist");
   }
   if (std::filesystem::is_directory(path, code)) {
-    throw Error("URDF file '" + path + "' is a directory; expected a URDF file");
+    throw LoadError("URDF file '" + path + "' is a directory; expected a URDF file");
   }
   std::ifstream file(path, std::ios::binary);
-  if (!file.is_open()) throw Error("URDF file '" + path + "' cannot be opened for reading");
+  if (!file.is_open()) throw LoadError("URDF file '" + path + "' cannot be opened for reading");
   const std::string text{std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>()};
-  if (file.bad()) throw Error("URDF file '" + path + "' cannot be read");
+  if (file.bad()) throw LoadError("URDF file '" + path + "' cannot be read");
   return from_urdf_source(text, "URDF file '" + path + "'", base_link, tip_link, T_tip_tool,
                           gravity_base);
 }
@@ -137,7 +137,13 @@ RobotModel RobotModel::from_urdf_source(const std::string& xml, const std::strin
                 " m/s^2 has a non-finite entry; expected a finite vector");
   }
   auto data = std::make_shared<detail::ModelData>();
-  data->urdf = detail::urdf_to_kdl_chain(xml, source, base_link, tip_link);
+  try {
+    data->urdf = detail::urdf_to_kdl_chain(xml, source, base_link, tip_link);
+  } catch (const LoadError&) {
+    throw;
+  } catch (const Error& error) {
+    throw LoadError(error.what());
+  }
   data->base_link = base_link;
   data->tip_link = tip_link;
   data->T_tip_tool = tool;

@@ -83,6 +83,23 @@ TEST(LoadErrors, MissingOrUnreadableFile) {
       {CARTESIAN_IMPEDANCE_SOURCE_DIR, "is a directory"});
 }
 
+// A bad description is a LoadError (fix the file); a bad argument beside it a plain Error.
+TEST(LoadErrors, FileProblemsAreLoadErrorsAndBadArgumentsPlainErrors) {
+  EXPECT_THROW(ci::RobotModel::from_urdf_file("/no/such.urdf", "a", "b"), ci::LoadError);
+  EXPECT_THROW(ci::RobotModel::from_urdf_string("<robot", "a", "b"), ci::LoadError);
+  EXPECT_THROW(ci::RobotModel::from_urdf_file(panda_path(), "panda_link0", "gripper"),
+               ci::LoadError);
+  Eigen::Isometry3d tool = Eigen::Isometry3d::Identity();
+  tool.translation().x() = std::nan("");
+  try {
+    ci::RobotModel::from_urdf_file(panda_path(), "panda_link0", "panda_link8", tool);
+    FAIL() << "a non-finite tool offset must be rejected";
+  } catch (const ci::LoadError& error) {
+    FAIL() << "a bad argument is not a bad file: " << error.what();
+  } catch (const ci::Error&) {
+  }
+}
+
 TEST(LoadErrors, MalformedXmlOrNotAUrdf) {
   expect_contains(load_error("<robot name='r'><link name='a'/>", "a", "b"),
                   {"the URDF text", "not a valid URDF", "urdfdom says"});

@@ -225,8 +225,8 @@ class CartesianImpedanceController {
   JointVector tau_0_;
   Matrix6d damping_frame_;
   bool stiffness_diagonal_ = true;
-  Matrix6d damping_stiffness_;  // filtered K the damping was last computed for
-  Vector6d damping_ratio_;      // filtered zeta the damping was last computed for
+  Matrix6d damping_computed_for_stiffness_;  // filtered K the damping was last computed for
+  Vector6d damping_computed_for_ratio_;      // filtered zeta the damping was last computed for
   NullspaceProjector projector_;
 };
 

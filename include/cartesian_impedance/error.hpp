@@ -1,7 +1,8 @@
 #pragma once
 /// @file
-/// The one exception type the library throws (and its one refinement, QueueFull). Only setters,
-/// loaders and constructors throw; the control cycle never does (it reports a status instead).
+/// The exception types the library throws: Error, and two refinements for callers that act
+/// differently on them (QueueFull: retry later; LoadError: fix the file). Only setters, loaders
+/// and constructors throw; the control cycle never does (it reports a status instead).
 
 #include <stdexcept>
 #include <string>
@@ -20,6 +21,15 @@ class Error : public std::runtime_error {
 /// loop is not stepping, or commands arrive faster than it applies them). Unlike other errors it
 /// is transient: the same command may succeed later.
 class QueueFull : public Error {
+ public:
+  using Error::Error;
+};
+
+/// A file or text that describes the robot or its configuration (URDF, YAML parameters) could not
+/// be read, is malformed, or does not hold what was asked of it (a link name it lacks, a value
+/// out of range); the message names the file (and the line where known) and what is wrong.
+/// Arguments given beside it that are wrong on their own (a non-finite tool offset) are Errors.
+class LoadError : public Error {
  public:
   using Error::Error;
 };

@@ -65,8 +65,8 @@ struct ModelData;
 class RobotModel {
  public:
   /// Loads the URDF file at `path` (see from_urdf_string for the arguments).
-  /// @throw Error if the file does not exist or cannot be read, and for every reason listed at
-  ///        from_urdf_string; the message names the path.
+  /// @throw LoadError if the file does not exist or cannot be read, and for every reason listed
+  ///        at from_urdf_string; the message names the path.
   static RobotModel from_urdf_file(
       const std::string& path, const std::string& base_link, const std::string& tip_link,
       const Eigen::Isometry3d& T_tip_tool = Eigen::Isometry3d::Identity(),
@@ -75,7 +75,8 @@ class RobotModel {
   /// Builds the model of the chain from `base_link` down to `tip_link` of the URDF document `xml`.
   /// @param T_tip_tool  tool offset: the end-effector frame expressed in the tip-link frame [m]
   /// @param gravity_base  gravitational acceleration in the base frame [m/s^2]
-  /// @throw Error if the text is not well-formed XML or not a URDF (with urdfdom's own words);
+  /// @throw Error if T_tip_tool is not a finite rigid transform or gravity_base is not finite.
+  /// @throw LoadError if the text is not well-formed XML or not a URDF (urdfdom's own words);
   ///        if it contains a NUL byte, is not valid UTF-8 (or has U+FEFF, U+FFFE or U+FFFF after
   ///        its start), nests XML elements more than 100 deep, has an element with more than 64
   ///        attributes, a malformed character reference (&#...;), a comment, tag or quoted value
@@ -93,7 +94,6 @@ class RobotModel {
   ///        outside +-1000 m or a non-finite rotation; if a link of the chain or one fixed to it
   ///        has a mass outside [0, 1e6] kg, an inertia entry outside +-1e6 kg m^2 or not
   ///        positive semi-definite, or an inertial origin outside +-1000 m;
-  ///        if T_tip_tool is not a finite rigid transform or if gravity_base is not finite;
   ///        and if the pose, Jacobian, mass matrix or gravity torques of the loaded model are not
   ///        finite at q = 0.
   static RobotModel from_urdf_string(

@@ -50,9 +50,11 @@ struct RobotState {
 
   // Optional model terms, left empty (size 0) when the caller has no dynamics model; a control
   // loop with a model fills them as its options require.
-  JointMatrix mass;              ///< M(q) [kg m^2], for the dynamic options of the law
-  JointVector gravity;           ///< g(q) [Nm], added when gravity_compensation is on
-  JointVector nullspace_torque;  ///< extra tau_0 term [Nm] (e.g. joint-limit avoidance)
+  JointMatrix mass;     ///< M(q) [kg m^2], for the dynamic options of the law
+  JointVector gravity;  ///< g(q) [Nm], added when gravity_compensation is on
+  /// Torque of a secondary task [Nm] (e.g. joint-limit avoidance), added to the nullspace
+  /// torque tau_0 before the projection, so it acts only in the nullspace.
+  JointVector secondary_torque;
 };
 
 /// Returns a RobotState sized for `num_joints` with every value zero and an identity pose.

@@ -320,11 +320,13 @@ def test_bad_parameter_files(tmp_path):
 
 
 def test_bad_model_files():
-    with pytest.raises(ci.Error, match="URDF file '/no/such.urdf' does not exist"):
+    # A bad file is a LoadError (an Error, so a ValueError), not a QueueFull.
+    assert issubclass(ci.LoadError, ci.Error) and not issubclass(ci.QueueFull, ci.LoadError)
+    with pytest.raises(ci.LoadError, match="URDF file '/no/such.urdf' does not exist"):
         ci.RobotModel.from_urdf_file("/no/such.urdf", "panda_link0", "panda_link8")
-    with pytest.raises(ci.Error, match="gripper"):
+    with pytest.raises(ci.LoadError, match="gripper"):
         ci.RobotModel.from_urdf_file(PANDA_URDF, "panda_link0", "gripper")
-    with pytest.raises(ci.Error):
+    with pytest.raises(ci.LoadError):
         ci.RobotModel.from_urdf_string("<robot", "a", "b")
     with pytest.raises(ValueError, match=r"gravity must have shape \(3,\)"):
         ci.RobotModel.from_urdf_file(PANDA_URDF, "panda_link0", "panda_link8", gravity=[0, -9.81])
