@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "cartesian_impedance/error.hpp"
+#include "cartesian_impedance/parameter_tree.hpp"
 
 namespace cartesian_impedance {
 namespace {
@@ -248,11 +249,26 @@ const std::vector<ParameterInfo>& parameter_table() {
   return table;
 }
 
-const ParameterInfo& parameter_info(std::string_view name) {
+const ParameterInfo* find_parameter(std::string_view name) {
   for (const ParameterInfo& info : parameter_table()) {
-    if (info.name == name) return info;
+    if (info.name == name) return &info;
   }
-  throw Error("unknown parameter '" + std::string(name) + "'");
+  return nullptr;
+}
+
+bool is_parameter_group(std::string_view path) {
+  for (const ParameterInfo& info : parameter_table()) {
+    if (info.name.size() > path.size() && info.name[path.size()] == '.' &&
+        info.name.substr(0, path.size()) == path) {
+      return true;
+    }
+  }
+  return false;
+}
+
+const ParameterInfo& parameter_info(std::string_view name) {
+  if (const ParameterInfo* info = find_parameter(name)) return *info;
+  throw unknown_parameter(name);
 }
 
 std::string_view frame_name(Frame frame) {
@@ -260,10 +276,7 @@ std::string_view frame_name(Frame frame) {
 }
 
 Frame frame_from_name(std::string_view field, std::string_view name) {
-  if (name == "base") return Frame::base;
-  if (name == "end_effector") return Frame::end_effector;
-  throw Error(std::string(field) + " = '" + std::string(name) +
-              "' is not a frame (valid: base, end_effector)");
+  return decode_frame(ParameterValue::string(std::string(name)), field);
 }
 
 JointVector per_joint(const JointVector& values, int num_joints) {

@@ -108,7 +108,8 @@ TEST(YamlConfig, ValueOfTheWrongShapeIsRejected) {
   EXPECT_TRUE(yaml_rejected_with("nullspace:\n  damping_ratio: [1, 2]\n",
                                  {"test.yaml:2:", "nullspace.damping_ratio", "not a number"}));
   EXPECT_TRUE(yaml_rejected_with("stiffness:\n  frame: [base]\n",
-                                 {"test.yaml:2:", "stiffness.frame", "base or end_effector"}));
+                                 {"test.yaml:2:", assigned("stiffness.frame", "a list of 1"),
+                                  "is not a frame (valid: base, end_effector)"}));
 }
 
 TEST(YamlConfig, ParameterGivenAsMapIsAShapeErrorNotAnUnknownKey) {
@@ -134,8 +135,9 @@ TEST(YamlConfig, NonNumberIsRejectedNamingTheElement) {
       {"test.yaml:2:", assigned("stiffness.rotation.y", "'fifty'"), "not a number"}));
   EXPECT_TRUE(yaml_rejected_with("limits:\n  joint_torque: [87, 87, 87, 87x, 12, 12, 12]\n",
                                  {"test.yaml:2:", assigned("limits.joint_torque[3]", "'87x'")}));
-  EXPECT_TRUE(yaml_rejected_with("filter:\n  pose:\n    time: true\n",
-                                 {"test.yaml:3:", assigned("filter.pose.time", "'true'")}));
+  EXPECT_TRUE(yaml_rejected_with(
+      "filter:\n  pose:\n    time: true\n",
+      {"test.yaml:3:", assigned("filter.pose.time", "true"), "is not a number [s]"}));
 }
 
 TEST(YamlConfig, EveryTableRowRejectsNanAndInfinityWithItsLine) {

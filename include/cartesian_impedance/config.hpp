@@ -1,7 +1,9 @@
 #pragma once
 /// @file
-/// YAML <-> Parameters, served by the parameter table (so every key, unit and range is the one
-/// documented in the README). Part of the `cartesian_impedance::config` target (yaml-cpp).
+/// YAML <-> Parameters: the YAML adapter of the parameter decoder (parameter_tree.hpp), which
+/// gives every key, shape, unit, range and message; this adds what only YAML has (line numbers,
+/// duplicate and merge keys, a second document, quoted or tagged scalars being strings). Part of
+/// the `cartesian_impedance::config` target (yaml-cpp).
 
 #include <string>
 #include <string_view>
@@ -10,12 +12,14 @@
 
 namespace cartesian_impedance {
 
-/// Reads parameters from a YAML file. Keys not given keep their defaults; a per-joint or
-/// three-axis field may be given as one number for all entries.
+/// Reads parameters from a YAML file. Keys not given keep their defaults; keys may be nested or
+/// dotted (`stiffness.translation: 500`); a per-joint or three-axis field may be given as one
+/// number for all entries.
 /// @throws Error for a missing or malformed file, an unknown or repeated key (named, with its
-///         line), a second YAML document, a key that is not a plain name, a value of the wrong
-///         shape, a number or switch written as a string (quoted, tagged or a block scalar), or
-///         a value outside its range.
+///         line), a second YAML document, a key that is not a plain name, a merge key, a value of
+///         the wrong shape, a number or switch written as a string (quoted, tagged or a block
+///         scalar), a value outside its range, more than 100000 values (aliases), or a set that
+///         fails validate(). Messages are the decoder's (ParameterError) after `file:line: `.
 Parameters load_parameters(const std::string& path);
 
 /// As load_parameters(), from YAML text; `source` names it in messages.

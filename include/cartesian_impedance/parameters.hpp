@@ -178,6 +178,12 @@ const std::vector<ParameterInfo>& parameter_table();
 /// The row called `name`; throws Error naming the key if there is none.
 const ParameterInfo& parameter_info(std::string_view name);
 
+/// The row called `name` (a dotted path); nullptr if there is none.
+const ParameterInfo* find_parameter(std::string_view name);
+
+/// True if `path` is a group of parameters: "limits", "limits.stiffness", not a row itself.
+bool is_parameter_group(std::string_view path);
+
 /// Throws Error (naming field, value and range) unless every value is finite and in range, every
 /// per-joint field has 1 or `num_joints` entries (any count up to kMaxJoints if num_joints is 0),
 /// and every limit has min <= max.

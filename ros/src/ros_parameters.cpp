@@ -1,10 +1,16 @@
 #include "ros_parameters.hpp"
 
-#include <cmath>
+#include <optional>
 #include <set>
 #include <string_view>
+#include <utility>
 
 #include <cartesian_impedance/error.hpp>
+#include <cartesian_impedance/parameter_tree.hpp>
+
+// The ROS 1 adapter of the library's parameter decoder (parameter_tree.hpp): XmlRpc values ->
+// ParameterValue, located by their ROS names, then decode_parameters(). The node's own settings
+// are decoded with the same functions, so their messages read like every other.
 
 namespace cartesian_impedance_ros {
 namespace {
@@ -22,182 +28,80 @@ constexpr const char* kSettingNames[] = {
     "mjcf_path", "tf_timeout",   "joint_states_timeout", "realtime_priority",
 };
 
-// "stiffness.translation" -> "stiffness/translation"
-std::string ros_name(std::string_view dotted) {
-  std::string name(dotted);
-  for (char& c : name) {
-    if (c == '.') c = '/';
-  }
-  return name;
-}
-
-std::vector<std::string> split(std::string_view dotted) {
-  std::vector<std::string> parts;
-  for (std::size_t dot; (dot = dotted.find('.')) != std::string_view::npos;) {
-    parts.emplace_back(dotted.substr(0, dot));
-    dotted.remove_prefix(dot + 1);
-  }
-  parts.emplace_back(dotted);
-  return parts;
-}
-
-const char* type_name(const XmlRpcValue& value) {
-  switch (value.getType()) {
-    case XmlRpcValue::TypeBoolean:
-      return "a boolean";
-    case XmlRpcValue::TypeInt:
-      return "an integer";
-    case XmlRpcValue::TypeDouble:
-      return "a number";
-    case XmlRpcValue::TypeString:
-      return "a string";
-    case XmlRpcValue::TypeArray:
-      return "a list";
-    case XmlRpcValue::TypeStruct:
-      return "a namespace";
-    default:
-      return "an unsupported type";
-  }
-}
-
-bool is_number(const XmlRpcValue& value) {
-  return value.getType() == XmlRpcValue::TypeInt || value.getType() == XmlRpcValue::TypeDouble;
-}
-
-double number(XmlRpcValue& value) {
-  return value.getType() == XmlRpcValue::TypeInt ? static_cast<double>(static_cast<int&>(value))
-                                                 : static_cast<double&>(value);
-}
-
-// Walks `root` along `parts`; nullptr if any level is missing.
-XmlRpcValue* find(XmlRpcValue& root, const std::vector<std::string>& parts) {
-  XmlRpcValue* node = &root;
-  for (const std::string& part : parts) {
-    if (node->getType() != XmlRpcValue::TypeStruct || !node->hasMember(part)) return nullptr;
-    node = &(*node)[part];
-  }
-  return node;
-}
+// Ranges of the numeric settings, in the form of the parameter table's rows.
+const ci::ParameterInfo kControlRate{"control_rate",       "Hz",   0, 10000, true,
+                                     "control cycle rate", nullptr};
+const ci::ParameterInfo kPublishRate{
+    "publish_rate", "Hz", 0, 10000, true, "rate of the state topics", nullptr};
+const ci::ParameterInfo kJointStatesTimeout{
+    "joint_states_timeout", "s", 0, 10, true, "age at which joint states count as lost", nullptr};
+const ci::ParameterInfo kTfTimeout{"tf_timeout", "s", 0, 10, false, "longest wait for a transform",
+                                   nullptr};
+const ci::ParameterInfo kRealtimePriority{
+    "realtime_priority", "", 0, 99, false, "SCHED_FIFO priority; 0 = normal", nullptr};
 
 class Reader {
  public:
   explicit Reader(std::string namespace_name) : namespace_(std::move(namespace_name)) {}
 
   std::string full(const std::string& relative) const { return namespace_ + "/" + relative; }
+  std::string location(const std::string& relative) const {
+    return "ROS parameter " + full(relative);
+  }
 
   [[noreturn]] void fail(const std::string& relative, const std::string& what) const {
-    throw ci::Error("ROS parameter " + full(relative) + ": " + what);
+    throw ci::Error(ci::with_location(location(relative), what));
   }
 
-  double read_number(const ci::ParameterInfo& info, const std::string& relative,
-                     const std::string& element, XmlRpcValue& value) const {
-    if (!is_number(value)) {
-      fail(relative,
-           element + " is " + type_name(value) + ", expected a number" +
-               (info.unit.empty() || info.unit == "-" ? std::string()
-                                                      : " [" + std::string(info.unit) + "]"));
-    }
-    const double x = number(value);
-    try {
-      info.check(element, x);
-    } catch (const ci::Error& error) {
-      fail(relative, error.what());
-    }
-    return x;
-  }
-
-  void read_field(const ci::ParameterInfo& info, XmlRpcValue& value,
-                  ci::Parameters& parameters) const {
-    const std::string element(info.name);
-    const std::string relative = ros_name(info.name);
-    const ci::ParameterField field = info.in(parameters);
-    if (auto* scalar = std::get_if<double*>(&field)) {
-      **scalar = read_number(info, relative, element, value);
-    } else if (auto* vector = std::get_if<Eigen::Vector3d*>(&field)) {
-      static constexpr const char* kAxis[3] = {".x", ".y", ".z"};
-      if (is_number(value)) {
-        (*vector)->setConstant(read_number(info, relative, element, value));
-      } else if (value.getType() == XmlRpcValue::TypeArray && value.size() == 3) {
-        for (int i = 0; i < 3; ++i) {
-          (**vector)[i] = read_number(info, relative, element + kAxis[i], value[i]);
+  // `value` (at `relative`, e.g. "stiffness/translation") as the decoder's value.
+  ci::ParameterValue convert(XmlRpcValue& value, const std::string& relative) const {
+    const std::string where = location(relative);
+    switch (value.getType()) {
+      case XmlRpcValue::TypeInvalid: {
+        ci::ParameterValue empty;
+        empty.location = where;
+        return empty;
+      }
+      case XmlRpcValue::TypeBoolean:
+        return ci::ParameterValue::boolean(static_cast<bool&>(value), where);
+      case XmlRpcValue::TypeInt:
+        return ci::ParameterValue::number(static_cast<int&>(value), where);
+      case XmlRpcValue::TypeDouble:
+        return ci::ParameterValue::number(static_cast<double&>(value), where);
+      case XmlRpcValue::TypeString:
+        return ci::ParameterValue::string(static_cast<std::string&>(value), where);
+      case XmlRpcValue::TypeArray: {
+        ci::ParameterList items;
+        for (int i = 0; i < value.size(); ++i) items.push_back(convert(value[i], relative));
+        return ci::ParameterValue::list(std::move(items), where);
+      }
+      case XmlRpcValue::TypeStruct: {
+        ci::ParameterMap members;
+        for (auto& member : value) {
+          const std::string child = relative + "/" + member.first;
+          members.push_back({member.first, convert(member.second, child), location(child)});
         }
-      } else {
-        fail(relative,
-             std::string("expected 3 numbers [x, y, z] or one number, got ") + type_name(value) +
-                 (value.getType() == XmlRpcValue::TypeArray ? " of " + std::to_string(value.size())
-                                                            : std::string()));
+        return ci::ParameterValue::map(std::move(members), where);
       }
-    } else if (auto* joints = std::get_if<ci::JointVector*>(&field)) {
-      if (is_number(value)) {
-        **joints = ci::JointVector::Constant(1, read_number(info, relative, element, value));
-      } else if (value.getType() == XmlRpcValue::TypeArray && value.size() >= 1 &&
-                 value.size() <= ci::kMaxJoints) {
-        ci::JointVector values(value.size());
-        for (int i = 0; i < value.size(); ++i) {
-          values[i] =
-              read_number(info, relative, element + "[" + std::to_string(i) + "]", value[i]);
-        }
-        **joints = values;
-      } else {
-        fail(relative,
-             "expected one number or a list of 1 to " + std::to_string(ci::kMaxJoints) +
-                 " numbers (one per joint), got " + type_name(value) +
-                 (value.getType() == XmlRpcValue::TypeArray ? " of " + std::to_string(value.size())
-                                                            : std::string()));
-      }
-    } else if (auto* flag = std::get_if<bool*>(&field)) {
-      if (value.getType() != XmlRpcValue::TypeBoolean) {
-        fail(relative, std::string("expected true or false, got ") + type_name(value));
-      }
-      **flag = static_cast<bool&>(value);
-    } else if (auto* frame = std::get_if<ci::Frame*>(&field)) {
-      if (value.getType() != XmlRpcValue::TypeString) {
-        fail(relative, std::string("expected base or end_effector, got ") + type_name(value));
-      }
-      try {
-        **frame = ci::frame_from_name(element, static_cast<std::string&>(value));
-      } catch (const ci::Error& error) {
-        fail(relative, error.what());
-      }
+      default:
+        fail(relative, "a date/time or binary value, which no parameter or setting takes");
     }
   }
 
-  // Reports every leaf below `node` (at dotted `path`) that is not a row of the table.
-  void check_known(XmlRpcValue& node, const std::string& path) const {
-    if (node.getType() != XmlRpcValue::TypeStruct) {
-      for (const ci::ParameterInfo& info : ci::parameter_table()) {
-        if (info.name == path) return;
-      }
-      fail(ros_name(path), "unknown parameter (see the parameter table in README.md)");
-    }
-    bool row = false;
-    for (const ci::ParameterInfo& info : ci::parameter_table()) row = row || info.name == path;
-    if (row) return;  // a struct where a value belongs: read_field reports the shape
-    for (auto& member : node) check_known(member.second, path + "." + member.first);
+  // The setting `name` of `root`, if it is given.
+  std::optional<ci::ParameterValue> setting(XmlRpcValue& root, const std::string& name) const {
+    if (root.getType() != XmlRpcValue::TypeStruct || !root.hasMember(name)) return std::nullopt;
+    return convert(root[name], name);
   }
 
-  std::string read_string(XmlRpcValue& root, const std::string& name,
-                          const std::string& fallback) const {
-    if (!root.hasMember(name)) return fallback;
-    XmlRpcValue& value = root[name];
-    if (value.getType() != XmlRpcValue::TypeString) {
-      fail(name, std::string("expected a string, got ") + type_name(value));
-    }
-    return static_cast<std::string&>(value);
+  double number(XmlRpcValue& root, const ci::ParameterInfo& row, double fallback) const {
+    const std::optional<ci::ParameterValue> value = setting(root, std::string(row.name));
+    return value ? ci::decode_number(*value, row, row.name) : fallback;
   }
 
-  double read_positive(XmlRpcValue& root, const std::string& name, double fallback, bool allow_zero,
-                       double max) const {
-    if (!root.hasMember(name)) return fallback;
-    XmlRpcValue& value = root[name];
-    if (!is_number(value)) fail(name, std::string("expected a number, got ") + type_name(value));
-    const double x = number(value);
-    const bool ok = std::isfinite(x) && (allow_zero ? x >= 0.0 : x > 0.0) && x <= max;
-    if (!ok) {
-      fail(name, ci::format_number(x) + " is outside " + (allow_zero ? "[0, " : "(0, ") +
-                     ci::format_number(max) + "]");
-    }
-    return x;
+  std::string name(XmlRpcValue& root, const std::string& key, std::string_view what) const {
+    const std::optional<ci::ParameterValue> value = setting(root, key);
+    return value ? ci::decode_name(*value, key, what) : std::string();
   }
 
  private:
@@ -217,70 +121,55 @@ NodeConfiguration configuration_from_xmlrpc(XmlRpcValue& private_namespace,
   XmlRpcValue& root = private_namespace;
   const Reader reader(namespace_name);
 
-  // Controller parameters: every row of the table, at its nested name.
-  std::set<std::string> groups;
-  for (const ci::ParameterInfo& info : ci::parameter_table()) {
-    const std::vector<std::string> parts = split(info.name);
-    groups.insert(parts.front());
-    if (XmlRpcValue* value = find(root, parts)) {
-      reader.read_field(info, *value, configuration.parameters);
-    }
-  }
-
-  // Unknown keys: inside a parameter group they are errors (a misspelt parameter would silently
-  // keep its default); at the top level only warnings (other tools may keep values there).
+  // Controller parameters: every member that names a parameter group (nested, or dotted as
+  // "stiffness.translation") goes to the decoder, which rejects unknown keys inside the groups.
+  // Other unknown keys are only warnings (other tools may keep values there).
   std::set<std::string> known(std::begin(kSettingNames), std::end(kSettingNames));
   known.insert(std::begin(kReconfigureNamespaces), std::end(kReconfigureNamespaces));
+  ci::ParameterMap groups;
   if (root.getType() == XmlRpcValue::TypeStruct) {
     for (auto& member : root) {
-      if (groups.count(member.first) != 0) {
-        reader.check_known(member.second, member.first);
-      } else if (known.count(member.first) == 0) {
-        configuration.unknown_keys.push_back(reader.full(member.first));
+      const std::string& key = member.first;
+      if (ci::is_parameter_group(key.substr(0, key.find('.')))) {
+        groups.push_back({key, reader.convert(member.second, key), reader.location(key)});
+      } else if (known.count(key) == 0) {
+        configuration.unknown_keys.push_back(reader.full(key));
       }
     }
   }
+  configuration.parameters =
+      ci::decode_parameters(ci::ParameterValue::map(std::move(groups)), ci::Parameters{},
+                            "ROS parameters in " + namespace_name);
 
   // The node's settings.
   NodeSettings& settings = configuration.settings;
-  const std::string mode = reader.read_string(root, "mode", "sim");
-  if (mode == "sim") {
-    settings.mode = Mode::sim;
-  } else if (mode == "topics") {
-    settings.mode = Mode::topics;
-  } else {
-    reader.fail("mode", "'" + mode + "' is not sim or topics");
+  if (const std::optional<ci::ParameterValue> mode = reader.setting(root, "mode")) {
+    const std::string name =
+        ci::decode_name(*mode, "mode", "a mode", {to_string(Mode::sim), to_string(Mode::topics)});
+    settings.mode = name == to_string(Mode::sim) ? Mode::sim : Mode::topics;
   }
-  settings.control_rate =
-      reader.read_positive(root, "control_rate", settings.control_rate, false, 10000.0);
-  settings.publish_rate =
-      reader.read_positive(root, "publish_rate", settings.publish_rate, false, 10000.0);
+  settings.control_rate = reader.number(root, kControlRate, settings.control_rate);
+  settings.publish_rate = reader.number(root, kPublishRate, settings.publish_rate);
   if (settings.publish_rate > settings.control_rate) {
     reader.fail("publish_rate", ci::format_number(settings.publish_rate) +
                                     " Hz is above control_rate (" +
                                     ci::format_number(settings.control_rate) + " Hz)");
   }
-  settings.base_link = reader.read_string(root, "base_link", "");
-  settings.tip_link = reader.read_string(root, "tip_link", "");
+  settings.base_link = reader.name(root, "base_link", "a link name");
+  settings.tip_link = reader.name(root, "tip_link", "a link name");
   if (settings.base_link.empty()) reader.fail("base_link", "is not set (the chain's root link)");
   if (settings.tip_link.empty()) reader.fail("tip_link", "is not set (the end-effector link)");
-  settings.mjcf_path = reader.read_string(root, "mjcf_path", "");
+  settings.mjcf_path = reader.name(root, "mjcf_path", "a file path");
   if (settings.mode == Mode::sim && settings.mjcf_path.empty()) {
     reader.fail("mjcf_path", "is not set (sim mode needs the MuJoCo model of the robot)");
   }
-  settings.joint_states_timeout = reader.read_positive(root, "joint_states_timeout",
-                                                       settings.joint_states_timeout, false, 10.0);
-  settings.tf_timeout = reader.read_positive(root, "tf_timeout", settings.tf_timeout, true, 10.0);
-  if (root.hasMember("realtime_priority")) {
-    XmlRpcValue& value = root["realtime_priority"];
-    if (value.getType() != XmlRpcValue::TypeInt) {
-      reader.fail("realtime_priority", std::string("expected an integer, got ") + type_name(value));
-    }
-    const int priority = static_cast<int&>(value);
-    if (priority < 0 || priority > 99) {
-      reader.fail("realtime_priority", std::to_string(priority) + " is outside [0, 99]");
-    }
-    settings.realtime_priority = priority;
+  settings.joint_states_timeout =
+      reader.number(root, kJointStatesTimeout, settings.joint_states_timeout);
+  settings.tf_timeout = reader.number(root, kTfTimeout, settings.tf_timeout);
+  if (const std::optional<ci::ParameterValue> priority =
+          reader.setting(root, "realtime_priority")) {
+    settings.realtime_priority =
+        ci::decode_integer(*priority, kRealtimePriority, kRealtimePriority.name);
   }
   return configuration;
 }

@@ -2,9 +2,10 @@
 /// @file
 /// The node's configuration from the ROS parameter server: the controller parameters under the
 /// node's private namespace with the names of config/*.yaml (`~stiffness/translation`,
-/// `~limits/joint_torque`, ...), read by iterating the library's parameter table, plus the
-/// node's own settings (`~mode`, `~control_rate`, ...). Everything is read from one XmlRpc
-/// value (the whole private namespace), so the parsing is testable without a ROS master.
+/// `~limits/joint_torque`, ..., or dotted: `~stiffness.translation`), decoded by the library's
+/// decode_parameters() (parameter_tree.hpp) from the XmlRpc values, plus the node's own settings
+/// (`~mode`, `~control_rate`, ...), decoded by the same functions. Everything is read from one
+/// XmlRpc value (the whole private namespace), so the parsing is testable without a ROS master.
 
 #include <xmlrpcpp/XmlRpcValue.h>
 
@@ -45,9 +46,11 @@ struct NodeConfiguration {
 /// Parses the private namespace `private_namespace` (a struct; anything else counts as empty),
 /// whose resolved name `namespace_name` (e.g. "/left/cartesian_impedance_controller") is used in
 /// messages. Parameters not given keep the library's defaults.
-/// @throws cartesian_impedance::Error naming the parameter, the value and what is expected: a
-///         value of the wrong type or shape, a value out of range, an unknown parameter inside a
-///         parameter group (e.g. `~stiffness/tranlation`), or an invalid setting.
+/// @throws cartesian_impedance::Error naming the parameter (`ROS parameter <name>: ...`), the
+///         value and what is expected: a value of the wrong type or shape, a value out of range,
+///         an unknown parameter inside a parameter group (e.g. `~stiffness/tranlation`), a
+///         parameter given twice (nested and dotted), a set that fails validate(), or an invalid
+///         setting. Messages after the location are the decoder's, as for a YAML file.
 NodeConfiguration configuration_from_xmlrpc(XmlRpc::XmlRpcValue& private_namespace,
                                             const std::string& namespace_name);
 

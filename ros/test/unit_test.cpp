@@ -11,10 +11,13 @@
 #include <limits>
 #include <random>
 #include <string>
+#include <tuple>
+#include <vector>
 
 #include <cartesian_impedance/config.hpp>
 #include <cartesian_impedance/control_loop.hpp>
 #include <cartesian_impedance/error.hpp>
+#include <cartesian_impedance/parameter_tree.hpp>
 
 #include "conversions.hpp"
 #include "ros_parameters.hpp"
@@ -177,15 +180,15 @@ TEST(RosParameters, ErrorsNameParameterValueAndRange) {
     XmlRpcValue root = required_settings();
     root["stiffness"]["tranlation"] = 500;
     EXPECT_EQ(error_of(root), "ROS parameter " + kNamespace +
-                                  "/stiffness/tranlation: unknown parameter (see the parameter "
-                                  "table in README.md)");
+                                  "/stiffness/tranlation: unknown parameter "
+                                  "'stiffness.tranlation'");
   }
   {
     XmlRpcValue root = required_settings();
     root["filter"]["pose"]["time"] = std::string("fast");
     EXPECT_EQ(error_of(root), "ROS parameter " + kNamespace +
-                                  "/filter/pose/time: filter.pose.time is a string, expected a "
-                                  "number [s]");
+                                  "/filter/pose/time: filter.pose.time = 'fast' is not a number "
+                                  "[s]");
   }
   {
     XmlRpcValue root = required_settings();
@@ -206,13 +209,14 @@ TEST(RosParameters, ErrorsNameParameterValueAndRange) {
   {
     XmlRpcValue root = required_settings();
     root["dynamics"]["gravity_compensation"] = 1;
-    EXPECT_NE(error_of(root).find("expected true or false, got an integer"), std::string::npos);
+    EXPECT_NE(error_of(root).find("dynamics.gravity_compensation = 1 is not true or false"),
+              std::string::npos);
   }
   {
     XmlRpcValue root = required_settings();
     root["mode"] = std::string("hardware");
-    EXPECT_EQ(error_of(root),
-              "ROS parameter " + kNamespace + "/mode: 'hardware' is not sim or topics");
+    EXPECT_EQ(error_of(root), "ROS parameter " + kNamespace +
+                                  "/mode: mode = 'hardware' is not a mode (valid: sim, topics)");
   }
   {
     XmlRpcValue root = required_settings();
@@ -222,7 +226,8 @@ TEST(RosParameters, ErrorsNameParameterValueAndRange) {
   {
     XmlRpcValue root = required_settings();
     root["control_rate"] = 0;
-    EXPECT_NE(error_of(root).find("/control_rate: 0 is outside (0, 10000]"), std::string::npos);
+    EXPECT_NE(error_of(root).find("/control_rate: control_rate = 0 Hz is outside (0, 10000]"),
+              std::string::npos);
   }
   {
     XmlRpcValue root = required_settings();
@@ -239,6 +244,75 @@ TEST(RosParameters, UnknownTopLevelKeysAreWarnings) {
   const cir::NodeConfiguration configuration = cir::configuration_from_xmlrpc(root, kNamespace);
   ASSERT_EQ(configuration.unknown_keys.size(), 1u);
   EXPECT_EQ(configuration.unknown_keys[0], kNamespace + "/stifness");
+}
+
+TEST(RosParameters, SameMistakeSameMessageAsTheYamlLoaderAndTheDecoder) {
+  // Each mistake as YAML text, as the parameter server holds it (rosparam load of that text) and
+  // as a value without location for its dotted name (how a Python dict arrives): one message
+  // after the location.
+  const auto body = [](const std::string& message) {
+    const std::size_t colon = message.find(": ");
+    return colon == std::string::npos ? message : message.substr(colon + 2);
+  };
+  using Value = ci::ParameterValue;
+  const std::vector<std::tuple<std::string, std::string, Value>> mistakes{
+      {"filter:\n  pose:\n    time: fast\n", "filter.pose.time", Value::string("fast")},
+      {"stiffness:\n  translation: [500, 500]\n", "stiffness.translation",
+       Value::list({Value::number(500), Value::number(500)})},
+      {"stiffness:\n  rotation: -1\n", "stiffness.rotation", Value::number(-1)},
+      {"limits:\n  joint_torque: []\n", "limits.joint_torque", Value::list({})},
+      {"wrench:\n  frame: tool\n", "wrench.frame", Value::string("tool")},
+      {"dynamics:\n  gravity_compensation: 1\n", "dynamics.gravity_compensation", Value::number(1)},
+      {"stiffness:\n  tranlation: 1\n", "stiffness.tranlation", Value::number(1)},
+      {"limits:\n  stiffness: 100\n", "limits.stiffness", Value::number(100)},
+      {"limits:\n  damping_ratio:\n    min: 3\n    max: 2\n", "", Value()},
+  };
+  for (const auto& [yaml, name, value] : mistakes) {
+    SCOPED_TRACE(yaml);
+    std::string from_yaml;
+    try {
+      ci::parameters_from_yaml(yaml, "test.yaml");
+    } catch (const ci::Error& error) {
+      from_yaml = error.what();
+    }
+    XmlRpcValue root = to_xmlrpc(YAML::Load(yaml));
+    for (const char* key : {"base_link", "tip_link", "mjcf_path"}) root[key] = std::string("x");
+    const std::string from_ros = error_of(root);
+    ASSERT_FALSE(from_yaml.empty());
+    EXPECT_EQ(from_ros.rfind("ROS parameter", 0), 0u) << from_ros;
+    EXPECT_EQ(body(from_ros), body(from_yaml));
+    if (name.empty()) continue;  // a rule across parameters: no single name
+    ci::Parameters parameters;
+    try {
+      ci::assign_parameter(parameters, name, value);
+      ADD_FAILURE() << name << " accepted";
+    } catch (const ci::Error& error) {
+      EXPECT_EQ(error.what(), body(from_yaml));
+    }
+  }
+}
+
+TEST(RosParameters, DottedNamesAndWholeNumbersAreRead) {
+  XmlRpcValue root = required_settings();
+  root["stiffness.translation"] = 700;  // as a Python dict or a dotted rosparam key gives it
+  root["limits"]["stiffness.rotation.max"] = 400.0;
+  root["realtime_priority"] = 80.0;  // a whole number, if a double
+  const cir::NodeConfiguration configuration = cir::configuration_from_xmlrpc(root, kNamespace);
+  EXPECT_EQ(configuration.parameters.stiffness.translation, Eigen::Vector3d::Constant(700));
+  EXPECT_EQ(configuration.parameters.limits.stiffness.rotation.max, 400.0);
+  EXPECT_EQ(configuration.settings.realtime_priority, 80);
+  EXPECT_TRUE(configuration.unknown_keys.empty());
+  root["realtime_priority"] = 80.5;
+  EXPECT_EQ(error_of(root), "ROS parameter " + kNamespace +
+                                "/realtime_priority: realtime_priority = 80.5 is not a whole "
+                                "number");
+  root["realtime_priority"] = 0;
+  root["stiffness"]["translation"] = 600;
+  // The server sorts names: the nested one comes first.
+  EXPECT_EQ(error_of(root), "ROS parameter " + kNamespace +
+                                "/stiffness.translation: 'stiffness.translation' is given twice "
+                                "(first at ROS parameter " +
+                                kNamespace + "/stiffness/translation); expected each key once");
 }
 
 TEST(RosParameters, PerJointValuesAreCheckedAgainstTheModel) {
