@@ -16,17 +16,20 @@ namespace {
 constexpr double kDt = 0.001;
 constexpr double kForever = std::numeric_limits<double>::infinity();
 
-// The torque a (deliberately broken, for tests of the tests) controller would apply.
-JointVector mutated(Mutation mutation, const JointVector& tau) {
+// Breaks the runner's controllers on purpose (for tests of the tests): the hook replaces the
+// torque they computed with what a broken controller would apply.
+void set_mutation(sim::ClosedLoopRunner& runner, Mutation mutation) {
   switch (mutation) {
     case Mutation::none:
+      runner.set_torque_hook({});
       break;
     case Mutation::zero_torque:
-      return JointVector::Zero(tau.size());
+      runner.set_torque_hook([](JointVector& tau) { tau.setZero(); });
+      break;
     case Mutation::flipped_sign:
-      return -tau;
+      runner.set_torque_hook([](JointVector& tau) { tau = -tau; });
+      break;
   }
-  return tau;
 }
 
 Vector6d six(double a, double b, double c, double d, double e, double f) {
@@ -555,7 +558,6 @@ TwoArmRun run_two_arms(bool push_left, bool step_right, Mutation mutation,
   RobotSetup right = builtin_robot("iiwa14", source);
   left.flange = "panda_flange";  // site names in the two-arm scene (models/scenes)
   right.flange = "iiwa_flange";
-  left.mutation = right.mutation = mutation;
   const RobotModel left_model =
       RobotModel::from_urdf_file(left.urdf, left.base_link, left.tip_link);
   const RobotModel right_model =
@@ -568,34 +570,21 @@ TwoArmRun run_two_arms(bool push_left, bool step_right, Mutation mutation,
       sim::Simulation::from_mjcf_file(source + "/models/scenes/two_arms.xml", options);
   ControlLoop left_loop(left_model, base_parameters(left));
   ControlLoop right_loop(right_model, base_parameters(right));
-  const int n_left = left_model.num_joints(), n_right = right_model.num_joints();
-  left_loop.start(sim.q().head(n_left), sim.dq().head(n_left));
-  right_loop.start(sim.q().tail(n_right), sim.dq().tail(n_right));
-  JointVector q_left(n_left), dq_left(n_left), q_right(n_right), dq_right(n_right);
-  JointVector tau(n_left + n_right);
-  auto run = [&](double seconds) {
-    for (int k = 0; k < static_cast<int>(std::lround(seconds / kDt)); ++k) {
-      q_left = sim.q().head(n_left);
-      dq_left = sim.dq().head(n_left);
-      q_right = sim.q().tail(n_right);
-      dq_right = sim.dq().tail(n_right);
-      tau.head(n_left) = mutated(left.mutation, left_loop.step(q_left, dq_left, kDt));
-      tau.tail(n_right) = mutated(right.mutation, right_loop.step(q_right, dq_right, kDt));
-      sim.set_torque(tau);
-      sim.step();
-    }
-  };
+  // Each loop drives its own arm: the first seven joints of the scene, and the next seven.
+  sim::ClosedLoopRunner runner(sim, {&left_loop, &right_loop});
+  set_mutation(runner, mutation);
+  runner.start();
   TwoArmRun result;
-  run(0.5);
+  runner.run_for(0.5);
   result.left_start = sim.site_pose(left.flange);
   result.right_start = sim.site_pose(right.flange);
   if (push_left) sim.push(left.flange, six(0, 20, 0, 0, 0, 0), kForever);
-  run(3.0);
+  runner.run_for(3.0);
   if (moment) moment("left arm pushed, right arm holding", sim);
   result.left_pushed = sim.site_pose(left.flange);
   result.right_pushed = sim.site_pose(right.flange);
   sim.clear_pushes();
-  run(3.0);
+  runner.run_for(3.0);
   result.left_rest = sim.site_pose(left.flange);
   result.right_rest = sim.site_pose(right.flange);
   if (step_right) {
@@ -603,7 +592,7 @@ TwoArmRun run_two_arms(bool push_left, bool step_right, Mutation mutation,
     right_target.position.z() -= 0.05;
     right_loop.set_reference_pose(right_target);
   }
-  run(3.0);
+  runner.run_for(3.0);
   result.left_end = sim.site_pose(left.flange);
   result.right_end = sim.site_pose(right.flange);
   return result;
@@ -676,7 +665,8 @@ Rig::Rig(const RobotSetup& robot, const Parameters& parameters, const std::vecto
     : robot_(robot),
       model_(RobotModel::from_urdf_file(robot.urdf, robot.base_link, robot.tip_link)),
       sim_(make_simulation(robot, model_, boxes)),
-      loop_(std::make_unique<ControlLoop>(model_, parameters)) {
+      loop_(std::make_unique<ControlLoop>(model_, parameters)),
+      runner_(sim_, *loop_) {
   // The tip is a site in the project's MJCF files; a robot simulated from its URDF has only
   // bodies, named like its links.
   try {
@@ -685,7 +675,8 @@ Rig::Rig(const RobotSetup& robot, const Parameters& parameters, const std::vecto
     flange_is_site_ = false;
     sim_.body_pose(robot_.flange);  // throws, naming it, if it is neither
   }
-  loop_->start(sim_.q(), sim_.dq());
+  set_mutation(runner_, robot_.mutation);
+  runner_.start();
   previous_tau_ = JointVector::Zero(model_.num_joints());
 }
 
@@ -717,16 +708,13 @@ void Rig::run(double seconds) {
   const Parameters& parameters = loop_->controller().parameters();
   const JointVector rate_limit =
       per_joint(parameters.limits.joint_torque_rate, model_.num_joints());
-  const long steps = std::lround(seconds / kDt);
-  for (long k = 0; k < steps; ++k) {
-    const JointVector tau = mutated(robot_.mutation, loop_->step(sim_.q(), sim_.dq(), kDt));
+  runner_.run_for(seconds, [&](std::int64_t) {
+    const JointVector& tau = runner_.torque();
     const JointVector rate = (tau - previous_tau_).cwiseAbs() / kDt;
     largest_rate_fraction_ =
         std::max(largest_rate_fraction_, rate.cwiseQuotient(rate_limit).maxCoeff());
     rate_since_sample_ = std::max(rate_since_sample_, rate.maxCoeff());
     previous_tau_ = tau;
-    sim_.set_torque(tau);
-    sim_.step();
     time_ += kDt;
     if (++steps_ % 10 == 0) {
       const LoopState& state = loop_->state();
@@ -746,7 +734,7 @@ void Rig::run(double seconds) {
       rate_since_sample_ = 0.0;
       samples_.push_back(sample);
     }
-  }
+  });
 }
 
 // ---- registry -----------------------------------------------------------------------------------

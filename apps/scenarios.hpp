@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "cartesian_impedance/control_loop.hpp"
+#include "cartesian_impedance/sim/closed_loop_runner.hpp"
 #include "cartesian_impedance/sim/simulation.hpp"
 
 namespace cartesian_impedance::scenarios {
@@ -69,11 +70,13 @@ struct Sample {
 /// Called at moments worth a picture ("pushed", "settled", ...).
 using MomentCallback = std::function<void(const std::string& label, const sim::Simulation&)>;
 
-/// The simulated robot and its control loop, stepped together at 1 kHz.
+/// The simulated robot and its control loop, stepped together at 1 kHz by a closed-loop runner.
 class Rig {
  public:
   Rig(const RobotSetup& robot, const Parameters& parameters,
       const std::vector<sim::Box>& boxes = {});
+  Rig(const Rig&) = delete;  // the runner refers to the simulation and the loop
+  Rig& operator=(const Rig&) = delete;
 
   /// Steps for `seconds`, sampling every 10 ms.
   void run(double seconds);
@@ -99,6 +102,7 @@ class Rig {
   RobotModel model_;
   sim::Simulation sim_;
   std::unique_ptr<ControlLoop> loop_;
+  sim::ClosedLoopRunner runner_;
   bool flange_is_site_ = true;
   Eigen::Vector3d push_force_ = Eigen::Vector3d::Zero();
   std::vector<Sample> samples_;

@@ -16,24 +16,18 @@
 #include "cartesian_impedance/error.hpp"
 #include "cartesian_impedance/math.hpp"
 #include "support/model_simulation.hpp"
+#include "support/robots.hpp"
 
 namespace ci = cartesian_impedance;
 
 namespace {
 
-const std::string kSource = CARTESIAN_IMPEDANCE_SOURCE_DIR;
 constexpr double kDt = 0.001;
 constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-ci::RobotModel panda() {
-  return ci::RobotModel::from_urdf_file(kSource + "/models/panda/panda.urdf", "panda_link0",
-                                        "panda_link8");
-}
-
-ci::JointVector panda_ready() {
-  return (ci::JointVector(7) << 0, -M_PI / 4, 0, -3 * M_PI / 4, 0, M_PI / 2, M_PI / 4).finished();
-}
+using robots::panda;
+using robots::panda_ready;
 
 // A loop holding the arm against a disturbance the robot's firmware does not know about (and
 // pulling toward a reference 5 cm away), so that the joints carry torque when the bad input

@@ -11,30 +11,16 @@
 #include "cartesian_impedance/control_loop.hpp"
 #include "cartesian_impedance/error.hpp"
 #include "support/model_simulation.hpp"
+#include "support/robots.hpp"
 
 namespace ci = cartesian_impedance;
 
 namespace {
 
-const std::string kSource = CARTESIAN_IMPEDANCE_SOURCE_DIR;
-
-ci::RobotModel panda() {
-  return ci::RobotModel::from_urdf_file(kSource + "/models/panda/panda.urdf", "panda_link0",
-                                        "panda_link8");
-}
-
-ci::RobotModel iiwa() {
-  return ci::RobotModel::from_urdf_file(kSource + "/models/iiwa14/iiwa14.urdf", "iiwa_link_0",
-                                        "iiwa_link_ee");
-}
-
-ci::JointVector panda_ready() {
-  return (ci::JointVector(7) << 0, -M_PI / 4, 0, -3 * M_PI / 4, 0, M_PI / 2, M_PI / 4).finished();
-}
-
-ci::JointVector iiwa_ready() {
-  return (ci::JointVector(7) << 0, M_PI / 6, 0, -M_PI / 2, 0, M_PI / 3, 0).finished();
-}
+using robots::iiwa;
+using robots::iiwa_ready;
+using robots::panda;
+using robots::panda_ready;
 
 // Closed loop of a ControlLoop and the model simulation for `seconds`.
 void run(ci::ControlLoop& loop, model_simulation::Simulation& sim, double seconds,

@@ -11,12 +11,11 @@
 #include <sensor_msgs/JointState.h>
 #include <trajectory_msgs/JointTrajectory.h>
 
-#include <chrono>
-#include <cstdint>
 #include <string>
 #include <vector>
 
 #include <cartesian_impedance/control_loop.hpp>
+#include <cartesian_impedance/runtime/robot_io.hpp>
 #include <cartesian_impedance/trajectory.hpp>
 #include <cartesian_impedance/types.hpp>
 
@@ -25,15 +24,9 @@
 namespace cartesian_impedance_ros {
 
 /// A measured joint state in the model's joint order, handed from the joint_states callback to
-/// the control thread through a lock-free SnapshotBuffer (fixed-size storage: copying it does not
-/// allocate).
-struct JointSample {
-  cartesian_impedance::JointVector q;       ///< [rad or m]
-  cartesian_impedance::JointVector dq;      ///< [rad/s or m/s]
-  cartesian_impedance::JointVector effort;  ///< [Nm or N], size 0 if the robot reports none
-  std::uint64_t sequence = 0;               ///< 0: nothing received yet
-  std::chrono::steady_clock::time_point received{};
-};
+/// the control thread through the runtime's lock-free MeasurementBuffer (fixed-size storage:
+/// copying it does not allocate).
+using JointSample = cartesian_impedance::runtime::JointMeasurement;
 
 /// Maps sensor_msgs/JointState messages, whose joints may come in any order and include joints
 /// of other chains (fingers, a second arm), into the model's joint order.

@@ -2,16 +2,19 @@
 /// @file
 /// The ROS 1 shell around cartesian_impedance::ControlLoop. Three kinds of threads:
 ///
-/// - the control thread runs the cycle at ~control_rate on a steady clock with absolute
-///   deadlines (sleep_until). It never calls ROS: commands reach it through the loop's lock-free
-///   inbox, measured joint states (topics mode) through a lock-free SnapshotBuffer, and what it
-///   produces leaves through the loop's outbox and a torque SnapshotBuffer. In sim mode it also
-///   steps the MuJoCo simulation.
-/// - the publisher thread reads the newest state at ~publish_rate and publishes controller_state,
-///   commanded_torques and (sim mode) joint_states; in topics mode an effort thread publishes
-///   each cycle's torque on effort_command, woken by a semaphore the control thread posts.
+/// - the control thread is the library's runtime::ControlThread (ROS-free, shared with every
+///   other shell): the cycle at ~control_rate on absolute deadlines. Commands reach it through the
+///   loop's lock-free inbox, measured joint states (topics mode) through a lock-free
+///   MeasurementBuffer, and what it produces leaves through the loop's outbox and (topics mode) a
+///   TorqueOutbox. In sim mode its cycle is the closed-loop runner, which steps the MuJoCo
+///   simulation once per cycle.
+/// - the publisher thread reads the newest state at ~publish_rate, publishes controller_state,
+///   commanded_torques and (sim mode) joint_states, and logs status changes, lost joint_states
+///   and overruns; in topics mode an effort thread publishes each cycle's torque on
+///   effort_command, woken by the TorqueOutbox (publishing.cpp).
 /// - ROS callbacks (an AsyncSpinner) convert and validate messages, do tf2 lookups, and hand the
-///   commands to the loop. A rejected message is logged and changes nothing.
+///   commands to the loop (callbacks.cpp, reconfigure.cpp). A rejected message is logged and
+///   changes nothing.
 
 #include <dynamic_reconfigure/server.h>
 #include <geometry_msgs/PoseStamped.h>
@@ -24,8 +27,6 @@
 #include <tf2_ros/transform_listener.h>
 #include <trajectory_msgs/JointTrajectory.h>
 
-#include <semaphore.h>
-
 #include <atomic>
 #include <memory>
 #include <optional>
@@ -33,8 +34,10 @@
 #include <thread>
 
 #include <cartesian_impedance/control_loop.hpp>
-#include <cartesian_impedance/mailbox.hpp>
 #include <cartesian_impedance/robot_model.hpp>
+#include <cartesian_impedance/runtime/control_thread.hpp>
+#include <cartesian_impedance/runtime/robot_io.hpp>
+#include <cartesian_impedance/sim/closed_loop_runner.hpp>
 #include <cartesian_impedance/sim/simulation.hpp>
 
 #include <cartesian_impedance_ros/DampingConfig.h>
@@ -46,22 +49,6 @@
 #include "ros_parameters.hpp"
 
 namespace cartesian_impedance_ros {
-
-/// A counting semaphore: post() never blocks and is safe in the control cycle (a futex wake at
-/// most); wait_for() returns after a post or a timeout.
-class Wakeup {
- public:
-  Wakeup();
-  ~Wakeup();
-  Wakeup(const Wakeup&) = delete;
-  Wakeup& operator=(const Wakeup&) = delete;
-  void post() noexcept;
-  /// True if woken by post(), false after `seconds`.
-  bool wait_for(double seconds) noexcept;
-
- private:
-  sem_t semaphore_;
-};
 
 class CartesianImpedanceNode {
  public:
@@ -78,26 +65,29 @@ class CartesianImpedanceNode {
   int run();
 
  private:
-  struct TorqueSample {
-    cartesian_impedance::JointVector tau;
-    std::uint64_t cycle = 0;
-  };
-
   using StiffnessServer = dynamic_reconfigure::Server<StiffnessConfig>;
   using DampingServer = dynamic_reconfigure::Server<DampingConfig>;
   using WrenchServer = dynamic_reconfigure::Server<WrenchConfig>;
 
-  // Threads.
-  void control_thread() noexcept;
+  // Threads: the control thread (node.cpp), publisher and effort threads (publishing.cpp).
+  void start_control_thread();
   void publisher_thread();
   void effort_thread();
   void stop_threads();
+  /// The log lines of the publisher thread: status changes, lost joint_states, overruns.
+  struct Reports {
+    cartesian_impedance::Status status = cartesian_impedance::Status::ok;
+    bool stale = false;
+    std::uint64_t overruns = 0;
+  };
+  void report(const cartesian_impedance::LoopState& state, Reports& reported) const;
 
-  // Set up once the controller runs (so no command is lost to start()).
+  // Set up once the controller runs (so no command is lost to start()): node.cpp and
+  // reconfigure.cpp.
   void create_command_interface();
   void create_reconfigure_servers();
 
-  // Callbacks.
+  // Callbacks (callbacks.cpp, reconfigure.cpp).
   void on_joint_states(const sensor_msgs::JointState::ConstPtr& message);
   void on_reference_pose(const geometry_msgs::PoseStamped::ConstPtr& message);
   void on_stiffness(const geometry_msgs::WrenchStamped::ConstPtr& message);
@@ -129,23 +119,16 @@ class CartesianImpedanceNode {
 
   std::optional<cartesian_impedance::RobotModel> model_;
   std::unique_ptr<cartesian_impedance::ControlLoop> loop_;
-  std::optional<cartesian_impedance::sim::Simulation> simulation_;
-  std::unique_ptr<JointStateMapper> joint_mapper_;
+  std::optional<cartesian_impedance::sim::Simulation> simulation_;    // sim mode
+  std::optional<cartesian_impedance::sim::ClosedLoopRunner> runner_;  // sim mode
+  std::unique_ptr<JointStateMapper> joint_mapper_;                    // topics mode
+  // Hand-off to and from the control thread (topics mode; lock-free, no allocation after
+  // construction): joint_states in (one writer: the joint_states callback), torques out.
+  std::optional<cartesian_impedance::runtime::MeasurementBuffer> joint_samples_;
+  std::optional<cartesian_impedance::runtime::TorqueOutbox> torques_;
+  std::optional<cartesian_impedance::runtime::ControlThread> control_thread_;
 
-  // Hand-off to and from the control thread (lock-free, no allocation after construction).
-  cartesian_impedance::SnapshotBuffer<JointSample, 4> joint_samples_;
-  std::uint64_t joint_sequence_ = 0;  // written by the joint_states callback only
-  cartesian_impedance::SnapshotBuffer<TorqueSample, 4> torques_;
-  Wakeup torque_wakeup_;
-
-  std::atomic<bool> stop_{false};
-  std::atomic<bool> started_{false};
-  std::atomic<bool> failed_{false};
-  std::atomic<bool> joint_states_stale_{false};
-  std::atomic<std::uint64_t> overruns_{0};
-  std::string failure_;  // written by the control thread before it sets failed_
-
-  std::thread control_thread_;
+  std::atomic<bool> stop_{false};  // ends the publisher and effort threads
   std::thread publisher_thread_;
   std::thread effort_thread_;
 

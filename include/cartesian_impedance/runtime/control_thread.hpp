@@ -1,0 +1,161 @@
+#pragma once
+/// @file
+/// The ROS-free control thread every shell runs its control cycle on (ROS 1 and ROS 2 nodes, a
+/// user's own robot driver, a simulation at real-time rate): a cycle at a fixed rate on absolute
+/// deadlines, stale measurements failing the controller closed, and overrun statistics that any
+/// thread can read. The user provides the cycle (usually a ControlLoop with a measurement source
+/// and a torque sink); the thread owns the timing.
+///
+/// Timing: deadlines are absolute on CLOCK_MONOTONIC (clock_nanosleep with TIMER_ABSTIME), so
+/// wake-up latency does not accumulate. A cycle that ends after the next deadline is an overrun:
+/// the next cycle starts at once; if the thread fell more than a whole period behind, the
+/// schedule restarts from now rather than running the missed cycles in a burst.
+///
+/// Threads: start() and stop() from one controlling thread; statistics(), state() and failure()
+/// from any thread. Nothing in the cycle (the thread's own code between deadlines, and the cycle
+/// implementations of this library) allocates, locks or throws.
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "cartesian_impedance/control_loop.hpp"
+#include "cartesian_impedance/runtime/robot_io.hpp"
+
+namespace cartesian_impedance::runtime {
+
+/// When a cycle runs, as the control thread measured it.
+struct CycleTime {
+  std::chrono::steady_clock::time_point now{};  ///< when the cycle began (monotonic_now())
+  double dt = 0.0;          ///< [s] since the previous cycle began; one period for the first
+  std::uint64_t index = 0;  ///< cycles before this one since the thread started
+};
+
+/// Whether a cycle had a fresh measurement to work with.
+enum class Freshness {
+  fresh,  ///< a measurement newer than the timeout (or a simulation, always fresh)
+  stale,  ///< none within the timeout: the controller was stepped with an invalid measurement
+};
+
+/// What the control thread runs. Implementations in this library: the robot cycle behind
+/// ControlThread::start(loop, measurements, sink), and sim::ClosedLoopRunner (a simulation stepped
+/// once per cycle).
+class Cycle {
+ public:
+  virtual ~Cycle() = default;
+
+  /// Called in the control thread before the first cycle, again once per period for as long as it
+  /// returns false (e.g. while waiting for the first measurement). Start the controller here.
+  /// Not real-time: may allocate and throw; an exception ends the thread in State::failed with
+  /// its message.
+  virtual bool prepare() = 0;
+
+  /// One control cycle. Real-time: must not allocate, lock or block.
+  virtual Freshness execute(const CycleTime& time) noexcept = 0;
+};
+
+/// Fixed when the thread is created.
+struct ControlThreadOptions {
+  double rate = 1000.0;  ///< [Hz] cycles per second, finite and > 0
+  /// [s] robot cycle: a measurement older than this counts as lost, finite and > 0.
+  double measurement_timeout = 0.1;
+  /// SCHED_FIFO priority of the thread, 1..99; 0 = normal scheduling. Without the permission
+  /// (CAP_SYS_NICE or an rtprio limit) the thread runs at normal priority and
+  /// ControlThread::scheduling_error() says why.
+  int realtime_priority = 0;
+};
+
+/// Counters of the running (or last) thread, read from any thread. Each field is read atomically
+/// on its own; fields may be from neighbouring cycles.
+struct ControlThreadStatistics {
+  std::uint64_t cycles = 0;    ///< cycles run since start()
+  std::uint64_t overruns = 0;  ///< cycles that ended after the next cycle's deadline
+  /// [us] how long after the next deadline the most recent overrun ended (0 before any).
+  double latest_lateness_us = 0.0;
+  double worst_lateness_us = 0.0;    ///< [us] the largest such lateness since start()
+  bool stale = false;                ///< the latest cycle had no fresh measurement
+  std::uint64_t stale_episodes = 0;  ///< transitions from fresh to stale since start()
+  bool realtime = false;             ///< the thread runs with SCHED_FIFO priority
+};
+
+class ControlThread {
+ public:
+  enum class State {
+    idle,       ///< not started
+    preparing,  ///< started; Cycle::prepare() has not returned true yet
+    running,    ///< cycling
+    failed,     ///< Cycle::prepare() threw: see failure()
+    stopped,    ///< stop() ended it
+  };
+
+  /// @throws Error naming the field if an option is out of range.
+  explicit ControlThread(const ControlThreadOptions& options = {});
+  /// Stops the thread (stop()).
+  ~ControlThread();
+  ControlThread(const ControlThread&) = delete;
+  ControlThread& operator=(const ControlThread&) = delete;
+
+  /// Starts a thread that prepares `cycle` and then executes it once per period until stop().
+  /// `cycle` must outlive the thread. Resets the statistics. Sets the SCHED_FIFO priority of the
+  /// options, falling back to normal scheduling if that is not permitted (scheduling_error()).
+  /// @throws Error if a thread is preparing or running (stop() it first; one that failed is
+  ///         replaced); std::system_error if no thread can be created.
+  void start(Cycle& cycle);
+
+  /// The robot cycle: each period reads the newest measurement from `measurements`; if it was
+  /// received within options.measurement_timeout, steps `loop` with it (dt = the measured time
+  /// since the previous cycle), otherwise steps it with NaN q and dq, so that the controller fails
+  /// closed (status invalid_robot_state, the torque ramping toward zero within the rate limit)
+  /// until measurements return; then hands the torque to `sink` (if not null). Prepare: waits
+  /// for the first complete, finite measurement and starts the loop there (ControlLoop::start;
+  /// its Error ends the thread in State::failed). `loop`, `measurements` and `sink` must outlive
+  /// the thread.
+  /// @throws Error as start(Cycle&), or if the buffer's joint count is not the loop's.
+  void start(ControlLoop& loop, const MeasurementBuffer& measurements, TorqueSink* sink);
+
+  /// Asks the thread to end and joins it: returns after the cycle in progress (or within one
+  /// period while it is sleeping or preparing). Nothing happens if none runs.
+  void stop() noexcept;
+
+  State state() const noexcept { return state_.load(std::memory_order_acquire); }
+  /// True from the first cycle until stop().
+  bool running() const noexcept { return state() == State::running; }
+  /// Why prepare failed (the exception's message), once state() is State::failed; else "".
+  std::string failure() const;
+
+  ControlThreadStatistics statistics() const noexcept;
+  /// The error number (errno value) pthread_setschedparam gave for the requested SCHED_FIFO
+  /// priority, 0 if it was granted or none was requested.
+  int scheduling_error() const noexcept { return scheduling_error_; }
+  const ControlThreadOptions& options() const noexcept { return options_; }
+  /// [s] 1 / rate.
+  double period() const noexcept { return 1.0 / options_.rate; }
+
+ private:
+  void join_ended();
+  void body(Cycle& cycle) noexcept;
+  void record(const CycleTime& time, Freshness freshness, std::int64_t end_ns,
+              std::int64_t& deadline_ns) noexcept;
+
+  ControlThreadOptions options_;
+  std::int64_t period_ns_;
+  std::unique_ptr<Cycle> robot_cycle_;  // what start(loop, measurements, sink) runs
+  std::thread thread_;
+  std::atomic<bool> stop_requested_{false};
+  std::atomic<State> state_{State::idle};
+  std::string failure_;  // written by the thread before it stores State::failed
+  int scheduling_error_ = 0;
+
+  std::atomic<std::uint64_t> cycles_{0};
+  std::atomic<std::uint64_t> overruns_{0};
+  std::atomic<std::int64_t> latest_lateness_ns_{0};
+  std::atomic<std::int64_t> worst_lateness_ns_{0};
+  std::atomic<bool> stale_{false};
+  std::atomic<std::uint64_t> stale_episodes_{0};
+  std::atomic<bool> realtime_{false};
+};
+
+}  // namespace cartesian_impedance::runtime

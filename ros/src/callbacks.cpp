@@ -1,0 +1,180 @@
+// The ROS callbacks: messages converted and validated, frames resolved through tf2, commands
+// handed to the control loop. A rejected message is logged (throttled) and changes nothing.
+
+#include <string_view>
+
+#include <cartesian_impedance/error.hpp>
+
+#include "node.hpp"
+
+namespace cartesian_impedance_ros {
+
+namespace ci = cartesian_impedance;
+
+namespace {
+
+// tf2 frame ids carry no leading slash; tolerate the tf1 habit.
+std::string_view strip_slash(const std::string& frame_id) {
+  std::string_view frame(frame_id);
+  while (!frame.empty() && frame.front() == '/') frame.remove_prefix(1);
+  return frame;
+}
+
+}  // namespace
+
+void CartesianImpedanceNode::on_joint_states(const sensor_msgs::JointState::ConstPtr& message) {
+  // One writer (roscpp never runs one subscription's callback twice at once).
+  try {
+    JointSample sample;
+    if (!joint_mapper_->map(*message, sample)) return;  // about other joints
+    if (!sample.q.allFinite() || !sample.dq.allFinite()) {
+      ROS_WARN_THROTTLE(1.0,
+                        "joint_states has non-finite values: passed on, the controller "
+                        "ramps the torque down");
+    }
+    joint_samples_->publish(sample);  // numbered and stamped with the time of arrival
+  } catch (const std::exception& error) {
+    ROS_WARN_THROTTLE(1.0, "joint_states rejected: %s", error.what());
+  }
+}
+
+void CartesianImpedanceNode::on_reference_pose(
+    const geometry_msgs::PoseStamped::ConstPtr& message) {
+  try {
+    ci::Pose pose = pose_from_message(message->pose);
+    if (!message->header.frame_id.empty() && !is_base(message->header.frame_id)) {
+      pose = transform_pose(lookup(message->header.frame_id), pose);
+    }
+    loop_->set_reference_pose(pose);
+  } catch (const std::exception& error) {
+    ROS_WARN_THROTTLE(1.0, "reference_pose rejected: %s", error.what());
+  }
+}
+
+void CartesianImpedanceNode::on_stiffness(const geometry_msgs::WrenchStamped::ConstPtr& message) {
+  try {
+    const ci::Vector6d diagonal = vector_from_wrench(message->wrench);
+    Eigen::Matrix3d rotation;
+    const std::optional<ci::Frame> frame = frame_of(message->header.frame_id, rotation);
+    if (frame || message->header.frame_id.empty()) {
+      loop_->set_stiffness(diagonal, frame);
+    } else {
+      loop_->set_stiffness_matrix(rotate_stiffness(rotation, diagonal), ci::Frame::base);
+    }
+  } catch (const std::exception& error) {
+    ROS_WARN_THROTTLE(1.0, "set_cartesian_stiffness rejected: %s", error.what());
+  }
+}
+
+void CartesianImpedanceNode::on_damping_factors(const geometry_msgs::Wrench::ConstPtr& message) {
+  try {
+    loop_->set_damping_ratio(vector_from_wrench(*message));
+  } catch (const std::exception& error) {
+    ROS_WARN_THROTTLE(1.0, "set_damping_factors rejected: %s", error.what());
+  }
+}
+
+void CartesianImpedanceNode::on_wrench(const geometry_msgs::WrenchStamped::ConstPtr& message) {
+  try {
+    const ci::Vector6d wrench = vector_from_wrench(message->wrench);
+    Eigen::Matrix3d rotation;
+    const std::optional<ci::Frame> frame = frame_of(message->header.frame_id, rotation);
+    if (frame || message->header.frame_id.empty()) {
+      loop_->set_wrench(wrench, frame);
+    } else {
+      loop_->set_wrench(rotate_wrench(rotation, wrench), ci::Frame::base);
+    }
+  } catch (const std::exception& error) {
+    ROS_WARN_THROTTLE(1.0, "set_cartesian_wrench rejected: %s", error.what());
+  }
+}
+
+void CartesianImpedanceNode::on_config(const NullspaceConfig::ConstPtr& message) {
+  try {
+    // Validate all parts before sending any, so a bad message changes nothing.
+    const int n = model_->num_joints();
+    std::vector<ci::Command> commands;
+    if (!message->q_d_nullspace.empty()) {
+      commands.push_back(ci::Command::nullspace_target(
+          Eigen::Map<const Eigen::VectorXd>(
+              message->q_d_nullspace.data(),
+              static_cast<Eigen::Index>(message->q_d_nullspace.size())),
+          n));
+    }
+    if (!message->nullspace_stiffness.empty()) {
+      commands.push_back(ci::Command::nullspace_stiffness(
+          Eigen::Map<const Eigen::VectorXd>(
+              message->nullspace_stiffness.data(),
+              static_cast<Eigen::Index>(message->nullspace_stiffness.size())),
+          n));
+    }
+    commands.push_back(ci::Command::nullspace_damping_ratio(message->nullspace_damping_ratio));
+    for (const ci::Command& command : commands) loop_->send(command);
+  } catch (const std::exception& error) {
+    ROS_WARN_THROTTLE(1.0, "set_config rejected: %s", error.what());
+  }
+}
+
+void CartesianImpedanceNode::on_trajectory(
+    const trajectory_msgs::JointTrajectory::ConstPtr& message) {
+  try {
+    if (message->points.empty()) {
+      // As for ros_control's trajectory controllers: an empty trajectory stops the current one.
+      loop_->cancel_trajectory();
+      ROS_INFO("empty joint_trajectory: trajectory cancelled, holding");
+      return;
+    }
+    const std::uint64_t id = loop_->execute_trajectory(trajectory_from_message(*message));
+    ROS_INFO("trajectory %llu: %zu points over %.3f s", static_cast<unsigned long long>(id),
+             message->points.size(), message->points.back().time_from_start.toSec());
+  } catch (const std::exception& error) {
+    ROS_WARN_THROTTLE(1.0, "joint_trajectory rejected: %s", error.what());
+  }
+}
+
+bool CartesianImpedanceNode::on_cancel_trajectory(std_srvs::Trigger::Request& /*request*/,
+                                                  std_srvs::Trigger::Response& response) {
+  try {
+    loop_->cancel_trajectory();
+    response.success = true;
+    response.message = "cancelled; holding the current pose";
+  } catch (const std::exception& error) {
+    response.success = false;
+    response.message = error.what();
+  }
+  return true;
+}
+
+// ---- frames ---------------------------------------------------------------------------------
+
+bool CartesianImpedanceNode::is_base(const std::string& frame_id) const {
+  return strip_slash(frame_id) == settings_.base_link;
+}
+
+bool CartesianImpedanceNode::is_tip(const std::string& frame_id) const {
+  return strip_slash(frame_id) == settings_.tip_link;
+}
+
+std::optional<ci::Frame> CartesianImpedanceNode::frame_of(const std::string& frame_id,
+                                                          Eigen::Matrix3d& rotation) const {
+  if (frame_id.empty()) return std::nullopt;
+  if (is_base(frame_id)) return ci::Frame::base;
+  if (is_tip(frame_id)) return ci::Frame::end_effector;
+  rotation = lookup(frame_id).linear();
+  return std::nullopt;
+}
+
+Eigen::Isometry3d CartesianImpedanceNode::lookup(const std::string& frame_id) const {
+  const std::string frame(strip_slash(frame_id));
+  try {
+    const geometry_msgs::TransformStamped transform = tf_buffer_->lookupTransform(
+        settings_.base_link, frame, ros::Time(0), ros::Duration(settings_.tf_timeout));
+    return isometry_from_transform(transform.transform);
+  } catch (const tf2::TransformException& error) {
+    throw ci::Error("no transform from frame '" + frame + "' to the base frame '" +
+                    settings_.base_link + "' within " + ci::format_number(settings_.tf_timeout) +
+                    " s: " + error.what());
+  }
+}
+
+}  // namespace cartesian_impedance_ros

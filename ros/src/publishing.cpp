@@ -1,0 +1,118 @@
+// What leaves the node: controller_state, commanded_torques and (sim mode) joint_states at
+// ~publish_rate from the publisher thread, which also logs status changes, lost joint_states and
+// overruns of the control thread; effort_command each control cycle (topics mode) from the effort
+// thread. Neither ever blocks the control thread: they read its lock-free outboxes.
+
+#include <std_msgs/Float64MultiArray.h>
+
+#include <chrono>
+
+#include "node.hpp"
+
+namespace cartesian_impedance_ros {
+
+namespace ci = cartesian_impedance;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+void prepare_array(std_msgs::Float64MultiArray& message, int size) {
+  message.layout.dim.resize(1);
+  message.layout.dim[0].label = "joints";
+  message.layout.dim[0].size = static_cast<std::uint32_t>(size);
+  message.layout.dim[0].stride = static_cast<std::uint32_t>(size);
+  message.layout.data_offset = 0;
+  message.data.assign(static_cast<std::size_t>(size), 0.0);
+}
+
+}  // namespace
+
+void CartesianImpedanceNode::publisher_thread() {
+  const auto period = std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(1.0 / settings_.publish_rate));
+  const int n = model_->num_joints();
+  ControllerState state_message;
+  state_message.header.frame_id = settings_.base_link;
+  std_msgs::Float64MultiArray torque_message;
+  prepare_array(torque_message, n);
+  sensor_msgs::JointState joint_message;
+  joint_message.name = model_->joint_names();
+  JointSample measured;
+  Reports reported;
+
+  Clock::time_point next = Clock::now();
+  while (!stop_) {
+    next += period;
+    if (control_thread_->running()) {
+      const ci::LoopState state = loop_->latest_state();
+      const ros::Time stamp = ros::Time::now();
+      const JointSample* effort = nullptr;
+      if (joint_samples_) {
+        joint_samples_->read(measured);
+        effort = &measured;
+      }
+      fill_state_message(state, model_->joint_names(), effort, state_message);
+      state_message.header.stamp = stamp;
+      state_publisher_.publish(state_message);
+      torque_message.data.assign(state.controller.tau.data(),
+                                 state.controller.tau.data() + state.controller.tau.size());
+      torque_publisher_.publish(torque_message);
+      if (simulation_) {
+        joint_message.header.stamp = stamp;
+        joint_message.position.assign(state.q.data(), state.q.data() + state.q.size());
+        joint_message.velocity.assign(state.dq.data(), state.dq.data() + state.dq.size());
+        joint_message.effort = state_message.commanded_torques;
+        joint_state_publisher_.publish(joint_message);
+      }
+      report(state, reported);
+    }
+    const Clock::time_point now = Clock::now();
+    if (now - next > period) next = now;
+    std::this_thread::sleep_until(next);
+  }
+}
+
+// Reports for the log, from here rather than from the control thread.
+void CartesianImpedanceNode::report(const ci::LoopState& state, Reports& reported) const {
+  const ci::Status status = state.controller.status;
+  if (status != reported.status) {
+    if (status == ci::Status::ok) {
+      ROS_INFO("controller status: ok");
+    } else {
+      ROS_WARN("controller status: %s", ci::to_string(status));
+    }
+    reported.status = status;
+  }
+  const ci::runtime::ControlThreadStatistics statistics = control_thread_->statistics();
+  if (statistics.stale != reported.stale) {
+    if (statistics.stale) {
+      ROS_WARN("no joint_states for more than %g s: torque ramps toward zero",
+               settings_.joint_states_timeout);
+    } else {
+      ROS_INFO("joint_states are back");
+    }
+    reported.stale = statistics.stale;
+  }
+  if (statistics.overruns != reported.overruns) {
+    ROS_WARN_THROTTLE(5.0,
+                      "control cycle overran its %g ms period %llu times so far (latest %.0f us "
+                      "late, worst %.0f us)",
+                      1e3 / settings_.control_rate,
+                      static_cast<unsigned long long>(statistics.overruns),
+                      statistics.latest_lateness_us, statistics.worst_lateness_us);
+    reported.overruns = statistics.overruns;
+  }
+}
+
+void CartesianImpedanceNode::effort_thread() {
+  std_msgs::Float64MultiArray message;
+  prepare_array(message, model_->num_joints());
+  ci::runtime::TorqueSample sample;
+  while (!stop_) {
+    if (!torques_->wait(0.1, sample)) continue;  // a new cycle's torque, each once
+    message.data.assign(sample.tau.data(), sample.tau.data() + sample.tau.size());
+    effort_publisher_.publish(message);
+  }
+}
+
+}  // namespace cartesian_impedance_ros
