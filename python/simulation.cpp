@@ -19,6 +19,7 @@
 
 #include "cartesian_impedance/control_loop.hpp"
 #include "cartesian_impedance/error.hpp"
+#include "cartesian_impedance/sim/closed_loop_runner.hpp"
 #include "cartesian_impedance/sim/simulation.hpp"
 #include "cartesian_impedance/types.hpp"
 #include "conversions.hpp"
@@ -273,27 +274,22 @@ void bind_simulation(py::module_& m) {
               throw std::runtime_error(
                   "the control loop has not been started: call loop.start(sim.q, sim.dq) first");
             }
-            const std::int64_t steps = std::llround(seconds / simulation.timestep());
-            const double dt = simulation.timestep();
+            ci::sim::ClosedLoopRunner runner(simulation, loop);  // may throw: GIL still held
             Claim simulation_claim(self.running, "this Simulation");
             Claim loop_claim(control.running, "this ControlLoop");
-            std::int64_t done = 0;
             py::gil_scoped_release release;
-            while (done < steps) {
-              simulation.set_torque(loop.step(simulation.q(), simulation.dq(), dt));
-              simulation.step();
-              ++done;
+            const std::int64_t done = runner.run_for(seconds, [&](std::int64_t steps_done) {
               if (until_trajectory_done) {
                 const ci::TrajectoryState state = loop.state().trajectory.state;
                 if (state != ci::TrajectoryState::executing && state != ci::TrajectoryState::idle) {
-                  break;
+                  runner.request_stop();
                 }
               }
-              if (done % kSignalCheckSteps == 0) {
+              if (steps_done % kSignalCheckSteps == 0) {
                 py::gil_scoped_acquire acquire;
                 if (PyErr_CheckSignals() != 0) throw py::error_already_set();
               }
-            }
+            });
             return done;
           },
           py::arg("loop"), py::arg("seconds"), py::arg("until_trajectory_done") = false,

@@ -69,7 +69,22 @@ void check_stiffness(Stiffness& command) {
   }
 }
 
+// JointVector holds at most kMaxJoints values; more would overflow it.
+JointVector joint_values(std::string_view name, const Eigen::Ref<const Eigen::VectorXd>& values) {
+  if (values.size() > kMaxJoints) {
+    throw Error(std::string(name) + " has " + std::to_string(values.size()) + " values; at most " +
+                std::to_string(kMaxJoints) + " joints are supported");
+  }
+  return values;
+}
+
 }  // namespace
+
+NullspaceTarget::NullspaceTarget(const Eigen::Ref<const Eigen::VectorXd>& q)
+    : q_desired(joint_values("nullspace_target", q)) {}
+
+NullspaceStiffness::NullspaceStiffness(const Eigen::Ref<const Eigen::VectorXd>& k)
+    : stiffness(joint_values("nullspace.stiffness", k)) {}
 
 ValidCommand validate_command(Command command, int num_joints) {
   // How many joints the command was checked for, where that matters.

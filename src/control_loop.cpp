@@ -198,7 +198,7 @@ int ControlLoop::claim(std::vector<std::unique_ptr<SlotType>>& slots) const {
   return claimed;
 }
 
-void ControlLoop::send(const Command& command) {
+void ControlLoop::check_nullspace_target(const Command& command) const {
   if (const auto* target = std::get_if<NullspaceTarget>(&command)) {
     checks::size("nullspace_target", target->q_desired.size(), num_joints());
     // A target outside the limits would have the nullspace spring fight the joint limit.
@@ -210,6 +210,10 @@ void ControlLoop::send(const Command& command) {
       }
     }
   }
+}
+
+void ControlLoop::send(const Command& command) {
+  check_nullspace_target(command);
   ValidCommand valid = validate_command(command, num_joints());
   if (!std::holds_alternative<Parameters>(valid.command())) {
     std::visit(
@@ -233,6 +237,14 @@ void ControlLoop::send(const Command& command) {
     slot.state.store(Slot::free, std::memory_order_release);
     throw;
   }
+}
+
+void ControlLoop::send_all(const std::vector<Command>& commands) {
+  for (const Command& command : commands) {
+    check_nullspace_target(command);
+    validate_command(command, num_joints());
+  }
+  for (const Command& command : commands) send(command);
 }
 
 void ControlLoop::set_parameters(const Parameters& parameters) {

@@ -51,11 +51,20 @@ struct DampingRatio {
 /// ControlLoop, which knows them).
 struct NullspaceTarget {
   JointVector q_desired;
+
+  NullspaceTarget() = default;
+  /// @throws Error if `q_desired` has more than kMaxJoints values (the rest is checked by
+  /// validate_command()).
+  explicit NullspaceTarget(const Eigen::Ref<const Eigen::VectorXd>& q_desired);
 };
 
 /// Nullspace stiffness [Nm/rad]: one value for all joints or one per joint.
 struct NullspaceStiffness {
   JointVector stiffness;
+
+  NullspaceStiffness() = default;
+  /// @throws Error if `stiffness` has more than kMaxJoints values.
+  explicit NullspaceStiffness(const Eigen::Ref<const Eigen::VectorXd>& stiffness);
 };
 
 /// Nullspace damping ratio [-].

@@ -121,6 +121,9 @@ class ControlLoop {
   /// Any command (see command.hpp); the setters below are one-line wrappers around it. A
   /// nullspace target is also checked against the URDF's joint limits.
   void send(const Command& command);
+  /// Validates every command first and queues them in order only if all are valid, so a bad one
+  /// changes nothing. (A QueueFull part-way through leaves the earlier ones queued.)
+  void send_all(const std::vector<Command>& commands);
   void set_parameters(const Parameters& parameters);
   void set_reference_pose(const Pose& pose_base);
   void set_stiffness(const Vector6d& diagonal, std::optional<Frame> frame = std::nullopt);
@@ -179,6 +182,7 @@ class ControlLoop {
   int claim(std::vector<std::unique_ptr<SlotType>>& slots) const;
   void apply_messages(std::size_t at_most) noexcept;
   void check_positions(const Eigen::Ref<const Eigen::VectorXd>& q) const;
+  void check_nullspace_target(const Command& command) const;
   bool find_measurement_fault(const JointVector& q, const JointVector& dq,
                               Fault& fault) const noexcept;
   void begin_trajectory(int buffer, std::uint64_t id) noexcept;

@@ -91,25 +91,20 @@ void CartesianImpedanceNode::on_wrench(const geometry_msgs::WrenchStamped::Const
 
 void CartesianImpedanceNode::on_config(const NullspaceConfig::ConstPtr& message) {
   try {
-    // Validate all parts before sending any, so a bad message changes nothing.
-    const int n = model_->num_joints();
+    // All parts or none: a bad message changes nothing.
     std::vector<ci::Command> commands;
     if (!message->q_d_nullspace.empty()) {
-      commands.push_back(ci::Command::nullspace_target(
-          Eigen::Map<const Eigen::VectorXd>(
-              message->q_d_nullspace.data(),
-              static_cast<Eigen::Index>(message->q_d_nullspace.size())),
-          n));
+      commands.emplace_back(ci::NullspaceTarget(Eigen::Map<const Eigen::VectorXd>(
+          message->q_d_nullspace.data(),
+          static_cast<Eigen::Index>(message->q_d_nullspace.size()))));
     }
     if (!message->nullspace_stiffness.empty()) {
-      commands.push_back(ci::Command::nullspace_stiffness(
-          Eigen::Map<const Eigen::VectorXd>(
-              message->nullspace_stiffness.data(),
-              static_cast<Eigen::Index>(message->nullspace_stiffness.size())),
-          n));
+      commands.emplace_back(ci::NullspaceStiffness(Eigen::Map<const Eigen::VectorXd>(
+          message->nullspace_stiffness.data(),
+          static_cast<Eigen::Index>(message->nullspace_stiffness.size()))));
     }
-    commands.push_back(ci::Command::nullspace_damping_ratio(message->nullspace_damping_ratio));
-    for (const ci::Command& command : commands) loop_->send(command);
+    commands.emplace_back(ci::NullspaceDampingRatio{message->nullspace_damping_ratio});
+    loop_->send_all(commands);
   } catch (const std::exception& error) {
     ROS_WARN_THROTTLE(1.0, "set_config rejected: %s", error.what());
   }

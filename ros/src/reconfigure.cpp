@@ -109,11 +109,9 @@ void CartesianImpedanceNode::on_stiffness_reconfigure(StiffnessConfig& config,
                                                       std::uint32_t /*level*/) {
   if (!config.update_stiffness) return;
   try {
-    const ci::Command stiffness = ci::Command::stiffness(axes_of(config));
-    const ci::Command nullspace = ci::Command::nullspace_stiffness(
-        Eigen::VectorXd::Constant(1, config.nullspace_stiffness), model_->num_joints());
-    loop_->send(stiffness);
-    loop_->send(nullspace);
+    loop_->send_all(
+        {ci::Stiffness::diagonal(axes_of(config)),
+         ci::NullspaceStiffness(ci::JointVector::Constant(1, config.nullspace_stiffness))});
   } catch (const std::exception& error) {
     ROS_WARN("stiffness_reconfigure rejected: %s", error.what());
   }
@@ -123,10 +121,8 @@ void CartesianImpedanceNode::on_damping_reconfigure(DampingConfig& config,
                                                     std::uint32_t /*level*/) {
   if (!config.update_damping_factors) return;
   try {
-    const ci::Command cartesian = ci::Command::damping_ratio(axes_of(config));
-    const ci::Command nullspace = ci::Command::nullspace_damping_ratio(config.nullspace_damping);
-    loop_->send(cartesian);
-    loop_->send(nullspace);
+    loop_->send_all(
+        {ci::DampingRatio{axes_of(config)}, ci::NullspaceDampingRatio{config.nullspace_damping}});
   } catch (const std::exception& error) {
     ROS_WARN("damping_factors_reconfigure rejected: %s", error.what());
   }
