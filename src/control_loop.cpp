@@ -247,41 +247,6 @@ void ControlLoop::send_all(const std::vector<Command>& commands) {
   for (const Command& command : commands) send(command);
 }
 
-void ControlLoop::set_parameters(const Parameters& parameters) {
-  send(parameters);
-}
-void ControlLoop::set_reference_pose(const Pose& pose_base) {
-  send(ReferencePose{pose_base});
-}
-void ControlLoop::set_stiffness(const Vector6d& diagonal, std::optional<Frame> frame) {
-  send(Stiffness::diagonal(diagonal, frame));
-}
-void ControlLoop::set_stiffness_matrix(const Matrix6d& stiffness, std::optional<Frame> frame) {
-  send(Stiffness{stiffness, frame});
-}
-void ControlLoop::set_damping_ratio(const Vector6d& damping_ratio) {
-  send(DampingRatio{damping_ratio});
-}
-void ControlLoop::set_nullspace_target(const Eigen::Ref<const Eigen::VectorXd>& q_desired) {
-  checks::size("nullspace_target", q_desired.size(), num_joints());  // before it is copied
-  send(NullspaceTarget{q_desired});
-}
-void ControlLoop::set_nullspace_stiffness(const Eigen::Ref<const Eigen::VectorXd>& stiffness) {
-  checks::one_or_per_joint("nullspace.stiffness", stiffness.size(), num_joints());
-  send(NullspaceStiffness{stiffness});
-}
-void ControlLoop::set_nullspace_damping_ratio(double damping_ratio) {
-  send(NullspaceDampingRatio{damping_ratio});
-}
-void ControlLoop::set_wrench(const Vector6d& wrench, std::optional<Frame> frame) {
-  send(Wrench{wrench, frame});
-}
-
-void ControlLoop::start_teaching(bool keep_nullspace) {
-  send(Stiffness{});
-  if (!keep_nullspace) send(NullspaceStiffness{JointVector::Zero(1)});
-}
-
 std::uint64_t ControlLoop::execute_trajectory(const JointTrajectory& trajectory) {
   const int claimed = claim(buffers_);
   if (claimed < 0) {

@@ -212,10 +212,6 @@ void CartesianImpedanceController::refresh_damping_mode() noexcept {
   damping_computed_for_stiffness_.setConstant(std::nan(""));
 }
 
-void CartesianImpedanceController::set_parameters(const Parameters& parameters) {
-  apply(parameters);
-}
-
 void CartesianImpedanceController::check_robot_state(const RobotState& robot) const {
   checks::size("robot.q", robot.q.size(), num_joints_);
   checks::size("robot.dq", robot.dq.size(), num_joints_);
@@ -347,37 +343,6 @@ void CartesianImpedanceController::start(const RobotState& robot,
   last_valid_dt_ = std::clamp(1e-3, plausible.min, plausible.max);
   gains_.dt = -1.0;
   started_ = true;
-}
-
-void CartesianImpedanceController::set_reference_pose(const Pose& pose_base) {
-  apply(ReferencePose{pose_base});
-}
-void CartesianImpedanceController::set_stiffness(const Vector6d& diagonal,
-                                                 std::optional<Frame> frame) {
-  apply(Stiffness::diagonal(diagonal, frame));
-}
-void CartesianImpedanceController::set_stiffness_matrix(const Matrix6d& stiffness,
-                                                        std::optional<Frame> frame) {
-  apply(Stiffness{stiffness, frame});
-}
-void CartesianImpedanceController::set_damping_ratio(const Vector6d& damping_ratio) {
-  apply(DampingRatio{damping_ratio});
-}
-void CartesianImpedanceController::set_nullspace_target(
-    const Eigen::Ref<const Eigen::VectorXd>& q_desired) {
-  checks::size("nullspace_target", q_desired.size(), num_joints_);  // before it is copied
-  apply(NullspaceTarget{q_desired});
-}
-void CartesianImpedanceController::set_nullspace_stiffness(
-    const Eigen::Ref<const Eigen::VectorXd>& stiffness) {
-  checks::one_or_per_joint("nullspace.stiffness", stiffness.size(), num_joints_);
-  apply(NullspaceStiffness{stiffness});
-}
-void CartesianImpedanceController::set_nullspace_damping_ratio(double damping_ratio) {
-  apply(NullspaceDampingRatio{damping_ratio});
-}
-void CartesianImpedanceController::set_wrench(const Vector6d& wrench, std::optional<Frame> frame) {
-  apply(Wrench{wrench, frame});
 }
 
 void CartesianImpedanceController::apply(const Command& command) {

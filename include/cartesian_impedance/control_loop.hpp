@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "cartesian_impedance/command.hpp"
+#include "cartesian_impedance/command_setters.hpp"
 #include "cartesian_impedance/controller.hpp"
 #include "cartesian_impedance/mailbox.hpp"
 #include "cartesian_impedance/robot_model.hpp"
@@ -65,7 +66,7 @@ struct LoopCapacity {
   double send_timeout = 0.0;
 };
 
-class ControlLoop {
+class ControlLoop : public CommandSetters<ControlLoop> {
  public:
   /// @throws Error if the parameters are invalid for the model's joint count.
   explicit ControlLoop(const RobotModel& model, const Parameters& parameters = {},
@@ -124,20 +125,8 @@ class ControlLoop {
   /// Validates every command first and queues them in order only if all are valid, so a bad one
   /// changes nothing. (A QueueFull part-way through leaves the earlier ones queued.)
   void send_all(const std::vector<Command>& commands);
-  void set_parameters(const Parameters& parameters);
-  void set_reference_pose(const Pose& pose_base);
-  void set_stiffness(const Vector6d& diagonal, std::optional<Frame> frame = std::nullopt);
-  void set_stiffness_matrix(const Matrix6d& stiffness, std::optional<Frame> frame = std::nullopt);
-  void set_damping_ratio(const Vector6d& damping_ratio);
-  /// Nullspace target [rad], within the URDF's joint limits.
-  void set_nullspace_target(const Eigen::Ref<const Eigen::VectorXd>& q_desired);
-  void set_nullspace_stiffness(const Eigen::Ref<const Eigen::VectorXd>& stiffness);
-  void set_nullspace_damping_ratio(double damping_ratio);
-  void set_wrench(const Vector6d& wrench, std::optional<Frame> frame = std::nullopt);
-  /// Kinesthetic teaching (hand guiding): zero Cartesian stiffness, and zero nullspace stiffness
-  /// unless `keep_nullspace` is true. The arm then only feels its damping and friction and stays
-  /// where it is left. Any later stiffness command ends it; the changes are filtered.
-  void start_teaching(bool keep_nullspace = false);
+  // set_parameters(), set_reference_pose(), set_stiffness(), ... and start_teaching() come from
+  // CommandSetters: each validates its command (throwing Error) and sends it.
 
   /// Validates `trajectory` against the model (names, sizes, times, position limits), copies it
   /// into preallocated storage and queues it. It starts at the next step from the current
@@ -155,6 +144,9 @@ class ControlLoop {
   Parameters latest_parameters() const;
 
  private:
+  friend class CommandSetters<ControlLoop>;
+  void submit_command(const Command& command) { send(command); }
+
   struct Slot;
   struct TrajectorySlot;
   struct ParameterSlot;

@@ -15,6 +15,7 @@
 #include <string>
 
 #include "cartesian_impedance/command.hpp"
+#include "cartesian_impedance/command_setters.hpp"
 #include "cartesian_impedance/math.hpp"
 #include "cartesian_impedance/parameters.hpp"
 #include "cartesian_impedance/types.hpp"
@@ -111,22 +112,16 @@ struct ControllerState {
   Matrix6d damping_base() const noexcept;
 };
 
-class CartesianImpedanceController {
+class CartesianImpedanceController : public CommandSetters<CartesianImpedanceController> {
  public:
   /// @throws Error if num_joints is outside [1, kMaxJoints] or the parameters are invalid.
   explicit CartesianImpedanceController(int num_joints, const Parameters& parameters = {});
 
   int num_joints() const noexcept { return num_joints_; }
 
-  /// Current configuration. Diagonal setters below keep it up to date, so a read-modify-write
+  /// Current configuration. The diagonal setters keep it up to date, so a read-modify-write
   /// through set_parameters() preserves them.
   const Parameters& parameters() const noexcept { return parameters_; }
-
-  /// Replaces the whole configuration, including the commanded stiffness (as a diagonal), damping
-  /// ratios, nullspace stiffness and damping, and wrench, which are then approached through their
-  /// filters. Commands are re-saturated to the new limits.
-  /// @throws Error naming the field, value and valid range; nothing changes then.
-  void set_parameters(const Parameters& parameters);
 
   /// Starts (or restarts) from the measured state: reference pose = current pose, nullspace
   /// target = current q, filtered stiffness and damping = commanded, filtered wrench = 0 (it
@@ -137,24 +132,10 @@ class CartesianImpedanceController {
   void start(const RobotState& robot, const Eigen::Ref<const Eigen::VectorXd>& tau_previous);
   bool started() const noexcept { return started_; }
 
-  /// Reference pose T_base_ref. The quaternion must have unit norm (within 1e-3; it is then
-  /// normalised).
-  void set_reference_pose(const Pose& pose_base);
-  /// Diagonal stiffness [N/m x3, Nm/rad x3] in `frame` (default: the configured frame).
-  void set_stiffness(const Vector6d& diagonal, std::optional<Frame> frame = std::nullopt);
-  /// Full symmetric positive semi-definite stiffness [N/m, N/rad; N, Nm/rad] in `frame`.
-  void set_stiffness_matrix(const Matrix6d& stiffness, std::optional<Frame> frame = std::nullopt);
-  /// Damping ratio per axis of the stiffness frame [-].
-  void set_damping_ratio(const Vector6d& damping_ratio);
-  /// Nullspace target configuration q_d [rad], one value per joint.
-  void set_nullspace_target(const Eigen::Ref<const Eigen::VectorXd>& q_desired);
-  /// Nullspace stiffness [Nm/rad], one value for all joints or one per joint.
-  void set_nullspace_stiffness(const Eigen::Ref<const Eigen::VectorXd>& stiffness);
-  void set_nullspace_damping_ratio(double damping_ratio);
-  /// Commanded wrench [N; Nm] in `frame` (default: the configured frame).
-  void set_wrench(const Vector6d& wrench, std::optional<Frame> frame = std::nullopt);
+  // set_parameters(), set_reference_pose(), set_stiffness(), ... and start_teaching() come from
+  // CommandSetters: each validates its command (throwing Error, changing nothing) and applies it.
 
-  /// Validates and applies any command (see command.hpp); the setters above are this.
+  /// Validates and applies any command (see command.hpp); the setters are this.
   /// @throws Error naming the field, value and valid range; nothing changes then.
   void apply(const Command& command);
   /// Applies a validated command: noexcept and allocation-free, so a control loop can apply
@@ -192,6 +173,9 @@ class CartesianImpedanceController {
   const ControllerState& state() const noexcept { return state_; }
 
  private:
+  friend class CommandSetters<CartesianImpedanceController>;
+  void submit_command(const Command& command) { apply(command); }
+
   struct FilterGains {
     double dt = -1.0;
     double pose = 1.0, stiffness = 1.0, nullspace = 1.0, wrench = 1.0;
