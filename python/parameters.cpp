@@ -1,134 +1,137 @@
-// Python bindings of Parameters and the parameter table. Every Python value goes to and from the
-// library's Parameters through the rows of ci::parameter_table() here: reading a row
-// (field_value), writing one (assign_field), dicts of dotted names or nested dicts (flatten,
-// parameters_with, read_parameters, parameters_dict) and the table itself (parameter_table_list).
+// Python bindings of Parameters and the parameter table: the Python adapter of the library's one
+// parameter decoder (cartesian_impedance/parameter_tree.hpp), as the YAML loader and the ROS
+// parameter reader are. Python values become a ci::ParameterValue tree (to_value) that
+// ci::decode_parameters() / ci::assign_parameter() decode; values leave through
+// ci::encode_parameter(s) (to_python). Every message about a value's type, shape or range is the
+// decoder's; only what Python itself brings (keys that are not str, objects that are no parameter
+// value at all) is checked here.
 
 #include "parameters.hpp"
 
-#include <algorithm>
 #include <string>
 #include <string_view>
 #include <utility>
-#include <vector>
 
 #include "cartesian_impedance/config.hpp"
 #include "cartesian_impedance/error.hpp"
+#include "cartesian_impedance/parameter_tree.hpp"
 #include "conversions.hpp"
 #include "module.hpp"
 
 namespace cartesian_impedance::python {
 
-// ---- Parameters through the parameter table --------------------------------------------------
-
 namespace {
 
-// The table hands out mutable pointers only; reading through them changes nothing.
-ci::ParameterField field_of(const ci::Parameters& parameters, const ci::ParameterInfo& info) {
-  return info.in(const_cast<ci::Parameters&>(parameters));
+// numpy.<name>, never destroyed (a static py::object would be released after the interpreter).
+const py::object& numpy_attribute(const char* name) {
+  return *new py::object(py::module_::import("numpy").attr(name));
 }
 
-/// The value of one row: float, str (frames), bool, or for vectors a NumPy array (`as_list`:
-/// a list of floats, as in to_dict()).
-py::object field_value(const ci::Parameters& parameters, const ci::ParameterInfo& info,
-                       bool as_list) {
-  const ci::ParameterField field = field_of(parameters, info);
-  const auto vector = [as_list](const Eigen::Ref<const Eigen::VectorXd>& values) -> py::object {
-    if (!as_list) return vector_array(values);
-    py::list list;
-    for (Eigen::Index i = 0; i < values.size(); ++i) list.append(values[i]);
-    return std::move(list);
-  };
-  if (auto* value = std::get_if<double*>(&field)) return py::float_(**value);
-  if (auto* values = std::get_if<Eigen::Vector3d*>(&field)) return vector(**values);
-  if (auto* joints = std::get_if<ci::JointVector*>(&field)) return vector(**joints);
-  if (auto* frame = std::get_if<ci::Frame*>(&field)) {
-    return py::str(std::string(ci::frame_name(**frame)));
+std::string child_path(const std::string& path, const std::string& key) {
+  return path.empty() ? key : path + "." + key;
+}
+
+/// `object` as the decoder's value; `path` names it in the messages of the checks made here.
+ci::ParameterValue to_value(py::handle object, const std::string& path) {
+  static const py::object& generic = numpy_attribute("generic");
+  static const py::object& asarray = numpy_attribute("asarray");
+  PyObject* pointer = object.ptr();
+  if (object.is_none()) return {};
+  if (PyBool_Check(pointer)) return ci::ParameterValue::boolean(pointer == Py_True);
+  if (py::isinstance<ci::Frame>(object)) {
+    return ci::ParameterValue::string(std::string(ci::frame_name(object.cast<ci::Frame>())));
   }
-  return py::bool_(*std::get<bool*>(field));
-}
-
-bool field_equal(const ci::Parameters& a, const ci::Parameters& b, const ci::ParameterInfo& info) {
-  return std::visit(
-      [&](auto* left) {
-        using Pointer = decltype(left);
-        auto* right = std::get<Pointer>(field_of(b, info));
-        if constexpr (std::is_same_v<Pointer, ci::JointVector*>) {
-          return left->size() == right->size() && *left == *right;
-        } else {
-          return *left == *right;
-        }
-      },
-      field_of(a, info));
-}
-
-/// Stores `value` in the row's field of `parameters` (shape and type checked; ranges are checked
-/// by ci::validate() afterwards, which names the element).
-void assign_field(ci::Parameters& parameters, const ci::ParameterInfo& info, py::handle value) {
-  const std::string name(info.name);
-  const ci::ParameterField field = info.in(parameters);
-  if (auto* number = std::get_if<double*>(&field)) {
-    **number = read_scalar(value, name);
-  } else if (auto* axes = std::get_if<Eigen::Vector3d*>(&field)) {
-    if (is_array_like_vector(value)) {
-      read_vector(value, name, Length{3}, **axes, " (x, y, z) or be one number");
-    } else {
-      (*axes)->setConstant(read_scalar(value, name));
+  if (PyFloat_Check(pointer)) return ci::ParameterValue::number(PyFloat_AS_DOUBLE(pointer));
+  if (PyLong_Check(pointer)) {
+    const double value = PyLong_AsDouble(pointer);
+    if (value == -1.0 && PyErr_Occurred()) {
+      if (!PyErr_ExceptionMatches(PyExc_OverflowError)) throw py::error_already_set();
+      PyErr_Clear();
+      const std::string text = py::str(object);
+      return ci::ParameterValue::too_large(text, text[0] == '-');
     }
-  } else if (auto* joints = std::get_if<ci::JointVector*>(&field)) {
-    **joints = read_one_or_vector(value, name, Length{-1, ci::kMaxJoints});
-  } else if (auto* frame = std::get_if<ci::Frame*>(&field)) {
-    const std::optional<ci::Frame> given = read_frame(value, name);
-    if (!given) throw py::type_error(name + " must be 'base' or 'end_effector', got None");
-    **frame = *given;
-  } else if (auto* flag = std::get_if<bool*>(&field)) {
-    static const py::object* numpy_bool =
-        new py::object(py::module_::import("numpy").attr("bool_"));
-    if (!PyBool_Check(value.ptr()) && !py::isinstance(value, *numpy_bool)) {
-      throw py::type_error(name + " must be True or False, got " + type_name(value));
-    }
-    **flag = value.cast<bool>();
+    return ci::ParameterValue::number(value);
   }
-}
-
-bool is_parameter_group(const std::string& path) {
-  const std::string prefix = path + ".";
-  for (const ci::ParameterInfo& info : ci::parameter_table()) {
-    if (info.name.substr(0, prefix.size()) == prefix) return true;
+  if (py::isinstance<py::str>(object)) {
+    return ci::ParameterValue::string(object.cast<std::string>());
   }
-  return false;
-}
-
-const ci::ParameterInfo* find_row(std::string_view name) {
-  for (const ci::ParameterInfo& info : ci::parameter_table()) {
-    if (info.name == name) return &info;
+  if (is_mapping(object)) {
+    ci::ParameterMap members;
+    for (const auto item : py::reinterpret_borrow<py::object>(object).attr("items")()) {
+      const py::tuple pair(py::reinterpret_borrow<py::object>(item));  // converts, checked
+      if (pair.size() != 2) throw py::type_error("items() of a parameter mapping must be pairs");
+      if (!py::isinstance<py::str>(pair[0])) {
+        throw py::type_error("parameter names must be str, got " + type_name(pair[0]) +
+                             (path.empty() ? "" : " in '" + path + "'"));
+      }
+      const std::string key = pair[0].cast<std::string>();
+      members.push_back({key, to_value(pair[1], child_path(path, key)), {}});
+    }
+    return ci::ParameterValue::map(std::move(members));
   }
-  return nullptr;
+  if (is_sequence(object)) {
+    ci::ParameterList items;
+    for (const py::handle item : py::reinterpret_borrow<py::sequence>(object)) {
+      items.push_back(to_value(item, path + "[" + std::to_string(items.size()) + "]"));
+    }
+    return ci::ParameterValue::list(std::move(items));
+  }
+  if (py::isinstance<py::array>(object) || py::isinstance(object, generic)) {
+    py::array array = asarray(object);
+    const char kind = array.dtype().kind();
+    if (kind != 'c' && kind != 'O') {
+      // 0-d: the Python scalar; n-d: nested Python lists (long double becomes float first, else
+      // its item() would be a NumPy scalar again).
+      if (kind == 'f') array = array.attr("astype")("float64");
+      return to_value(array.ndim() == 0 ? array.attr("item")() : array.attr("tolist")(), path);
+    }
+    throw py::type_error(path + " must be real numbers, got dtype " +
+                         std::string(py::str(array.dtype())));
+  }
+  throw py::type_error(path + " must be a number, a bool, a str, a list, a dict or None, got " +
+                       type_name(object));
 }
 
-const ci::ParameterInfo& row_for_key(const std::string& path) {
-  if (const ci::ParameterInfo* info = find_row(path)) return *info;
-  throw ci::Error("unknown parameter '" + path + "'" +
-                  (is_parameter_group(path) ? " (it is a group; give its members)" : ""));
+/// `value` in Python: float, bool, str, None, dict; lists as NumPy arrays or (`lists`) lists of
+/// floats.
+py::object to_python(const ci::ParameterValue& value, bool lists) {
+  using Kind = ci::ParameterValue::Kind;
+  switch (value.kind()) {
+    case Kind::empty:
+      return py::none();
+    case Kind::number:
+      return py::float_(value.as_number());
+    case Kind::boolean:
+      return py::bool_(value.as_boolean());
+    case Kind::string:
+      return py::str(value.as_string());
+    case Kind::list: {
+      py::list items;
+      for (const ci::ParameterValue& item : value.as_list()) items.append(to_python(item, lists));
+      return lists ? py::object(std::move(items)) : py::object(py::array_t<double>(items));
+    }
+    case Kind::map:
+      break;
+  }
+  py::dict members;
+  for (const ci::ParameterMember& member : value.as_map()) {
+    members[py::str(member.key)] = to_python(member.value, lists);
+  }
+  return std::move(members);
 }
 
-/// Flattens dotted keys and nested dicts into (row name, value) pairs.
-void flatten(py::handle mapping, const std::string& prefix,
-             std::vector<std::pair<std::string, py::object>>& out) {
-  for (const auto item : py::reinterpret_borrow<py::object>(mapping).attr("items")()) {
-    const py::tuple pair(py::reinterpret_borrow<py::object>(item));  // converts, checked
-    if (pair.size() != 2) throw py::type_error("items() of a parameter mapping must be pairs");
-    if (!py::isinstance<py::str>(pair[0])) {
-      throw py::type_error("parameter names must be str, got " + type_name(pair[0]) +
-                           (prefix.empty() ? "" : " in '" + prefix + "'"));
+/// Runs `decode`; the decoder's errors about a value's type (or its absence) become TypeError,
+/// the others stay cartesian_impedance.Error (a ValueError).
+template <typename Decode>
+auto decoding(Decode&& decode) {
+  try {
+    return decode();
+  } catch (const ci::ParameterError& error) {
+    using Reason = ci::ParameterError::Reason;
+    if (error.reason() == Reason::wrong_type || error.reason() == Reason::no_value) {
+      throw py::type_error(error.what());
     }
-    const std::string key = pair[0].cast<std::string>();
-    const std::string path = prefix.empty() ? key : prefix + "." + key;
-    const py::object value = pair[1];
-    if (find_row(path) == nullptr && is_mapping(value) && is_parameter_group(path)) {
-      flatten(value, path, out);
-    } else {
-      out.emplace_back(path, value);
-    }
+    throw;
   }
 }
 
@@ -138,42 +141,21 @@ ci::Parameters parameters_with(const ci::Parameters& base, py::handle mapping) {
     throw py::type_error("parameters must be given as a dict (dotted names or nested dicts), got " +
                          type_name(mapping));
   }
-  std::vector<std::pair<std::string, py::object>> entries;
-  flatten(mapping, "", entries);
-  ci::Parameters parameters = base;
-  std::vector<std::string> seen;
-  for (const auto& [path, value] : entries) {
-    const ci::ParameterInfo& info = row_for_key(path);
-    if (std::find(seen.begin(), seen.end(), path) != seen.end()) {
-      throw ci::Error("parameter '" + path +
-                      "' is given twice (as a dotted name and in a nested dict)");
-    }
-    seen.push_back(path);
-    assign_field(parameters, info, value);
-  }
-  ci::validate(parameters);
-  return parameters;
+  return decoding([&] { return ci::decode_parameters(to_value(mapping, ""), base); });
+}
+
+py::object parameter_value(const ci::Parameters& parameters, const ci::ParameterInfo& row,
+                           bool lists) {
+  return to_python(ci::encode_parameter(parameters, row), lists);
 }
 
 py::dict parameters_dict(const ci::Parameters& parameters, bool nested) {
-  py::dict result;
-  for (const ci::ParameterInfo& info : ci::parameter_table()) {
-    const py::object value = field_value(parameters, info, true);
-    if (!nested) {
-      result[py::str(std::string(info.name))] = value;
-      continue;
-    }
-    py::dict group = result;
-    std::string_view name = info.name;
-    for (std::size_t dot; (dot = name.find('.')) != std::string_view::npos;) {
-      const py::str key(std::string(name.substr(0, dot)));
-      if (!group.contains(key)) group[key] = py::dict();
-      group = group[key].cast<py::dict>();
-      name.remove_prefix(dot + 1);
-    }
-    group[py::str(std::string(name))] = value;
-  }
-  return result;
+  const ci::KeyLayout layout = nested ? ci::KeyLayout::nested : ci::KeyLayout::dotted;
+  return to_python(ci::encode_parameters(parameters, layout), true).cast<py::dict>();
+}
+
+bool field_equal(const ci::Parameters& a, const ci::Parameters& b, const ci::ParameterInfo& row) {
+  return ci::encode_parameter(a, row) == ci::encode_parameter(b, row);
 }
 
 std::string parameters_repr(const ci::Parameters& parameters) {
@@ -182,7 +164,7 @@ std::string parameters_repr(const ci::Parameters& parameters) {
   for (const ci::ParameterInfo& info : ci::parameter_table()) {
     if (field_equal(parameters, defaults, info)) continue;
     text += (text.empty() ? "" : ", ") + std::string(py::repr(py::str(std::string(info.name)))) +
-            ": " + std::string(py::repr(field_value(parameters, info, true)));
+            ": " + std::string(py::repr(parameter_value(parameters, info, true)));
   }
   return text.empty() ? "Parameters()" : "Parameters({" + text + "})";
 }
@@ -194,10 +176,10 @@ py::list parameter_names() {
 }
 
 py::list parameter_table_list() {
-  const ci::Parameters defaults;
+  ci::Parameters defaults;
   py::list rows;
   for (const ci::ParameterInfo& info : ci::parameter_table()) {
-    const ci::ParameterField field = field_of(defaults, info);
+    const ci::ParameterField field = info.in(defaults);
     const char* kind = std::holds_alternative<double*>(field)            ? "number"
                        : std::holds_alternative<Eigen::Vector3d*>(field) ? "xyz"
                        : std::holds_alternative<ci::JointVector*>(field) ? "per_joint"
@@ -207,7 +189,7 @@ py::list parameter_table_list() {
     row["name"] = std::string(info.name);
     row["unit"] = std::string(info.unit);
     row["kind"] = kind;
-    row["default"] = field_value(defaults, info, true);
+    row["default"] = parameter_value(defaults, info, true);
     row["min"] = info.min;
     row["max"] = info.max;
     row["min_exclusive"] = info.min_exclusive;
@@ -247,8 +229,9 @@ void bind_parameters(py::module_& m) {
       .def_static(
           "from_dict", [](Mapping values) { return parameters_with(ci::Parameters{}, values); },
           py::arg("values"),
-          "The defaults updated with `values` (dotted names or nested dicts). Raises Error for an "
-          "unknown name or an invalid value, TypeError/ValueError for a wrong type or shape.")
+          "The defaults updated with `values` (dotted names or nested dicts). Raises TypeError for "
+          "a value of the wrong type or None, Error for an unknown name, a wrong shape or a value "
+          "out of range, with the messages YAML gets.")
       .def(
           "to_dict",
           [](const ci::Parameters& parameters, bool nested) {
@@ -284,7 +267,7 @@ void bind_parameters(py::module_& m) {
       .def(
           "__getitem__",
           [](const ci::Parameters& parameters, const std::string& name) {
-            return field_value(parameters, row_for_key(name), false);
+            return parameter_value(parameters, ci::parameter_info(name), false);
           },
           py::arg("name"),
           "Value of a dotted name: float, NumPy array (x, y, z or per joint), str (frame) or bool.")
@@ -292,13 +275,15 @@ void bind_parameters(py::module_& m) {
           "__setitem__",
           [](ci::Parameters& parameters, const std::string& name, py::object value) {
             ci::Parameters changed = parameters;
-            assign_field(changed, row_for_key(name), value);
+            decoding([&] { ci::assign_parameter(changed, name, to_value(value, name)); });
             ci::validate(changed);
             parameters = changed;
           },
           py::arg("name"), py::arg("value"))
       .def("__contains__",
-           [](const ci::Parameters&, const std::string& name) { return find_row(name) != nullptr; })
+           [](const ci::Parameters&, const std::string& name) {
+             return ci::find_parameter(name) != nullptr;
+           })
       .def(
           "keys", [](const ci::Parameters&) { return parameter_names(); },
           "Every dotted name, in the order of the parameter table.")

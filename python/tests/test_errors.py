@@ -3,6 +3,7 @@ rejects (cartesian_impedance.Error, a ValueError, with the library's message), b
 nothing changes when a call is rejected."""
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -271,17 +272,21 @@ def test_unknown_and_malformed_parameter_keys():
 
 @pytest.mark.parametrize("name, value, error, text", [
     ("stiffness.translation", [1, 2], ValueError,
-     r"stiffness.translation must have shape \(3,\) \(x, y, z\) or be one number, got length 2"),
-    ("stiffness.translation", "500", TypeError, "stiffness.translation must be real numbers"),
-    ("filter.pose.time", True, TypeError, "filter.pose.time must be a real number, got bool"),
-    ("filter.pose.time", [0.1], TypeError, "filter.pose.time must be a real number, got list"),
+     r"^stiffness.translation must be 3 numbers \[x, y, z\] or one number, got a list of 2$"),
+    ("stiffness.translation", "500", TypeError,
+     r"^stiffness.translation = '500' is not a number \[N/m\]$"),
+    ("filter.pose.time", True, TypeError, r"^filter.pose.time = true is not a number \[s\]$"),
+    ("filter.pose.time", [0.1], TypeError,
+     r"^filter.pose.time = a list of 1 is not a number \[s\]$"),
     ("filter.pose.fraction", 0, ci.Error, r"filter.pose.fraction = 0 is outside \[0.5, 1\]"),
     ("nullspace.stiffness", np.ones(ci.MAX_JOINTS + 1), ValueError,
-     r"1 <= n <= %d or be one number" % ci.MAX_JOINTS),
+     r"^nullspace.stiffness must be one number or a list of 1 to %d numbers \(one per joint\), "
+     r"got a list of %d$" % (ci.MAX_JOINTS, ci.MAX_JOINTS + 1)),
     ("nullspace.stiffness", [1, -1], ci.Error, r"nullspace.stiffness\[1\] = -1 Nm/rad"),
     ("stiffness.frame", "world", ci.Error, "stiffness.frame = 'world' is not a frame"),
-    ("stiffness.frame", None, TypeError, "stiffness.frame must be 'base' or 'end_effector'"),
-    ("dynamics.gravity_compensation", 1, TypeError, "must be True or False, got int"),
+    ("stiffness.frame", None, TypeError, "^stiffness.frame has no value$"),
+    ("dynamics.gravity_compensation", 1, TypeError,
+     "^dynamics.gravity_compensation = 1 is not true or false$"),
     ("limits.stiffness.translation.min", 6000, ci.Error,
      "limits.stiffness.translation.min = 6000 N/m is greater than"),
 ])
@@ -294,6 +299,40 @@ def test_bad_parameter_values_leave_the_object_unchanged(name, value, error, tex
     with pytest.raises(error, match=text):
         ci.Parameters({name: value})
     assert p == ci.Parameters()
+
+
+# The same mistake as a nested dict and as YAML: both go through the library's one decoder, so the
+# message is the same (YAML puts "<yaml>:line: " in front; a dict has no lines). From a dict, a
+# wrong type or a missing value is a TypeError; from YAML every mistake is an Error.
+SAME_MISTAKES = [
+    ({"stiffness": {"translation": [1, 2]}}, "stiffness:\n  translation: [1, 2]\n", ci.Error),
+    ({"stiffness": {"translation": "abc"}}, "stiffness:\n  translation: abc\n", TypeError),
+    ({"stiffness": {"rotation": [1, True, 1]}}, "stiffness:\n  rotation: [1, true, 1]\n",
+     TypeError),
+    ({"filter": {"pose": {"time": -1}}}, "filter:\n  pose:\n    time: -1\n", ci.Error),
+    ({"nullspace": {"stiffness": [1, -1]}}, "nullspace:\n  stiffness: [1, -1]\n", ci.Error),
+    ({"stiffness": {"frame": "world"}}, "stiffness:\n  frame: world\n", ci.Error),
+    ({"stiffness": {"frame": None}}, "stiffness:\n  frame:\n", TypeError),
+    ({"dynamics": {"gravity_compensation": 1}}, "dynamics:\n  gravity_compensation: 1\n",
+     TypeError),
+    ({"stiffness": {"tranlation": 5}}, "stiffness:\n  tranlation: 5\n", ci.Error),
+    ({"stiffness": 500}, "stiffness: 500\n", ci.Error),
+    ({"filter.pose.time": 10**400}, "filter.pose.time: 1e400\n", ci.Error),
+    ({"limits": {"stiffness": {"translation": {"min": 6000}}}},
+     "limits:\n  stiffness:\n    translation:\n      min: 6000\n", ci.Error),
+]
+
+
+@pytest.mark.parametrize("mapping, yaml, error", SAME_MISTAKES)
+def test_a_dict_and_yaml_give_the_same_message(mapping, yaml, error):
+    with pytest.raises(error) as from_dict:
+        ci.Parameters(mapping)
+    with pytest.raises(ci.Error) as from_yaml:
+        ci.Parameters.from_yaml(yaml)
+    dict_message = str(from_dict.value)
+    if "1e400" in yaml:  # Python writes the int out in full, YAML as written
+        dict_message = dict_message.replace(str(10**400), "1e400")
+    assert re.sub(r"^<yaml>(:\d+)?: ", "", str(from_yaml.value)) == dict_message
 
 
 def test_bad_parameter_files(tmp_path):
