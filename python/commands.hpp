@@ -9,6 +9,7 @@
 
 #include "cartesian_impedance/types.hpp"
 #include "conversions.hpp"
+#include "parameters.hpp"
 
 namespace cartesian_impedance::python {
 
@@ -98,6 +99,24 @@ void def_commands(py::class_<Self>& binding, Target& (*target)(Self&), const std
           py::arg("wrench"), py::arg("frame") = py::none(),
           doc("the commanded wrench [force; torque] (6,) [N; Nm] on the environment, in `frame` "
               "('base' or 'end_effector'; default: the configured wrench.frame).")
+              .c_str())
+      .def(
+          "set_parameters",
+          [target](Self& self, ParametersLike parameters) {
+            target(self).set_parameters(read_parameters(parameters));
+          },
+          py::arg("parameters"),
+          doc("a whole new configuration (Parameters or dict); the commanded stiffness, damping, "
+              "nullspace and wrench then follow it through their filters.")
+              .c_str())
+      .def(
+          "start_teaching",
+          [target](Self& self, bool keep_nullspace) {
+            target(self).start_teaching(keep_nullspace);
+          },
+          py::arg("keep_nullspace") = false,
+          doc("kinesthetic teaching: zero Cartesian stiffness (and nullspace stiffness unless "
+              "keep_nullspace). Any later stiffness command ends it.")
               .c_str());
 }
 

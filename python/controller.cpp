@@ -388,12 +388,6 @@ void bind_controller(py::module_& m) {
           "parameters", [](const Controller& c) { return c.parameters(); },
           "A copy of the configuration in force.")
       .def(
-          "set_parameters",
-          [](Controller& c, ParametersLike parameters) {
-            c.set_parameters(read_parameters(parameters));
-          },
-          py::arg("parameters"), "Replaces the whole configuration (Parameters or dict).")
-      .def(
           "start",
           [](Controller& c, const ci::RobotState& robot, ArrayLike tau_previous) {
             if (tau_previous.is_none()) return c.start(robot);

@@ -276,18 +276,6 @@ void bind_control_loop(py::module_& m) {
           "latest_parameters", [](const Loop& self) { return self.loop.latest_parameters(); },
           "Parameters in force as of the last step (any thread).")
       .def(
-          "set_parameters",
-          [](Loop& self, ParametersLike parameters) {
-            self.loop.set_parameters(read_parameters(parameters));
-          },
-          py::arg("parameters"), "Queues a whole new configuration (Parameters or dict).")
-      .def(
-          "start_teaching",
-          [](Loop& self, bool keep_nullspace) { self.loop.start_teaching(keep_nullspace); },
-          py::arg("keep_nullspace") = false,
-          "Kinesthetic teaching: zero Cartesian stiffness (and nullspace stiffness unless "
-          "keep_nullspace). Any later stiffness command ends it.")
-      .def(
           "execute_trajectory",
           [](Loop& self, ArrayLike times, ArrayLike positions, ArrayLike velocities,
              std::optional<std::vector<std::string>> joint_names) {
