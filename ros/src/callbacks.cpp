@@ -51,16 +51,23 @@ void CartesianImpedanceNode::on_reference_pose(
   }
 }
 
+ci::Command CartesianImpedanceNode::framed_command(const std::string& frame_id,
+                                                   const ci::Vector6d& values, bool stiffness) {
+  Eigen::Matrix3d rotation;
+  const std::optional<ci::Frame> frame = frame_of(frame_id, rotation);
+  const bool as_given = frame || frame_id.empty();
+  if (stiffness) {
+    if (as_given) return ci::Stiffness::diagonal(values, frame);
+    return ci::Stiffness(rotate_stiffness(rotation, values), ci::Frame::base);
+  }
+  if (as_given) return ci::Wrench(values, frame);
+  return ci::Wrench(rotate_wrench(rotation, values), ci::Frame::base);
+}
+
 void CartesianImpedanceNode::on_stiffness(const geometry_msgs::WrenchStamped::ConstPtr& message) {
   try {
-    const ci::Vector6d diagonal = vector_from_wrench(message->wrench);
-    Eigen::Matrix3d rotation;
-    const std::optional<ci::Frame> frame = frame_of(message->header.frame_id, rotation);
-    if (frame || message->header.frame_id.empty()) {
-      loop_->set_stiffness(diagonal, frame);
-    } else {
-      loop_->set_stiffness_matrix(rotate_stiffness(rotation, diagonal), ci::Frame::base);
-    }
+    loop_->send(
+        framed_command(message->header.frame_id, vector_from_wrench(message->wrench), true));
   } catch (const std::exception& error) {
     ROS_WARN_THROTTLE(1.0, "set_cartesian_stiffness rejected: %s", error.what());
   }
@@ -76,14 +83,8 @@ void CartesianImpedanceNode::on_damping_factors(const geometry_msgs::Wrench::Con
 
 void CartesianImpedanceNode::on_wrench(const geometry_msgs::WrenchStamped::ConstPtr& message) {
   try {
-    const ci::Vector6d wrench = vector_from_wrench(message->wrench);
-    Eigen::Matrix3d rotation;
-    const std::optional<ci::Frame> frame = frame_of(message->header.frame_id, rotation);
-    if (frame || message->header.frame_id.empty()) {
-      loop_->set_wrench(wrench, frame);
-    } else {
-      loop_->set_wrench(rotate_wrench(rotation, wrench), ci::Frame::base);
-    }
+    loop_->send(
+        framed_command(message->header.frame_id, vector_from_wrench(message->wrench), false));
   } catch (const std::exception& error) {
     ROS_WARN_THROTTLE(1.0, "set_cartesian_wrench rejected: %s", error.what());
   }

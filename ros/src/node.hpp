@@ -104,6 +104,11 @@ class CartesianImpedanceNode {
   /// The frame a stiffness or wrench message names: nullopt for "" (the configured frame),
   /// base or end_effector for the base or tip link; else R_base_frame from tf2 in `rotation`.
   /// @throws cartesian_impedance::Error if the transform is not available.
+  // A stiffness diagonal or a wrench given in `frame_id`: in the named frame as it is (empty:
+  // the configured one), in any other frame rotated into the base frame once with tf2.
+  cartesian_impedance::Command framed_command(const std::string& frame_id,
+                                              const cartesian_impedance::Vector6d& values,
+                                              bool stiffness);
   std::optional<cartesian_impedance::Frame> frame_of(const std::string& frame_id,
                                                      Eigen::Matrix3d& rotation) const;
   /// T_base_frame from tf2 (latest available), waiting at most ~tf_timeout.
