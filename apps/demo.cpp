@@ -102,7 +102,9 @@ Options parse(int argc, char** argv) {
     } else if (argument == "--no-plots") {
       options.plots = false;
     } else {
-      usage_error("unknown argument '" + argument + "'");
+      usage_error("unknown argument '" + argument +
+                  "' (valid: --robot, --urdf, --mjcf, --base-link, --tip-link, --flange, --config, "
+                  "--scenario, --out, --no-render, --no-plots, --help)");
     }
   }
   if (!urdf.empty()) {
@@ -131,7 +133,9 @@ Options parse(int argc, char** argv) {
   const std::vector<std::string>& known = scenarios::scenario_names();
   for (const std::string& name : options.scenarios) {
     if (std::find(known.begin(), known.end(), name) == known.end()) {
-      usage_error("unknown scenario '" + name + "' (see --help)");
+      std::string names;
+      for (const std::string& known_name : known) names += (names.empty() ? "" : ", ") + known_name;
+      usage_error("unknown scenario '" + name + "' (valid: " + names + ")");
     }
   }
   if (options.scenarios.empty()) options.scenarios = known;

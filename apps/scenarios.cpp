@@ -774,7 +774,7 @@ Outcome run_scenario(const std::string& name, const RobotSetup& robot,
   }
   std::string names;
   for (const std::string& known : scenario_names()) names += (names.empty() ? "" : ", ") + known;
-  throw Error("unknown scenario '" + name + "' (known: " + names + ")");
+  throw Error("unknown scenario '" + name + "' (valid: " + names + ")");
 }
 
 }  // namespace cartesian_impedance::scenarios

@@ -1,9 +1,11 @@
 #include "cartesian_impedance/parameter_tree.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <map>
 #include <utility>
+#include <vector>
 
 namespace cartesian_impedance {
 namespace {
@@ -228,12 +230,90 @@ std::string with_location(std::string_view location, std::string_view message) {
   return text += message;
 }
 
+namespace {
+
+std::size_t edit_distance(std::string_view a, std::string_view b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diagonal = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t above = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] != b[j - 1] ? 1u : 0u)});
+      diagonal = above;
+    }
+  }
+  return row[b.size()];
+}
+
+// The names one level below `group` ("" = the top level), in table order: members and subgroups.
+std::vector<std::string> names_under(std::string_view group) {
+  std::vector<std::string> names;
+  for (const ParameterInfo& info : parameter_table()) {
+    std::string_view name = info.name;
+    if (!group.empty()) {
+      if (name.size() <= group.size() || name.substr(0, group.size()) != group ||
+          name[group.size()] != '.') {
+        continue;
+      }
+      name.remove_prefix(group.size() + 1);
+    }
+    const std::string first(name.substr(0, name.find('.')));
+    if (std::find(names.begin(), names.end(), first) == names.end()) names.push_back(first);
+  }
+  return names;
+}
+
+// What the user may have meant by the unknown `path`: the closest parameter or group name (a
+// typo's worth of edits away), and the valid names at the level where the path went wrong.
+std::string suggestions(std::string_view path) {
+  std::string text;
+  if (is_parameter_group(path)) {
+    text = " (it is a group; give its members: ";
+    const std::vector<std::string> members = names_under(path);
+    for (std::size_t i = 0; i < members.size(); ++i) text += (i > 0 ? ", " : "") + members[i];
+    return text + ")";
+  }
+  std::string closest;
+  std::size_t best = std::max<std::size_t>(2, path.size() / 5) + 1;
+  auto consider = [&](std::string_view candidate) {
+    // A group the path already starts with is where it went wrong, not what was meant.
+    if (path.size() > candidate.size() && path.substr(0, candidate.size()) == candidate) return;
+    const std::size_t distance = edit_distance(path, candidate);
+    if (distance < best) {
+      best = distance;
+      closest = candidate;
+    }
+  };
+  for (const ParameterInfo& info : parameter_table()) {
+    consider(info.name);
+    for (std::size_t dot = info.name.find('.'); dot != std::string_view::npos;
+         dot = info.name.find('.', dot + 1)) {
+      consider(info.name.substr(0, dot));
+    }
+  }
+  if (!closest.empty()) text = " (did you mean '" + closest + "'?";
+  // The deepest known group the path starts with: its members are what could come next.
+  std::string_view group;
+  for (std::size_t dot = path.find('.'); dot != std::string_view::npos;
+       dot = path.find('.', dot + 1)) {
+    if (!is_parameter_group(path.substr(0, dot))) break;
+    group = path.substr(0, dot);
+  }
+  const std::vector<std::string> names = names_under(group);
+  text += text.empty() ? " (valid " : " valid ";
+  text += group.empty() ? std::string("top-level names: ") : "in '" + std::string(group) + "': ";
+  for (std::size_t i = 0; i < names.size(); ++i) text += (i > 0 ? ", " : "") + names[i];
+  return text + ")";
+}
+
+}  // namespace
+
 ParameterError unknown_parameter(std::string_view path, std::string_view location) {
   return ParameterError(
       Reason::unknown_name,
-      with_location(location,
-                    "unknown parameter '" + std::string(path) + "'" +
-                        (is_parameter_group(path) ? " (it is a group; give its members)" : "")));
+      with_location(location, "unknown parameter '" + std::string(path) + "'" + suggestions(path)));
 }
 
 double decode_number(const ParameterValue& value, const ParameterInfo& row,

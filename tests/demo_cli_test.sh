@@ -20,12 +20,12 @@ expect_error() {
   fi
 }
 
-expect_error "unknown argument '--bogus'" --bogus
+expect_error "unknown argument '--bogus' (valid: --robot, " --bogus
 expect_error "not built in" --robot ur5
 expect_error "--urdf '/no/such.urdf': no such file" --urdf /no/such.urdf --base-link a --tip-link b
 expect_error "--urdf needs --base-link and --tip-link" --urdf "$source_dir/models/panda/panda.urdf"
 expect_error "--mjcf needs --urdf" --mjcf "$source_dir/models/panda/panda.xml"
-expect_error "unknown scenario 'nope'" --scenario nope
+expect_error "unknown scenario 'nope' (valid: hold, compliance, " --scenario nope
 expect_error "--out needs a value" --out
 printf 'stiffness:\n  translation: -5\n' >"$scratch/bad.yaml"
 expect_error "bad.yaml:2: stiffness.translation = -5 N/m is outside [0, 100000]" --config "$scratch/bad.yaml"

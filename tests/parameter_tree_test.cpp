@@ -165,9 +165,13 @@ TEST(ParameterTree, EveryWrongShapeIsRejectedWithItsMessage) {
        "nullspace.stiffness = nan Nm/rad is not finite (valid: [0, 10000])", Reason::out_of_range},
       {"nullspace.damping_ratio", Value::too_large("1e400"),
        "nullspace.damping_ratio = 1e400 overflows a double (valid: [0, 10])", Reason::out_of_range},
-      {"stiffness.tranlation", number(1), "unknown parameter 'stiffness.tranlation'",
+      {"stiffness.tranlation", number(1),
+       "unknown parameter 'stiffness.tranlation' (did you mean 'stiffness.translation'? valid "
+       "in 'stiffness': translation, rotation, frame)",
        Reason::unknown_name},
-      {"stiffness", number(1), "unknown parameter 'stiffness' (it is a group; give its members)",
+      {"stiffness", number(1),
+       "unknown parameter 'stiffness' (it is a group; give its members: translation, rotation, "
+       "frame)",
        Reason::unknown_name},
   };
   for (const auto& [name, value, message, reason] : cases) {
@@ -206,7 +210,8 @@ TEST(ParameterTree, SourcesHintAndLocationAreInTheMessage) {
             "at value: stiffness.rotation = -1 Nm/rad is outside [0, 10000]");
   stiffness.erase(stiffness.begin());
   EXPECT_EQ(decode_error(Value::map({{"stiffness", Value::map(stiffness), "g"}})),
-            "at key: unknown parameter 'stiffness.tranlation'");
+            "at key: unknown parameter 'stiffness.tranlation' (did you mean "
+            "'stiffness.translation'? valid in 'stiffness': translation, rotation, frame)");
   EXPECT_EQ(decode_error(Value::map({{"stiffness.translation", Value(), "line 4"}})),
             "line 4: stiffness.translation has no value");
   // Rules across parameters are the whole source's.
@@ -240,13 +245,18 @@ TEST(ParameterTree, TreesAreNestedDottedOrBoth) {
 
 TEST(ParameterTree, UnknownRepeatedAndMisplacedKeysAreNamed) {
   EXPECT_EQ(decode_error(map({{"stifness", map({{"translation", number(1)}})}})),
-            "unknown parameter 'stifness'");
+            "unknown parameter 'stifness' (did you mean 'stiffness'? valid top-level names: "
+            "stiffness, damping_ratio, minimum_damping, nullspace, wrench, filter, limits, "
+            "dynamics, joint_limit_avoidance, trajectory, plausibility)");
   EXPECT_EQ(decode_error(map({{"limits", map({{"stiffness", map({{"mxa", number(1)}})}})}})),
-            "unknown parameter 'limits.stiffness.mxa'");
+            "unknown parameter 'limits.stiffness.mxa' (valid in 'limits.stiffness': "
+            "translation, rotation)");
   EXPECT_EQ(decode_error(map({{"filter", number(0.5)}})),
-            "unknown parameter 'filter' (it is a group; give its members)");
+            "unknown parameter 'filter' (it is a group; give its members: pose, stiffness, "
+            "nullspace, wrench)");
   EXPECT_EQ(decode_error(map({{"limits.stiffness", numbers({1, 2})}})),
-            "unknown parameter 'limits.stiffness' (it is a group; give its members)");
+            "unknown parameter 'limits.stiffness' (it is a group; give its members: translation, "
+            "rotation)");
   EXPECT_EQ(decode_error(map({{"filter.pose.time", number(0.1)},
                               {"filter", map({{"pose", map({{"time", number(0.2)}})}})}})),
             "'filter.pose.time' is given twice; expected each key once");
@@ -310,7 +320,9 @@ TEST(ParameterTree, SettingsOfASourceAreDecodedLikeParameters) {
   EXPECT_EQ(error_of([] { ci::frame_from_name("frame", "world"); }).first,
             "frame = 'world' is not a frame (valid: base, end_effector)");
   EXPECT_EQ(error_of([] { ci::parameter_info("limits"); }).first,
-            "unknown parameter 'limits' (it is a group; give its members)");
+            "unknown parameter 'limits' (it is a group; give its members: stiffness, "
+            "damping_ratio, nullspace_stiffness, wrench, pose_error, joint_torque, "
+            "joint_torque_rate)");
 }
 
 TEST(ParameterTree, ValuesDescribeThemselvesAndCompareByContent) {

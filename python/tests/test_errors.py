@@ -249,7 +249,9 @@ def test_bad_trajectories(loop, ready):
 
 
 def test_unknown_and_malformed_parameter_keys():
-    with pytest.raises(ci.Error, match=r"^unknown parameter 'stiffness.tranlation'$"):
+    with pytest.raises(ci.Error, match=r"^unknown parameter 'stiffness.tranlation' \(did you mean "
+                                      r"'stiffness.translation'\? valid in 'stiffness': "
+                                      r"translation, rotation, frame\)$"):
         ci.Parameters({"stiffness.tranlation": [1, 1, 1]})
     with pytest.raises(ci.Error, match=r"unknown parameter 'stiffness.tranlation'"):
         ci.Parameters({"stiffness": {"tranlation": [1, 1, 1]}})

@@ -181,7 +181,8 @@ TEST(RosParameters, ErrorsNameParameterValueAndRange) {
     root["stiffness"]["tranlation"] = 500;
     EXPECT_EQ(error_of(root), "ROS parameter " + kNamespace +
                                   "/stiffness/tranlation: unknown parameter "
-                                  "'stiffness.tranlation'");
+                                  "'stiffness.tranlation' (did you mean 'stiffness.translation'? "
+                                  "valid in 'stiffness': translation, rotation, frame)");
   }
   {
     XmlRpcValue root = required_settings();
