@@ -1,5 +1,7 @@
 // The ROS callbacks: messages converted and validated, frames resolved through tf2, commands
 // handed to the control loop. A rejected message is logged (throttled) and changes nothing.
+// Commands of the values that the reconfigure servers share go through send_from_topic()
+// (reconfigure.cpp), which records them and makes the servers show them.
 
 #include <string_view>
 
@@ -66,8 +68,8 @@ ci::Command CartesianImpedanceNode::framed_command(const std::string& frame_id,
 
 void CartesianImpedanceNode::on_stiffness(const geometry_msgs::WrenchStamped::ConstPtr& message) {
   try {
-    loop_->send(
-        framed_command(message->header.frame_id, vector_from_wrench(message->wrench), true));
+    send_from_topic(
+        {framed_command(message->header.frame_id, vector_from_wrench(message->wrench), true)});
   } catch (const std::exception& error) {
     ROS_WARN_THROTTLE(1.0, "set_cartesian_stiffness rejected: %s", error.what());
   }
@@ -75,7 +77,7 @@ void CartesianImpedanceNode::on_stiffness(const geometry_msgs::WrenchStamped::Co
 
 void CartesianImpedanceNode::on_damping_factors(const geometry_msgs::Wrench::ConstPtr& message) {
   try {
-    loop_->set_damping_ratio(vector_from_wrench(*message));
+    send_from_topic({ci::DampingRatio{vector_from_wrench(*message)}});
   } catch (const std::exception& error) {
     ROS_WARN_THROTTLE(1.0, "set_damping_factors rejected: %s", error.what());
   }
@@ -83,8 +85,8 @@ void CartesianImpedanceNode::on_damping_factors(const geometry_msgs::Wrench::Con
 
 void CartesianImpedanceNode::on_wrench(const geometry_msgs::WrenchStamped::ConstPtr& message) {
   try {
-    loop_->send(
-        framed_command(message->header.frame_id, vector_from_wrench(message->wrench), false));
+    send_from_topic(
+        {framed_command(message->header.frame_id, vector_from_wrench(message->wrench), false)});
   } catch (const std::exception& error) {
     ROS_WARN_THROTTLE(1.0, "set_cartesian_wrench rejected: %s", error.what());
   }
@@ -105,7 +107,7 @@ void CartesianImpedanceNode::on_config(const NullspaceConfig::ConstPtr& message)
           static_cast<Eigen::Index>(message->nullspace_stiffness.size()))));
     }
     commands.emplace_back(ci::NullspaceDampingRatio{message->nullspace_damping_ratio});
-    loop_->send_all(commands);
+    send_from_topic(commands);
   } catch (const std::exception& error) {
     ROS_WARN_THROTTLE(1.0, "set_config rejected: %s", error.what());
   }

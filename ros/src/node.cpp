@@ -149,6 +149,14 @@ void CartesianImpedanceNode::create_command_interface() {
   tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
   tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_);  // own thread
 
+  // The record of the commanded values and the reconfigure servers that show it exist before
+  // the first command can arrive.
+  {
+    const std::lock_guard<std::mutex> lock(record_mutex_);
+    record_.emplace(loop_->latest_parameters());
+  }
+  create_reconfigure_servers();
+
   const ros::TransportHints hints = ros::TransportHints().tcpNoDelay();
   using Self = CartesianImpedanceNode;
   ros::NodeHandle& p = private_node_;
@@ -166,7 +174,6 @@ void CartesianImpedanceNode::create_command_interface() {
   command_subscribers_.push_back(
       p.subscribe("joint_trajectory", 10, &Self::on_trajectory, this, hints));
   cancel_service_ = p.advertiseService("cancel_trajectory", &Self::on_cancel_trajectory, this);
-  create_reconfigure_servers();
 }
 
 }  // namespace cartesian_impedance_ros

@@ -29,9 +29,11 @@
 
 #include <atomic>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include <cartesian_impedance/control_loop.hpp>
 #include <cartesian_impedance/robot_model.hpp>
@@ -45,6 +47,7 @@
 #include <cartesian_impedance_ros/StiffnessConfig.h>
 #include <cartesian_impedance_ros/WrenchConfig.h>
 
+#include "command_record.hpp"
 #include "conversions.hpp"
 #include "ros_parameters.hpp"
 
@@ -65,9 +68,17 @@ class CartesianImpedanceNode {
   int run();
 
  private:
-  using StiffnessServer = dynamic_reconfigure::Server<StiffnessConfig>;
-  using DampingServer = dynamic_reconfigure::Server<DampingConfig>;
-  using WrenchServer = dynamic_reconfigure::Server<WrenchConfig>;
+  /// A dynamic_reconfigure server with what it showed when it last applied a request or a topic
+  /// last changed its values (`applied`: a request's fields that differ from it are the changed
+  /// ones) and what it shows now (`shown`: `applied` plus edits waiting for the update flag).
+  /// `mutex` is the server's own (held during its callback) and also guards the two configs.
+  template <typename Config>
+  struct Reconfigure {
+    boost::recursive_mutex mutex;
+    std::unique_ptr<dynamic_reconfigure::Server<Config>> server;
+    Config applied;
+    Config shown;
+  };
 
   // Threads: the control thread (node.cpp), publisher and effort threads (publishing.cpp).
   void start_control_thread();
@@ -86,6 +97,12 @@ class CartesianImpedanceNode {
   // reconfigure.cpp.
   void create_command_interface();
   void create_reconfigure_servers();
+  /// Sends commands from a topic to the loop as one (all or none), records those the record
+  /// keeps and makes the servers show them.
+  /// @throws cartesian_impedance::Error (or another std::exception) if the loop rejects them.
+  void send_from_topic(const std::vector<cartesian_impedance::Command>& commands);
+  /// Makes the servers that show `value` show what the record holds, as applied.
+  void show_on_servers(SharedValue value);
 
   // Callbacks (callbacks.cpp, reconfigure.cpp).
   void on_joint_states(const sensor_msgs::JointState::ConstPtr& message);
@@ -100,15 +117,21 @@ class CartesianImpedanceNode {
   void on_stiffness_reconfigure(StiffnessConfig& config, std::uint32_t level);
   void on_damping_reconfigure(DampingConfig& config, std::uint32_t level);
   void on_wrench_reconfigure(WrenchConfig& config, std::uint32_t level);
+  /// Applies the fields of a request that changed (or, with `remove_wrench`, commands a zero
+  /// wrench), records them and sets `config` to the values in force. Logs a rejection.
+  template <typename Config>
+  void apply_request(Reconfigure<Config>& state, Config& config, const char* server,
+                     bool remove_wrench = false);
 
-  /// The frame a stiffness or wrench message names: nullopt for "" (the configured frame),
-  /// base or end_effector for the base or tip link; else R_base_frame from tf2 in `rotation`.
+  /// A stiffness diagonal or a wrench given in `frame_id`: in the named frame as it is (empty:
+  /// the configured one), in any other frame rotated into the base frame once with tf2.
   /// @throws cartesian_impedance::Error if the transform is not available.
-  // A stiffness diagonal or a wrench given in `frame_id`: in the named frame as it is (empty:
-  // the configured one), in any other frame rotated into the base frame once with tf2.
   cartesian_impedance::Command framed_command(const std::string& frame_id,
                                               const cartesian_impedance::Vector6d& values,
                                               bool stiffness);
+  /// The frame a stiffness or wrench message names: nullopt for "" (the configured frame),
+  /// base or end_effector for the base or tip link; else R_base_frame from tf2 in `rotation`.
+  /// @throws cartesian_impedance::Error if the transform is not available.
   std::optional<cartesian_impedance::Frame> frame_of(const std::string& frame_id,
                                                      Eigen::Matrix3d& rotation) const;
   /// T_base_frame from tf2 (latest available), waiting at most ~tf_timeout.
@@ -148,11 +171,15 @@ class CartesianImpedanceNode {
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
 
-  boost::recursive_mutex stiffness_mutex_, damping_mutex_, wrench_mutex_;
-  std::unique_ptr<StiffnessServer> stiffness_server_;
-  std::unique_ptr<DampingServer> damping_server_;
-  std::unique_ptr<WrenchServer> wrench_server_;
-  bool wrench_from_reconfigure_ = false;  // guarded by wrench_mutex_ (held during its callbacks)
+  // What the node last commanded of the values that topics and the reconfigure servers share
+  // (command_record.hpp); set before the first command. Lock order: the servers' mutexes
+  // (stiffness, damping, wrench), then record_mutex_, which guards the record and is held from
+  // building a command to recording it, so that the record follows the loop's order.
+  std::mutex record_mutex_;
+  std::optional<CommandRecord> record_;
+  Reconfigure<StiffnessConfig> stiffness_;
+  Reconfigure<DampingConfig> damping_;
+  Reconfigure<WrenchConfig> wrench_;
 };
 
 }  // namespace cartesian_impedance_ros
