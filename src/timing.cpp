@@ -14,24 +14,44 @@ static_assert(DurationHistogram::kLinearBins == kSubBins,
 
 }  // namespace
 
-std::size_t DurationHistogram::bin_of(std::int64_t ns) noexcept {
-  if (ns <= 0) return 0;
-  if (ns >= kRangeNs) return kBins;
+namespace {
+
+// The bin whose value is the largest not above `ns` (0 <= ns < 2^20 us).
+std::size_t bin_below(std::int64_t ns) noexcept {
   const auto us = static_cast<std::uint64_t>(ns / 1000);
-  if (us < static_cast<std::uint64_t>(kLinearBins)) return static_cast<std::size_t>(us);
+  if (us < static_cast<std::uint64_t>(DurationHistogram::kLinearBins)) {
+    return static_cast<std::size_t>(us);
+  }
   const int octave = 63 - __builtin_clzll(us);  // us in [2^octave, 2^(octave + 1)), octave >= 7
-  const int shift = octave - kSubBinBits;       // the bins of this octave are 2^shift us wide
-  return static_cast<std::size_t>(kLinearBins + (std::int64_t{shift} << kSubBinBits) +
+  const int shift = octave - DurationHistogram::kSubBinBits;  // values 2^shift us apart
+  return static_cast<std::size_t>(DurationHistogram::kLinearBins +
+                                  (std::int64_t{shift} << DurationHistogram::kSubBinBits) +
                                   static_cast<std::int64_t>(us >> shift) - kSubBins);
 }
 
-std::int64_t DurationHistogram::lower_ns(std::size_t bin) noexcept {
-  if (bin >= kBins) return kRangeNs;
+}  // namespace
+
+std::int64_t DurationHistogram::value_ns(std::size_t bin) noexcept {
+  if (bin >= kBins) return kEndNs;
   const auto index = static_cast<std::int64_t>(bin);
   if (index < kLinearBins) return index * 1000;
   const std::int64_t above = index - kLinearBins;
   const auto shift = static_cast<int>(above >> kSubBinBits);
   return ((kSubBins + (above & (kSubBins - 1))) << shift) * 1000;
+}
+
+std::int64_t DurationHistogram::lower_ns(std::size_t bin) noexcept {
+  if (bin == 0) return 0;
+  const std::size_t last = std::min(bin, kBins);
+  return (value_ns(last - 1) + value_ns(last)) / 2;  // whole: the values are whole microseconds
+}
+
+std::size_t DurationHistogram::bin_of(std::int64_t ns) noexcept {
+  if (ns <= 0) return 0;
+  if (ns >= kRangeNs) return kBins;
+  // The nearest value; halfway rounds up.
+  const std::size_t below = bin_below(ns);
+  return ns - value_ns(below) >= value_ns(below + 1) - ns ? below + 1 : below;
 }
 
 void DurationHistogram::record(std::int64_t ns) noexcept {
@@ -67,7 +87,7 @@ DurationHistogram::Snapshot DurationHistogram::snapshot() const noexcept {
   const std::int64_t lowest_end =
       lowest < kBins ? lower_ns(lowest + 1) : std::numeric_limits<std::int64_t>::max();
   snapshot.min_ns = std::min(min_ns_.load(relaxed), lowest_end);
-  snapshot.max_ns = std::max(max_ns_.load(relaxed), lower_ns(highest));
+  snapshot.max_ns = std::max({max_ns_.load(relaxed), lower_ns(highest), snapshot.min_ns});
   return snapshot;
 }
 
@@ -76,12 +96,13 @@ double DurationHistogram::Snapshot::quantile_us(double q) const noexcept {
   const double clamped = std::isnan(q) ? 0.0 : std::clamp(q, 0.0, 1.0);
   const auto rank = std::clamp<std::uint64_t>(
       static_cast<std::uint64_t>(std::ceil(clamped * static_cast<double>(count))), 1, count);
+  if (rank == 1) return min_us();  // the extremes are kept exactly
+  if (rank == count) return max_us();
   std::uint64_t below = 0;
   std::size_t bin = 0;
   while (bin < kBins && below + bins[bin] < rank) below += bins[bin++];
   if (bin == kBins) return max_us();
-  const double middle = 0.5 * static_cast<double>(lower_ns(bin) + lower_ns(bin + 1));
-  return 1e-3 * std::clamp(middle, static_cast<double>(min_ns), static_cast<double>(max_ns));
+  return 1e-3 * static_cast<double>(std::min(std::max(value_ns(bin), min_ns), max_ns));
 }
 
 DurationHistogram::Snapshot DurationHistogram::Snapshot::since(

@@ -145,9 +145,10 @@ double resolution_us(double us) {
   return std::max(1.0, 0.01 * us);
 }
 
-// How far a quantile may be from the true one: half a bin (it is the middle of the bin).
+// How far a quantile may be from the true one: max(0.5 us, 0.4 %), the furthest a duration is
+// from the value of its bin.
 double quantile_error_us(double us) {
-  return 0.5 * resolution_us(us);
+  return std::max(0.5, 0.004 * us);
 }
 
 // The q-quantile of `sorted` as the histogram defines it: the ceil(q n)-th smallest.
@@ -174,13 +175,25 @@ TEST(DurationHistogram, BinsTileTheRangeNoWiderThanTheResolution) {
   for (std::size_t bin = 0; bin < H::kBins; ++bin) {
     const std::int64_t lower = H::lower_ns(bin);
     const std::int64_t upper = H::lower_ns(bin + 1);
+    const std::int64_t value = H::value_ns(bin);
     ASSERT_GT(upper, lower) << bin;
+    // Each duration counts toward the nearest value.
+    ASSERT_LE(lower, value) << bin;
+    ASSERT_LT(value, upper) << bin;
+    ASSERT_LE(static_cast<double>(std::max(value - lower, upper - 1 - value)),
+              1e3 * quantile_error_us(1e-3 * static_cast<double>(lower)))
+        << bin;
+    ASSERT_EQ(H::bin_of(value), bin);
     // No coarser than max(1 us, 1 % of any duration in it).
     ASSERT_LE(static_cast<double>(upper - lower),
               std::max(1000.0, 0.01 * static_cast<double>(lower)))
         << bin;
     ASSERT_EQ(H::bin_of(lower), bin);
     ASSERT_EQ(H::bin_of(upper - 1), bin);
+  }
+  // Round periods of 8 ms and less, 1 ms among them, are values of their own.
+  for (const std::int64_t us : {100, 250, 500, 1000, 2000, 4000, 8000}) {
+    EXPECT_EQ(H::value_ns(H::bin_of(1000 * us)), 1000 * us) << us;
   }
   EXPECT_EQ(H::bin_of(-5), 0u);
   EXPECT_EQ(H::bin_of(H::kRangeNs), H::kBins);
@@ -207,8 +220,8 @@ TEST(DurationHistogram, QuantilesOfKnownDurations) {
   EXPECT_NEAR(snapshot.quantile_us(0.5), 500.137, quantile_error_us(500.137));
   EXPECT_NEAR(snapshot.quantile_us(0.99), 990.137, quantile_error_us(990.137));
   EXPECT_NEAR(snapshot.quantile_us(0.1), 100.137, quantile_error_us(100.137));
-  EXPECT_NEAR(snapshot.quantile_us(0.0), 1.137, quantile_error_us(1.137));  // the smallest
-  EXPECT_DOUBLE_EQ(snapshot.quantile_us(1.0), 1000.137);  // the largest, clamped to the maximum
+  EXPECT_DOUBLE_EQ(snapshot.quantile_us(0.0), 1.137);     // the smallest: the minimum
+  EXPECT_DOUBLE_EQ(snapshot.quantile_us(1.0), 1000.137);  // the largest: the maximum
 
   // One duration many times: every quantile is that duration (clamped to min = max).
   rt::DurationHistogram constant;
@@ -218,6 +231,13 @@ TEST(DurationHistogram, QuantilesOfKnownDurations) {
   EXPECT_EQ(one.quantile_us(0.99), 1000.0);
   EXPECT_EQ(one.min_us(), 1000.0);
   EXPECT_EQ(one.max_us(), 1000.0);
+
+  // A 1 ms period with a little jitter either way: its median is 1000 us.
+  rt::DurationHistogram jitter;
+  for (int k = 0; k < 1000; ++k) jitter.record(1000000 + (k % 2 == 0 ? 300 : -400) * (k % 5));
+  jitter.record(1300000);
+  EXPECT_EQ(jitter.snapshot().quantile_us(0.5), 1000.0);
+  EXPECT_EQ(jitter.snapshot().max_us(), 1300.0);
 }
 
 TEST(DurationHistogram, QuantilesAreWithinTheResolutionOfTheSortedDurations) {
@@ -250,8 +270,8 @@ TEST(DurationHistogram, CountsLongDurationsInAnOverflowBinAndKeepsTheExactMaximu
   EXPECT_EQ(snapshot.bins[rt::DurationHistogram::kBins], 2u);
   EXPECT_EQ(snapshot.count, 100u);
   EXPECT_EQ(snapshot.max_us(), 5e6);
-  EXPECT_NEAR(snapshot.quantile_us(0.5), 1000.0, quantile_error_us(1000.0));
-  EXPECT_NEAR(snapshot.quantile_us(0.98), 1000.0, quantile_error_us(1000.0));
+  EXPECT_EQ(snapshot.quantile_us(0.5), 1000.0);
+  EXPECT_EQ(snapshot.quantile_us(0.98), 1000.0);
   EXPECT_EQ(snapshot.quantile_us(0.99), 5e6);  // in the overflow bin: the maximum
 }
 
@@ -267,7 +287,7 @@ TEST(DurationHistogram, ReportsAWindowBetweenTwoSnapshots) {
 
   const Snapshot window = second.since(first);
   EXPECT_EQ(window.count, 501u);
-  EXPECT_NEAR(window.quantile_us(0.5), 2000.0, quantile_error_us(2000.0));
+  EXPECT_EQ(window.quantile_us(0.5), 2000.0);
   EXPECT_NEAR(window.quantile_us(0.999), 2500.0, quantile_error_us(2500.0));
   // The extremes of the window are bounded by their bins: within the resolution, on the safe side.
   EXPECT_GE(window.max_us(), 2500.0);

@@ -4,9 +4,13 @@
 /// lateness): one thread records, any thread reads a snapshot and asks it for quantiles, for the
 /// extremes or for what happened between two snapshots.
 ///
-/// Bins: 1 us wide below 128 us; above, 128 bins per power of two, so that a bin is never wider
-/// than max(1 us, 0.79 % of the values in it). The bins reach 2^20 us (1.049 s); longer durations
-/// go to one overflow bin. The smallest and the largest recorded duration are kept exactly.
+/// Bins: each bin stands for one value and counts the durations nearest to it. The values are
+/// 0 to 255 us 1 us apart, then 128 per power of two (256 to 510 us 2 us apart, 512 to 1020 us
+/// 4 us apart, ...), so a bin is never wider than max(1 us, 0.8 % of its durations), and a
+/// duration is never further than max(0.5 us, 0.4 %) from its bin's value. Periods of 0.5, 1, 2, 4
+/// and 8 ms are values of their own. The values reach 2^20 us (1.049 s); durations from
+/// kRangeNs (1.047 s) on go to one overflow bin. The smallest and the largest duration are kept
+/// exactly.
 
 #include <array>
 #include <atomic>
@@ -18,13 +22,16 @@ namespace cartesian_impedance::runtime {
 
 class DurationHistogram {
  public:
-  static constexpr std::int64_t kLinearBins = 128;  ///< [0, 128 us), 1 us each
+  static constexpr std::int64_t kLinearBins = 128;  ///< values 0, 1, ..., 127 us
   static constexpr int kSubBinBits = 7;             ///< 2^7 bins per power of two above
-  static constexpr int kOctaves = 13;               ///< [2^7, 2^20) us
+  static constexpr int kOctaves = 13;               ///< values from 2^7 up to 2^20 us
   /// Bins below the range; the overflow bin (index kBins) holds everything from kRangeNs on.
   static constexpr std::size_t kBins =
       static_cast<std::size_t>(kLinearBins + (kOctaves << kSubBinBits));
-  static constexpr std::int64_t kRangeNs = (std::int64_t{1} << 20) * 1000;  ///< [ns] 1.049 s
+  /// [ns] 2^20 us, where the values would go on after the last bin's (255 * 2^12 us)
+  static constexpr std::int64_t kEndNs = (std::int64_t{1} << 20) * 1000;
+  /// [ns] where the overflow bin begins: halfway between the last bin's value and kEndNs
+  static constexpr std::int64_t kRangeNs = ((std::int64_t{255} << 12) * 1000 + kEndNs) / 2;
 
   /// The counts at one moment (snapshot()), or over a window (since()).
   struct Snapshot {
@@ -35,10 +42,10 @@ class DurationHistogram {
     std::int64_t min_ns = 0;
     std::int64_t max_ns = 0;
 
-    /// [us] the q-quantile (q in [0, 1]: 0.5 the median, 0.99 the 99th percentile): the middle of
-    /// the bin that holds the ceil(q count)-th smallest duration, clamped to [min, max], so within
-    /// half a bin, max(0.5 us, 0.4 %), of that duration; the maximum if it is in the overflow
-    /// bin. 0 if nothing was counted.
+    /// [us] the q-quantile (q in [0, 1]: 0.5 the median, 0.99 the 99th percentile), of the
+    /// ceil(q count)-th smallest duration: the value of its bin, clamped to [min, max], so within
+    /// max(0.5 us, 0.4 %) of it; the minimum or the maximum if it is the smallest or the largest
+    /// or in the overflow bin. 0 if nothing was counted.
     double quantile_us(double q) const noexcept;
     double min_us() const noexcept { return 1e-3 * static_cast<double>(min_ns); }
     double max_us() const noexcept { return 1e-3 * static_cast<double>(max_ns); }
@@ -59,9 +66,12 @@ class DurationHistogram {
   /// while a duration is recorded may or may not include it in the bin, the extremes or both.
   Snapshot snapshot() const noexcept;
 
-  /// The bin of a duration [ns], kBins for the overflow bin.
+  /// The bin of a duration [ns]: the one with the nearest value (halfway: the larger), kBins for
+  /// the overflow bin.
   static std::size_t bin_of(std::int64_t ns) noexcept;
-  /// [ns] the durations of bin `bin` (< kBins) are in [lower_ns(bin), lower_ns(bin + 1));
+  /// [ns] the value bin `bin` stands for (< kBins); value_ns(kBins) = kEndNs.
+  static std::int64_t value_ns(std::size_t bin) noexcept;
+  /// [ns] the durations of bin `bin` are in [lower_ns(bin), lower_ns(bin + 1)); lower_ns(0) = 0,
   /// lower_ns(kBins) = kRangeNs.
   static std::int64_t lower_ns(std::size_t bin) noexcept;
 
