@@ -133,10 +133,12 @@ void ControlThread::start(Cycle& cycle) {
   stop_requested_ = false;
   failure_.clear();
   scheduling_error_ = 0;
+  starts_.store(starts_.load() + 1);
   cycles_ = 0;
   overruns_ = 0;
   latest_lateness_ns_ = 0;
-  worst_lateness_ns_ = 0;
+  period_.reset();
+  lateness_.reset();
   stale_ = false;
   stale_episodes_ = 0;
   realtime_ = false;
@@ -164,15 +166,64 @@ std::string ControlThread::failure() const {
 }
 
 ControlThreadStatistics ControlThread::statistics() const noexcept {
+  return snapshot().statistics();
+}
+
+ControlThreadSnapshot ControlThread::snapshot() const noexcept {
   constexpr auto relaxed = std::memory_order_relaxed;
+  ControlThreadSnapshot snapshot;
+  snapshot.start = starts_.load(relaxed);
+  snapshot.cycles = cycles_.load(relaxed);
+  snapshot.overruns = overruns_.load(relaxed);
+  snapshot.latest_lateness_ns = latest_lateness_ns_.load(relaxed);
+  snapshot.stale = stale_.load(relaxed);
+  snapshot.stale_episodes = stale_episodes_.load(relaxed);
+  snapshot.realtime = realtime_.load(relaxed);
+  snapshot.period = period_.snapshot();
+  snapshot.lateness = lateness_.snapshot();
+  return snapshot;
+}
+
+namespace {
+
+// The fields that do not depend on the window.
+ControlThreadStatistics statistics_of(const ControlThreadSnapshot& snapshot,
+                                      const DurationHistogram::Snapshot& period,
+                                      const DurationHistogram::Snapshot& lateness) noexcept {
   ControlThreadStatistics statistics;
-  statistics.cycles = cycles_.load(relaxed);
-  statistics.overruns = overruns_.load(relaxed);
-  statistics.latest_lateness_us = 1e-3 * static_cast<double>(latest_lateness_ns_.load(relaxed));
-  statistics.worst_lateness_us = 1e-3 * static_cast<double>(worst_lateness_ns_.load(relaxed));
-  statistics.stale = stale_.load(relaxed);
-  statistics.stale_episodes = stale_episodes_.load(relaxed);
-  statistics.realtime = realtime_.load(relaxed);
+  statistics.latest_lateness_us = 1e-3 * static_cast<double>(snapshot.latest_lateness_ns);
+  statistics.worst_lateness_us = lateness.max_us();
+  statistics.stale = snapshot.stale;
+  statistics.realtime = snapshot.realtime;
+  statistics.period_min_us = period.min_us();
+  statistics.period_p50_us = period.quantile_us(0.5);
+  statistics.period_p99_us = period.quantile_us(0.99);
+  statistics.period_max_us = period.max_us();
+  return statistics;
+}
+
+std::uint64_t difference(std::uint64_t later, std::uint64_t earlier) noexcept {
+  return later >= earlier ? later - earlier : later;
+}
+
+}  // namespace
+
+ControlThreadStatistics ControlThreadSnapshot::statistics() const noexcept {
+  ControlThreadStatistics statistics = statistics_of(*this, period, lateness);
+  statistics.cycles = cycles;
+  statistics.overruns = overruns;
+  statistics.stale_episodes = stale_episodes;
+  return statistics;
+}
+
+ControlThreadStatistics ControlThreadSnapshot::since(
+    const ControlThreadSnapshot& earlier) const noexcept {
+  if (earlier.start != start) return statistics();
+  ControlThreadStatistics statistics =
+      statistics_of(*this, period.since(earlier.period), lateness.since(earlier.lateness));
+  statistics.cycles = difference(cycles, earlier.cycles);
+  statistics.overruns = difference(overruns, earlier.overruns);
+  statistics.stale_episodes = difference(stale_episodes, earlier.stale_episodes);
   return statistics;
 }
 
@@ -204,6 +255,7 @@ void ControlThread::body(Cycle& cycle) noexcept {
     const std::int64_t begin_ns = now_ns();
     time.now = time_point_of(begin_ns);
     time.dt = 1e-9 * static_cast<double>(time.index == 0 ? period_ns_ : begin_ns - previous_ns);
+    if (time.index != 0) period_.record(begin_ns - previous_ns);
     previous_ns = begin_ns;
     const Freshness freshness = cycle.execute(time);
     record(time, freshness, now_ns(), deadline_ns);
@@ -229,7 +281,7 @@ void ControlThread::record(const CycleTime& time, Freshness freshness, std::int6
   if (lateness > 0) {
     overruns_.store(overruns_.load(relaxed) + 1, relaxed);
     latest_lateness_ns_.store(lateness, relaxed);
-    if (lateness > worst_lateness_ns_.load(relaxed)) worst_lateness_ns_.store(lateness, relaxed);
+    lateness_.record(lateness);
     // Far behind: skip the missed cycles instead of running them in a burst.
     if (lateness > period_ns_) deadline_ns = end_ns;
   }

@@ -1,5 +1,7 @@
 // The runtime's control thread: rate on absolute deadlines, overruns and their lateness, the
-// robot cycle failing closed without measurements and resuming with them, start and stop.
+// measured period's quantiles (and the histogram behind them, deterministically), statistics over
+// a window, the robot cycle failing closed without measurements and resuming with them, start and
+// stop.
 //
 // Timing bounds: this runs on a shared 2-core virtual machine where other builds run at the same
 // time, so no test asserts how fast anything is. What the design guarantees is checked exactly
@@ -9,15 +11,19 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
+#include <random>
 #include <thread>
 #include <vector>
 
 #include "cartesian_impedance/control_loop.hpp"
 #include "cartesian_impedance/error.hpp"
 #include "cartesian_impedance/runtime/control_thread.hpp"
+#include "cartesian_impedance/runtime/timing.hpp"
 #include "support/robots.hpp"
 
 namespace ci = cartesian_impedance;
@@ -134,6 +140,23 @@ rt::ControlThreadOptions options_with(double rate, int realtime_priority = 0) {
   return options;
 }
 
+// The resolution the histogram promises for a duration [us]: bins no wider than max(1 us, 1 %).
+double resolution_us(double us) {
+  return std::max(1.0, 0.01 * us);
+}
+
+// How far a quantile may be from the true one: max(0.5 us, 0.4 %), the furthest a duration is
+// from the value of its bin.
+double quantile_error_us(double us) {
+  return std::max(0.5, 0.004 * us);
+}
+
+// The q-quantile of `sorted` as the histogram defines it: the ceil(q n)-th smallest.
+double exact_quantile(const std::vector<double>& sorted, double q) {
+  const auto rank = static_cast<std::size_t>(std::ceil(q * static_cast<double>(sorted.size())));
+  return sorted[std::clamp<std::size_t>(rank, 1, sorted.size()) - 1];
+}
+
 // Starts `cycle` on `thread` and waits until it has run a few cycles.
 void start_cycling(rt::ControlThread& thread, RecordingCycle& cycle) {
   thread.start(cycle);
@@ -141,6 +164,158 @@ void start_cycling(rt::ControlThread& thread, RecordingCycle& cycle) {
 }
 
 }  // namespace
+
+// ---- the histogram behind the period quantiles: deterministic ----------------------------------
+
+TEST(DurationHistogram, BinsTileTheRangeNoWiderThanTheResolution) {
+  using H = rt::DurationHistogram;
+  EXPECT_EQ(H::lower_ns(0), 0);
+  EXPECT_GE(H::kRangeNs, 1000000000);  // at least 1 s
+  EXPECT_EQ(H::lower_ns(H::kBins), H::kRangeNs);
+  for (std::size_t bin = 0; bin < H::kBins; ++bin) {
+    const std::int64_t lower = H::lower_ns(bin);
+    const std::int64_t upper = H::lower_ns(bin + 1);
+    const std::int64_t value = H::value_ns(bin);
+    ASSERT_GT(upper, lower) << bin;
+    // Each duration counts toward the nearest value.
+    ASSERT_LE(lower, value) << bin;
+    ASSERT_LT(value, upper) << bin;
+    ASSERT_LE(static_cast<double>(std::max(value - lower, upper - 1 - value)),
+              1e3 * quantile_error_us(1e-3 * static_cast<double>(lower)))
+        << bin;
+    ASSERT_EQ(H::bin_of(value), bin);
+    // No coarser than max(1 us, 1 % of any duration in it).
+    ASSERT_LE(static_cast<double>(upper - lower),
+              std::max(1000.0, 0.01 * static_cast<double>(lower)))
+        << bin;
+    ASSERT_EQ(H::bin_of(lower), bin);
+    ASSERT_EQ(H::bin_of(upper - 1), bin);
+  }
+  // Round periods of 8 ms and less, 1 ms among them, are values of their own.
+  for (const std::int64_t us : {100, 250, 500, 1000, 2000, 4000, 8000}) {
+    EXPECT_EQ(H::value_ns(H::bin_of(1000 * us)), 1000 * us) << us;
+  }
+  EXPECT_EQ(H::bin_of(-5), 0u);
+  EXPECT_EQ(H::bin_of(H::kRangeNs), H::kBins);
+  EXPECT_EQ(H::bin_of(3600 * std::int64_t{1000000000}), H::kBins);
+}
+
+TEST(DurationHistogram, IsZeroWhenEmpty) {
+  rt::DurationHistogram histogram;
+  const rt::DurationHistogram::Snapshot snapshot = histogram.snapshot();
+  EXPECT_EQ(snapshot.count, 0u);
+  EXPECT_EQ(snapshot.quantile_us(0.5), 0.0);
+  EXPECT_EQ(snapshot.min_us(), 0.0);
+  EXPECT_EQ(snapshot.max_us(), 0.0);
+}
+
+TEST(DurationHistogram, QuantilesOfKnownDurations) {
+  // 1.137 us, 2.137 us, ..., 1000.137 us, once each, in a scrambled order.
+  rt::DurationHistogram histogram;
+  for (int k = 0; k < 1000; ++k) histogram.record((k * 7919 % 1000 + 1) * 1000 + 137);
+  const rt::DurationHistogram::Snapshot snapshot = histogram.snapshot();
+  EXPECT_EQ(snapshot.count, 1000u);
+  EXPECT_DOUBLE_EQ(snapshot.min_us(), 1.137);  // exact
+  EXPECT_DOUBLE_EQ(snapshot.max_us(), 1000.137);
+  EXPECT_NEAR(snapshot.quantile_us(0.5), 500.137, quantile_error_us(500.137));
+  EXPECT_NEAR(snapshot.quantile_us(0.99), 990.137, quantile_error_us(990.137));
+  EXPECT_NEAR(snapshot.quantile_us(0.1), 100.137, quantile_error_us(100.137));
+  EXPECT_DOUBLE_EQ(snapshot.quantile_us(0.0), 1.137);     // the smallest: the minimum
+  EXPECT_DOUBLE_EQ(snapshot.quantile_us(1.0), 1000.137);  // the largest: the maximum
+
+  // One duration many times: every quantile is that duration (clamped to min = max).
+  rt::DurationHistogram constant;
+  for (int k = 0; k < 1000; ++k) constant.record(1000000);
+  const rt::DurationHistogram::Snapshot one = constant.snapshot();
+  EXPECT_EQ(one.quantile_us(0.5), 1000.0);
+  EXPECT_EQ(one.quantile_us(0.99), 1000.0);
+  EXPECT_EQ(one.min_us(), 1000.0);
+  EXPECT_EQ(one.max_us(), 1000.0);
+
+  // A 1 ms period with a little jitter either way: its median is 1000 us.
+  rt::DurationHistogram jitter;
+  for (int k = 0; k < 1000; ++k) jitter.record(1000000 + (k % 2 == 0 ? 300 : -400) * (k % 5));
+  jitter.record(1300000);
+  EXPECT_EQ(jitter.snapshot().quantile_us(0.5), 1000.0);
+  EXPECT_EQ(jitter.snapshot().max_us(), 1300.0);
+}
+
+TEST(DurationHistogram, QuantilesAreWithinTheResolutionOfTheSortedDurations) {
+  // Log-uniform durations from 0.1 us to 0.9 s from a fixed seed.
+  std::mt19937_64 random(12345);
+  rt::DurationHistogram histogram;
+  std::vector<double> sorted_us;
+  for (int k = 0; k < 20000; ++k) {
+    const double fraction = static_cast<double>(random() >> 11) * 0x1.0p-53;  // [0, 1)
+    const auto ns = static_cast<std::int64_t>(100.0 * std::pow(9e6, fraction));
+    histogram.record(ns);
+    sorted_us.push_back(1e-3 * static_cast<double>(ns));
+  }
+  std::sort(sorted_us.begin(), sorted_us.end());
+  const rt::DurationHistogram::Snapshot snapshot = histogram.snapshot();
+  for (const double q : {0.001, 0.01, 0.1, 0.25, 0.5, 0.75, 0.9, 0.99, 0.999}) {
+    const double exact = exact_quantile(sorted_us, q);
+    EXPECT_NEAR(snapshot.quantile_us(q), exact, quantile_error_us(exact)) << q;
+  }
+  EXPECT_DOUBLE_EQ(snapshot.min_us(), sorted_us.front());
+  EXPECT_DOUBLE_EQ(snapshot.max_us(), sorted_us.back());
+}
+
+TEST(DurationHistogram, CountsLongDurationsInAnOverflowBinAndKeepsTheExactMaximum) {
+  rt::DurationHistogram histogram;
+  for (int k = 0; k < 98; ++k) histogram.record(1000000);  // 1 ms
+  histogram.record(2 * std::int64_t{1000000000});          // 2 s
+  histogram.record(5 * std::int64_t{1000000000});          // 5 s
+  const rt::DurationHistogram::Snapshot snapshot = histogram.snapshot();
+  EXPECT_EQ(snapshot.bins[rt::DurationHistogram::kBins], 2u);
+  EXPECT_EQ(snapshot.count, 100u);
+  EXPECT_EQ(snapshot.max_us(), 5e6);
+  EXPECT_EQ(snapshot.quantile_us(0.5), 1000.0);
+  EXPECT_EQ(snapshot.quantile_us(0.98), 1000.0);
+  EXPECT_EQ(snapshot.quantile_us(0.99), 5e6);  // in the overflow bin: the maximum
+}
+
+TEST(DurationHistogram, ReportsAWindowBetweenTwoSnapshots) {
+  using Snapshot = rt::DurationHistogram::Snapshot;
+  rt::DurationHistogram histogram;
+  for (int k = 0; k < 1000; ++k) histogram.record(1000000);  // 1 ms
+  histogram.record(3000000);                                 // 3 ms: the maximum so far
+  const Snapshot first = histogram.snapshot();
+  for (int k = 0; k < 500; ++k) histogram.record(2000000);  // 2 ms
+  histogram.record(2500000);                                // 2.5 ms: not a new maximum
+  const Snapshot second = histogram.snapshot();
+
+  const Snapshot window = second.since(first);
+  EXPECT_EQ(window.count, 501u);
+  EXPECT_EQ(window.quantile_us(0.5), 2000.0);
+  EXPECT_NEAR(window.quantile_us(0.999), 2500.0, quantile_error_us(2500.0));
+  // The extremes of the window are bounded by their bins: within the resolution, on the safe side.
+  EXPECT_GE(window.max_us(), 2500.0);
+  EXPECT_LE(window.max_us(), 2500.0 + resolution_us(2500.0));
+  EXPECT_LE(window.min_us(), 2000.0);
+  EXPECT_GE(window.min_us(), 2000.0 - resolution_us(2000.0));
+
+  histogram.record(4000000);  // a new maximum: exact in its window
+  histogram.record(500000);   // and a new minimum
+  const Snapshot third = histogram.snapshot();
+  const Snapshot last = third.since(second);
+  EXPECT_EQ(last.count, 2u);
+  EXPECT_EQ(last.max_us(), 4000.0);
+  EXPECT_EQ(last.min_us(), 500.0);
+  EXPECT_EQ(third.since(third).count, 0u);
+  EXPECT_EQ(third.since(third).quantile_us(0.5), 0.0);
+
+  // Reset in between: the window is everything since.
+  histogram.reset();
+  histogram.record(7000);
+  const Snapshot after = histogram.snapshot();
+  EXPECT_EQ(after.since(third).count, 1u);
+  EXPECT_EQ(after.since(third).max_us(), 7.0);
+  EXPECT_EQ(after.since(Snapshot{}).count, 1u);
+}
+
+// ---- the control thread
+// --------------------------------------------------------------------------
 
 TEST(ControlThread, KeepsItsRateOnAbsoluteDeadlines) {
   rt::ControlThreadOptions options;
@@ -177,6 +352,38 @@ TEST(ControlThread, KeepsItsRateOnAbsoluteDeadlines) {
   EXPECT_EQ(thread.state(), rt::ControlThread::State::stopped);
 }
 
+TEST(ControlThread, ReportsThePeriodItMeasured) {
+  rt::ControlThread thread(options_with(1000.0));
+  RecordingCycle cycle(5000);
+  thread.start(cycle);
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  thread.stop();
+  const std::size_t count = cycle.count();
+  ASSERT_GT(count, 20u);
+  ASSERT_LT(count, 5000u);
+
+  // Exact: the histogram counted each cycle's dt but the first (which is not measured).
+  const rt::ControlThreadSnapshot snapshot = thread.snapshot();
+  EXPECT_EQ(snapshot.period.count, count - 1);
+  std::vector<double> sorted_us;
+  for (std::size_t k = 1; k < count; ++k) sorted_us.push_back(1e6 * cycle.dts()[k]);
+  std::sort(sorted_us.begin(), sorted_us.end());
+  const rt::ControlThreadStatistics statistics = thread.statistics();
+  EXPECT_NEAR(statistics.period_min_us, sorted_us.front(), 1e-6);
+  EXPECT_NEAR(statistics.period_max_us, sorted_us.back(), 1e-6);
+  EXPECT_NEAR(statistics.period_p50_us, exact_quantile(sorted_us, 0.5),
+              quantile_error_us(exact_quantile(sorted_us, 0.5)));
+  EXPECT_NEAR(statistics.period_p99_us, exact_quantile(sorted_us, 0.99),
+              quantile_error_us(exact_quantile(sorted_us, 0.99)));
+  EXPECT_LE(statistics.period_min_us, statistics.period_p50_us);
+  EXPECT_LE(statistics.period_p50_us, statistics.period_p99_us);
+  EXPECT_LE(statistics.period_p99_us, statistics.period_max_us);
+  // Loose: most cycles start on their deadline, 1 ms apart. A shared VM delays wake-ups by tens of
+  // microseconds, seldom more; half or twice the period would be a wrong unit or a broken clock.
+  EXPECT_GT(statistics.period_p50_us, 500.0);
+  EXPECT_LT(statistics.period_p50_us, 2000.0);
+}
+
 TEST(ControlThread, CountsOverrunsOfASlowCycleWithHowLateTheyWere) {
   const ci::RobotModel model = panda();
   ci::ControlLoop loop(model);
@@ -190,7 +397,9 @@ TEST(ControlThread, CountsOverrunsOfASlowCycleWithHowLateTheyWere) {
   rt::ControlThread thread(options);
   const Clock::time_point started = Clock::now();
   thread.start(loop, measurements, &sink);
-  std::this_thread::sleep_for(std::chrono::milliseconds(400));
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  const rt::ControlThreadSnapshot middle = thread.snapshot();
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
   thread.stop();
   const Clock::time_point stopped = Clock::now();
 
@@ -205,6 +414,22 @@ TEST(ControlThread, CountsOverrunsOfASlowCycleWithHowLateTheyWere) {
             seconds_between(started, stopped) * options.rate + 1.0);
   EXPECT_TRUE(sink.finite());
   EXPECT_EQ(loop.state().cycle, statistics.cycles);
+
+  // The second half as a window: its counts add up to the whole; its worst lateness is there only
+  // if it had overruns.
+  const rt::ControlThreadSnapshot end = thread.snapshot();
+  const rt::ControlThreadStatistics window = end.since(middle);
+  const rt::ControlThreadStatistics first_half = middle.statistics();
+  EXPECT_EQ(window.cycles + first_half.cycles, statistics.cycles);
+  EXPECT_EQ(window.overruns + first_half.overruns, statistics.overruns);
+  EXPECT_EQ(end.period.since(middle.period).count + middle.period.count, statistics.cycles - 1);
+  EXPECT_EQ(window.worst_lateness_us > 0.0, window.overruns > 0);
+  // Exact: the worst overrun was in one half, and a window that set the maximum knows it.
+  EXPECT_EQ(std::max(window.worst_lateness_us, first_half.worst_lateness_us),
+            statistics.worst_lateness_us);
+  EXPECT_LE(window.period_max_us, statistics.period_max_us);
+  // A snapshot from before this start() (another thread's counts): the window is since start().
+  EXPECT_EQ(end.since(rt::ControlThreadSnapshot{}).cycles, statistics.cycles);
 }
 
 TEST(ControlThread, FailsClosedWithoutMeasurementsAndResumesWhenTheyReturn) {

@@ -1,6 +1,8 @@
 #include "conversions.hpp"
 
 #include <algorithm>
+#include <cstdio>
+#include <string>
 #include <utility>
 
 #include <cartesian_impedance/error.hpp>
@@ -230,6 +232,30 @@ void fill_state_message(const ci::LoopState& state, const std::vector<std::strin
       trajectory.duration > 0.0 ? std::clamp(trajectory.time / trajectory.duration, 0.0, 1.0)
                                 : (trajectory.state == ci::TrajectoryState::finished ? 1.0 : 0.0);
   message.trajectory_goal_error = trajectory.goal_error;
+}
+
+void fill_timing(const ci::runtime::ControlThreadStatistics& statistics, ControllerState& message) {
+  message.overruns = statistics.overruns;
+  message.latest_lateness_us = statistics.latest_lateness_us;
+  message.worst_lateness_us = statistics.worst_lateness_us;
+  message.period_min_us = statistics.period_min_us;
+  message.period_p50_us = statistics.period_p50_us;
+  message.period_p99_us = statistics.period_p99_us;
+  message.period_max_us = statistics.period_max_us;
+  message.stale_episodes = statistics.stale_episodes;
+  message.realtime = statistics.realtime;
+}
+
+std::string overrun_summary(const ci::runtime::ControlThreadStatistics& window,
+                            double period_seconds, double window_seconds) {
+  char line[256];
+  std::snprintf(line, sizeof line,
+                "control cycle: %llu overrun%s of the %g ms period in the last %.0f s (worst %.0f "
+                "us late); period p50 %.0f us, p99 %.0f us, max %.0f us",
+                static_cast<unsigned long long>(window.overruns), window.overruns == 1 ? "" : "s",
+                1e3 * period_seconds, window_seconds, window.worst_lateness_us,
+                window.period_p50_us, window.period_p99_us, window.period_max_us);
+  return line;
 }
 
 }  // namespace cartesian_impedance_ros

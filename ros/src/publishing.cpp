@@ -1,7 +1,8 @@
-// What leaves the node: controller_state, commanded_torques and (sim mode) joint_states at
-// ~publish_rate from the publisher thread, which also logs status changes, lost joint_states and
-// overruns of the control thread; effort_command each control cycle (topics mode) from the effort
-// thread. Neither ever blocks the control thread: they read its lock-free outboxes.
+// What leaves the node: controller_state (with the control thread's timing), commanded_torques and
+// (sim mode) joint_states at ~publish_rate from the publisher thread, which also logs status
+// changes, lost joint_states and, every 5 s while there are any, a summary of the control thread's
+// overruns; effort_command each control cycle (topics mode) from the effort thread. Neither ever
+// blocks the control thread: they read its lock-free outboxes and atomic counters.
 
 #include <std_msgs/Float64MultiArray.h>
 
@@ -15,6 +16,9 @@ namespace ci = cartesian_impedance;
 using Clock = std::chrono::steady_clock;
 
 namespace {
+
+// One overrun summary per window at most, none for a window without overruns.
+constexpr std::chrono::seconds kOverrunSummaryInterval{5};
 
 void prepare_array(std_msgs::Float64MultiArray& message, int size) {
   message.layout.dim.resize(1);
@@ -51,7 +55,9 @@ void CartesianImpedanceNode::publisher_thread() {
         joint_samples_->read(measured);
         effort = &measured;
       }
+      const ci::runtime::ControlThreadSnapshot timing = control_thread_->snapshot();
       fill_state_message(state, model_->joint_names(), effort, state_message);
+      fill_timing(timing.statistics(), state_message);
       state_message.header.stamp = stamp;
       state_publisher_.publish(state_message);
       torque_message.data.assign(state.controller.tau.data(),
@@ -64,7 +70,7 @@ void CartesianImpedanceNode::publisher_thread() {
         joint_message.effort = state_message.commanded_torques;
         joint_state_publisher_.publish(joint_message);
       }
-      report(state, reported);
+      report(state, timing, reported);
     }
     const Clock::time_point now = Clock::now();
     if (now - next > period) next = now;
@@ -73,7 +79,9 @@ void CartesianImpedanceNode::publisher_thread() {
 }
 
 // Reports for the log, from here rather than from the control thread.
-void CartesianImpedanceNode::report(const ci::LoopState& state, Reports& reported) const {
+void CartesianImpedanceNode::report(const ci::LoopState& state,
+                                    const ci::runtime::ControlThreadSnapshot& timing,
+                                    Reports& reported) const {
   const ci::Status status = state.controller.status;
   if (status != reported.status) {
     if (status == ci::Status::ok) {
@@ -83,25 +91,26 @@ void CartesianImpedanceNode::report(const ci::LoopState& state, Reports& reporte
     }
     reported.status = status;
   }
-  const ci::runtime::ControlThreadStatistics statistics = control_thread_->statistics();
-  if (statistics.stale != reported.stale) {
-    if (statistics.stale) {
+  if (timing.stale != reported.stale) {
+    if (timing.stale) {
       ROS_WARN("no joint_states for more than %g s: torque ramps toward zero",
                settings_.joint_states_timeout);
     } else {
       ROS_INFO("joint_states are back");
     }
-    reported.stale = statistics.stale;
+    reported.stale = timing.stale;
   }
-  if (statistics.overruns != reported.overruns) {
-    ROS_WARN_THROTTLE(5.0,
-                      "control cycle overran its %g ms period %llu times so far (latest %.0f us "
-                      "late, worst %.0f us)",
-                      1e3 / settings_.control_rate,
-                      static_cast<unsigned long long>(statistics.overruns),
-                      statistics.latest_lateness_us, statistics.worst_lateness_us);
-    reported.overruns = statistics.overruns;
+  // Overruns: one line per window with any, counted from the thread's snapshots.
+  const Clock::time_point now = Clock::now();
+  if (!reported.window_began) reported.window_began = now;  // the first window: since start
+  if (now - *reported.window_began < kOverrunSummaryInterval) return;
+  const ci::runtime::ControlThreadStatistics window = timing.since(reported.window_start);
+  if (window.overruns > 0) {
+    const double seconds = std::chrono::duration<double>(now - *reported.window_began).count();
+    ROS_WARN("%s", overrun_summary(window, 1.0 / settings_.control_rate, seconds).c_str());
   }
+  reported.window_began = now;
+  reported.window_start = timing;
 }
 
 void CartesianImpedanceNode::effort_thread() {

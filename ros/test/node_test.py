@@ -274,11 +274,54 @@ def holds(state, seconds, condition, what):
         time.sleep(0.01)
 
 
+def check_timing(processes, state, launched, control_rate=1000.0):
+    """The control thread's timing in controller_state is sane and agrees with the log: the median
+    period near 1 / control_rate (loosely: a shared VM delays wake-ups), the quantiles ordered,
+    overruns counted and summarised in the log at most once per 5 s with no more overruns than
+    the state reports."""
+    import re
+    first = state.wait(lambda m: m.period_p50_us > 0.0, timeout=3.0, what="a measured period")
+    period_us = 1e6 / control_rate
+    m = first
+    assert 0.5 * period_us < m.period_p50_us < 2.0 * period_us, m.period_p50_us
+    assert 0.0 < m.period_min_us <= m.period_p50_us <= m.period_p99_us <= m.period_max_us, (
+        m.period_min_us, m.period_p50_us, m.period_p99_us, m.period_max_us)
+    assert m.overruns <= m.cycle + 100, (m.overruns, m.cycle)
+    assert (m.worst_lateness_us > 0.0) == (m.overruns > 0), (m.overruns, m.worst_lateness_us)
+    assert 0.0 <= m.latest_lateness_us <= m.worst_lateness_us, (
+        m.latest_lateness_us, m.worst_lateness_us)
+    print("timing: period p50 %.0f us, p99 %.0f us, max %.0f us; %d overruns in %d cycles, worst "
+          "%.0f us late" % (m.period_p50_us, m.period_p99_us, m.period_max_us, m.overruns, m.cycle,
+                            m.worst_lateness_us))
+
+    summary = re.compile(r"control cycle: (\d+) overruns? of the 1 ms period in the last (\d+) s "
+                         r"\(worst (\d+) us late\); period p50 (\d+) us, p99 (\d+) us, max (\d+) us")
+    if m.overruns > 0:
+        # Overruns get a summary within one 5 s window (and the publisher thread's period).
+        wait_until(lambda: summary.search(processes.log("launch")), 7.0,
+                   "a summary of the overruns in the log")
+    lines = summary.findall(processes.log("launch"))
+    time.sleep(0.2)  # a state published after the last line read
+    last = state.get()
+    assert last.overruns >= m.overruns, (last.overruns, m.overruns)
+    logged = sum(int(line[0]) for line in lines)
+    assert logged <= last.overruns, "the log summed %d overruns, the state says %d" % (
+        logged, last.overruns)
+    assert all(int(line[0]) > 0 and int(line[1]) >= 5 for line in lines), lines
+    elapsed = time.monotonic() - launched
+    assert len(lines) <= elapsed / 5.0 + 1, "%d summaries in %.1f s: %s" % (len(lines), elapsed,
+                                                                           lines)
+    print("log: %d overrun summaries in %.0f s, %d overruns in them" % (len(lines), elapsed,
+                                                                      logged))
+
+
 # ---- cases ----------------------------------------------------------------------------------------
 
 def case_reference_pose(processes, args):
     """A reference pose is reached, in the base frame and in another frame via tf2; joint_states
-    come from the simulation; a pose in an unknown frame is rejected."""
+    come from the simulation; a pose in an unknown frame is rejected; the control thread reports
+    its timing."""
+    launched = time.monotonic()
     processes.launch("launch", "sim_panda.launch")
     init_rospy()
     from sensor_msgs.msg import JointState
@@ -336,6 +379,7 @@ def case_reference_pose(processes, args):
           "a pose in an unknown frame changed the reference")
     wait_until(lambda: "no transform from frame 'nowhere'" in processes.log("launch"), 3.0,
                "the rejection to be logged")
+    check_timing(processes, state, launched)
 
 
 def case_stiffness(processes, args):
@@ -566,7 +610,9 @@ def case_two_arms(processes, args):
 
 def case_topics_mode(processes, args):
     """mode topics: joint_states in (in any order, with other joints), effort_command out at the
-    control rate; without joint_states the status turns invalid and the torque ramps to zero."""
+    control rate; without joint_states the status turns invalid and the torque ramps to zero
+    (a stale episode); the control thread reports its timing."""
+    launched = time.monotonic()
     processes.launch(
         "launch", "cartesian_impedance.launch", "mode:=topics",
         "urdf:=%s/models/panda/panda.urdf" % REPO, "config:=%s/config/panda.yaml" % REPO,
@@ -623,6 +669,8 @@ def case_topics_mode(processes, args):
                      what="the torque to ramp to zero")
         running["on"] = True
         state.wait(lambda m: m.status == "ok", timeout=2.0, what="ok once joint_states are back")
+        assert state.get().stale_episodes >= 1, state.get().stale_episodes
+        check_timing(processes, state, launched)
     finally:
         running["on"] = None
 

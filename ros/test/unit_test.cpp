@@ -683,6 +683,39 @@ TEST(Conversions, StateMessageFromALoopStep) {
   EXPECT_TRUE(message.joint_state.effort.empty());
 }
 
+TEST(Conversions, TimingOfTheControlThread) {
+  ci::runtime::ControlThreadStatistics statistics;
+  statistics.cycles = 5000;
+  statistics.overruns = 37;
+  statistics.latest_lateness_us = 120.0;
+  statistics.worst_lateness_us = 412.3;
+  statistics.period_min_us = 880.0;
+  statistics.period_p50_us = 1000.2;
+  statistics.period_p99_us = 1130.0;
+  statistics.period_max_us = 1520.0;
+  statistics.stale_episodes = 2;
+  statistics.realtime = true;
+  cir::ControllerState message;
+  cir::fill_timing(statistics, message);
+  EXPECT_EQ(message.overruns, 37u);
+  EXPECT_EQ(message.latest_lateness_us, 120.0);
+  EXPECT_EQ(message.worst_lateness_us, 412.3);
+  EXPECT_EQ(message.period_min_us, 880.0);
+  EXPECT_EQ(message.period_p50_us, 1000.2);
+  EXPECT_EQ(message.period_p99_us, 1130.0);
+  EXPECT_EQ(message.period_max_us, 1520.0);
+  EXPECT_EQ(message.stale_episodes, 2u);
+  EXPECT_TRUE(message.realtime);
+
+  EXPECT_EQ(cir::overrun_summary(statistics, 0.001, 5.004),
+            "control cycle: 37 overruns of the 1 ms period in the last 5 s (worst 412 us late); "
+            "period p50 1000 us, p99 1130 us, max 1520 us");
+  statistics.overruns = 1;
+  const std::string line = cir::overrun_summary(statistics, 0.002, 5.0);
+  EXPECT_EQ(line.rfind("control cycle: 1 overrun of the 2 ms period in the last 5 s", 0), 0u)
+      << line;
+}
+
 // ---- fuzz -----------------------------------------------------------------------------------
 // Thousands of hostile messages through the conversions and into a running loop, as the node's
 // callbacks pass them on: every one is either accepted or rejected with the library's Error,
