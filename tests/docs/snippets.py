@@ -271,9 +271,11 @@ def axes(w):
     return [w.force.x, w.force.y, w.force.z, w.torque.x, w.torque.y, w.torque.z]
 # What the commands ask for: the reference (0.35, 0.1, 0.5), stiffness (300, 500, 100; 50, 50,
 # 50) after the reconfigure set x to 300 and kept the topic's z, and 5 N pressing down: at
-# 100 N/m the flange settles 50 mm below the reference. The joints' Coulomb friction (up to
-# 0.2 Nm) can hold about 0.4 N against the spring at the Panda's reach of about 0.5 m: 4 mm.
-# Were the reconfigure to restore z = 500 N/m, the press would be 10 mm.
+# 100 N/m the flange settles 50 mm below the reference. The joints' Coulomb friction in the
+# Panda's model, mapped through this pose's Jacobian, can hold about 0.45 N along z against the
+# spring: 4.5 mm, plus 1 mm for the arm stopping anywhere in that band as it comes to rest
+# (ros/test/node_test.py derives the same band). Were the reconfigure to restore z = 500 N/m,
+# the press would be 10 mm; in x and y no force acts, so friction alone: the same band.
 deadline = time.monotonic() + 20
 while True:
     s = state()
@@ -291,10 +293,10 @@ if s.status != "ok": failures.append("status " + s.status)
 if max(abs(a - b) for a, b in zip(k, [300, 500, 100, 50, 50, 50])) > 1e-9:
     failures.append("commanded stiffness %s, not (300, 500, 100, 50, 50, 50)" % k)
 if abs(w[2] + 5.0) > 1e-9: failures.append("commanded force z %g, not -5 N" % w[2])
-if abs(p.z - (0.5 - 5.0 / 100.0)) > 0.004:
-    failures.append("z = %.4f m, not 0.45 +- 0.004 m (5 N at 100 N/m below 0.5 m)" % p.z)
-if math.hypot(p.x - 0.35, p.y - 0.1) > 0.004:
-    failures.append("x, y = %.4f, %.4f m, not the reference 0.35, 0.1 (+- 4 mm)" % (p.x, p.y))
+if abs(p.z - (0.5 - 5.0 / 100.0)) > 0.0055:
+    failures.append("z = %.4f m, not 0.45 +- 0.0055 m (5 N at 100 N/m below 0.5 m)" % p.z)
+if math.hypot(p.x - 0.35, p.y - 0.1) > 0.0055:
+    failures.append("x, y = %.4f, %.4f m, not the reference 0.35, 0.1 (+- 5.5 mm)" % (p.x, p.y))
 for f in failures: print("FAIL:", f)
 sys.exit(1 if failures else 0)
 """
