@@ -1,6 +1,7 @@
 #include "cartesian_impedance/config.hpp"
 
 #include <yaml-cpp/depthguard.h>
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -9,6 +10,7 @@
 #include <fstream>
 #include <limits>
 #include <locale>
+#include <optional>
 #include <sstream>
 #include <unordered_map>
 #include <vector>
@@ -198,14 +200,78 @@ void emit(YAML::Emitter& out, const ParameterValue& value) {
   }
 }
 
+// Where each document begins, and where its content (its first node) begins.
+class DocumentStarts final : public YAML::EventHandler {
+ public:
+  std::vector<YAML::Mark> starts, contents;
+  void OnDocumentStart(const YAML::Mark& mark) override {
+    starts.push_back(mark);
+    contents.push_back(mark);
+    first_node_ = true;
+  }
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark& mark, YAML::anchor_t) override { node(mark); }
+  void OnAlias(const YAML::Mark& mark, YAML::anchor_t) override { node(mark); }
+  void OnScalar(const YAML::Mark& mark, const std::string&, YAML::anchor_t,
+                const std::string&) override {
+    node(mark);
+  }
+  void OnSequenceStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t,
+                       YAML::EmitterStyle::value) override {
+    node(mark);
+  }
+  void OnSequenceEnd() override {}
+  void OnMapStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t,
+                  YAML::EmitterStyle::value) override {
+    node(mark);
+  }
+  void OnMapEnd() override {}
+
+ private:
+  void node(const YAML::Mark& mark) {
+    if (first_node_) contents.back() = mark;
+    first_node_ = false;
+  }
+  bool first_node_ = false;
+};
+
+// The one document of the text (none if the text has none). A second document is reported rather
+// than silently dropped (YAML::Load reads the first only). YAML::LoadAll is not used: yaml-cpp
+// 0.7 never ends on a ',' after a top-level scalar or flow collection (or at the very start): it
+// takes the ',' for the start of an empty document without consuming it, again and again, until
+// memory runs out. So at most two documents are parsed here, the second only to report it.
+std::optional<YAML::Node> the_document(const std::string& yaml, std::string_view source) {
+  std::istringstream stream(yaml);
+  YAML::Parser parser(stream);
+  DocumentStarts starts;
+  for (int document = 0; document < 2 && parser.HandleNextDocument(starts); ++document) {
+  }
+  if (starts.starts.size() > 1) {
+    const YAML::Mark& start = starts.starts[1];
+    // yaml-cpp counts a byte-order mark as no position.
+    std::size_t at = static_cast<std::size_t>(start.pos);
+    if (yaml.compare(at, 3, "\xef\xbb\xbf") == 0) at += 3;
+    if (at < yaml.size() && yaml[at] == ',') {
+      fail(source, start,
+           "malformed YAML: ',' outside a list or map (column " + std::to_string(start.column + 1) +
+               ")");
+    }
+    // An empty document has the position of the end of the text, which would mislead.
+    const YAML::Mark& content = starts.contents[1];
+    const bool at_end = static_cast<std::size_t>(content.pos) >= yaml.size();
+    fail(source, at_end ? YAML::Mark::null_mark() : content,
+         "a second YAML document (after '---'); a parameter file holds only one document");
+  }
+  if (starts.starts.empty()) return std::nullopt;
+  return YAML::Load(yaml);
+}
+
 }  // namespace
 
 Parameters parameters_from_yaml(const std::string& yaml, std::string_view source) {
-  // Every document, not only the first (YAML::Load ignores the rest), so that a second one is
-  // reported rather than silently dropped.
-  std::vector<YAML::Node> documents;
+  std::optional<YAML::Node> document;
   try {
-    documents = YAML::LoadAll(yaml);
+    document = the_document(yaml, source);
   } catch (const YAML::DeepRecursion& error) {
     // yaml-cpp's parser recurses once per level and stops at a bound of its own.
     fail(source, error.mark,
@@ -217,15 +283,9 @@ Parameters parameters_from_yaml(const std::string& yaml, std::string_view source
     if (!error.mark.is_null()) column = " (column " + std::to_string(error.mark.column + 1) + ")";
     fail(source, error.mark, "malformed YAML: " + error.msg + column);
   }
-  if (documents.size() > 1) {
-    // An empty document has the position of the end of the text, which would mislead.
-    const YAML::Mark mark = documents[1].IsNull() ? YAML::Mark::null_mark() : documents[1].Mark();
-    fail(source, mark,
-         "a second YAML document (after '---'); a parameter file holds only one document");
-  }
   ParameterValue tree;
   try {
-    if (!documents.empty()) tree = Converter(source).convert(documents[0], "", 0);
+    if (document) tree = Converter(source).convert(*document, "", 0);
   } catch (const YAML::Exception& error) {
     // Reading only asks for what it checked is there; should yaml-cpp still object, it is an
     // Error like any other.

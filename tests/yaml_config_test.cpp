@@ -464,3 +464,17 @@ TEST(YamlConfig, RoundTripOfSeededRandomParameters) {
 }
 
 }  // namespace
+
+TEST(YamlConfig, CommaOutsideAListOrMapIsRejectedNotLoopedOn) {
+  // yaml-cpp 0.7's LoadAll never returned on these (an endless run of empty documents until
+  // memory ran out); the loader parses at most two documents.
+  for (const std::string yaml : {",", ", a", "  ,", ",,", "# a comment\n,", "\t,", "\"a\",", "'a',",
+                                 "[1],", "{a: 1},", "\"a\"\n,", "\xef\xbb\xbf,"}) {
+    EXPECT_TRUE(
+        yaml_rejected_with(yaml, {"test.yaml:", "malformed YAML: ',' outside a list or map"}))
+        << yaml;
+  }
+  // A comma inside a value or a flow collection is still fine where YAML allows it.
+  EXPECT_TRUE(yaml_rejected_with("stiffness:\n  translation: [1, 2,]\n",
+                                 {"stiffness.translation must be 3 numbers"}));
+}
