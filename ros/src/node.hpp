@@ -77,8 +77,8 @@ class CartesianImpedanceNode {
   struct Reconfigure {
     boost::recursive_mutex mutex;
     std::unique_ptr<dynamic_reconfigure::Server<Config>> server;
-    Config applied;
-    Config shown;
+    Config applied{};  // value-initialized: the generated type leaves its members uninitialized
+    Config shown{};
   };
 
   // Threads: the control thread (node.cpp), publisher and effort threads (publishing.cpp).

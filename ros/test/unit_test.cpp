@@ -475,9 +475,10 @@ ci::Vector6d v6(double a, double b, double c, double d, double e, double f) {
 // The record of a Panda started with config/panda.yaml, and a stiffness server showing it.
 struct RecordFixture {
   cir::CommandRecord record{ci::load_parameters(kSource + "/config/panda.yaml")};
-  cir::StiffnessConfig stiffness_shown;
-  cir::DampingConfig damping_shown;
-  cir::WrenchConfig wrench_shown;
+  // Value-initialized: the generated types leave their members (the flags too) uninitialized.
+  cir::StiffnessConfig stiffness_shown{};
+  cir::DampingConfig damping_shown{};
+  cir::WrenchConfig wrench_shown{};
 
   RecordFixture() {
     cir::show_all(record, stiffness_shown);
