@@ -274,7 +274,8 @@ def axes(w):
 # 100 N/m the flange settles 50 mm below the reference. The joints' Coulomb friction in the
 # Panda's model, mapped through this pose's Jacobian, can hold about 0.45 N along z against the
 # spring: 4.5 mm, plus 1 mm for the arm stopping anywhere in that band as it comes to rest
-# (ros/test/node_test.py, case reconfigure_keeps_topic_commands, derives the same band). Were the reconfigure to restore z = 500 N/m,
+# (ros/test/node_test.py, case reconfigure_keeps_topic_commands, derives the same band).
+# Were the reconfigure to restore z = 500 N/m,
 # the press would be 10 mm; in x and y no force acts, so friction alone: the same band.
 deadline = time.monotonic() + 20
 while True:
