@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdio>
 #include <cmath>
 #include <exception>
 #include <limits>
@@ -285,6 +286,18 @@ void ControlThread::record(const CycleTime& time, Freshness freshness, std::int6
     // Far behind: skip the missed cycles instead of running them in a burst.
     if (lateness > period_ns_) deadline_ns = end_ns;
   }
+}
+
+std::string overrun_summary(const ControlThreadStatistics& window, double period_seconds,
+                            double window_seconds) {
+  char line[256];
+  std::snprintf(line, sizeof line,
+                "control cycle: %llu overrun%s of the %g ms period in the last %.0f s (worst %.0f "
+                "us late); period p50 %.0f us, p99 %.0f us, max %.0f us",
+                static_cast<unsigned long long>(window.overruns), window.overruns == 1 ? "" : "s",
+                1e3 * period_seconds, window_seconds, window.worst_lateness_us,
+                window.period_p50_us, window.period_p99_us, window.period_max_us);
+  return line;
 }
 
 }  // namespace cartesian_impedance::runtime

@@ -115,6 +115,12 @@ struct ControlThreadSnapshot {
   ControlThreadStatistics since(const ControlThreadSnapshot& earlier) const noexcept;
 };
 
+/// The log line for the overruns in a window of `window_seconds` of a thread with a period of
+/// `period_seconds`, e.g. "control cycle: 37 overruns of the 1 ms period in the last 5 s (worst
+/// 412 us late); period p50 1000 us, p99 1130 us, max 1520 us". What the nodes log.
+std::string overrun_summary(const ControlThreadStatistics& window, double period_seconds,
+                            double window_seconds);
+
 class ControlThread {
  public:
   enum class State {
