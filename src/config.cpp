@@ -72,7 +72,8 @@ constexpr std::size_t kMaxValues = 100000;
 // an alias of a list or map inside itself ends there; kMaxValues bounds the width.
 class Converter {
  public:
-  explicit Converter(std::string_view source) : source_(source), max_depth_(table_depth() + 1) {}
+  Converter(std::string_view source, std::size_t extra_depth)
+      : source_(source), max_depth_(table_depth() + 1 + extra_depth) {}
 
   ParameterValue convert(const YAML::Node& node, const std::string& path, std::size_t depth) {
     if (++count_ > kMaxValues) {
@@ -268,7 +269,8 @@ std::optional<YAML::Node> the_document(const std::string& yaml, std::string_view
 
 }  // namespace
 
-Parameters parameters_from_yaml(const std::string& yaml, std::string_view source) {
+ParameterValue parameter_tree_from_yaml(const std::string& yaml, std::string_view source,
+                                        std::size_t extra_depth) {
   std::optional<YAML::Node> document;
   try {
     document = the_document(yaml, source);
@@ -285,13 +287,17 @@ Parameters parameters_from_yaml(const std::string& yaml, std::string_view source
   }
   ParameterValue tree;
   try {
-    if (document) tree = Converter(source).convert(*document, "", 0);
+    if (document) tree = Converter(source, extra_depth).convert(*document, "", 0);
   } catch (const YAML::Exception& error) {
     // Reading only asks for what it checked is there; should yaml-cpp still object, it is an
     // Error like any other.
     fail(source, error.mark, "cannot read the YAML: " + error.msg);
   }
-  return decode_parameters(tree, Parameters{}, source);
+  return tree;
+}
+
+Parameters parameters_from_yaml(const std::string& yaml, std::string_view source) {
+  return decode_parameters(parameter_tree_from_yaml(yaml, source), Parameters{}, source);
 }
 
 Parameters load_parameters(const std::string& path) {

@@ -5,9 +5,11 @@
 /// duplicate and merge keys, a second document, quoted or tagged scalars being strings). Part of
 /// the `cartesian_impedance::config` target (yaml-cpp).
 
+#include <cstddef>
 #include <string>
 #include <string_view>
 
+#include "cartesian_impedance/parameter_tree.hpp"
 #include "cartesian_impedance/parameters.hpp"
 
 namespace cartesian_impedance {
@@ -24,6 +26,15 @@ Parameters load_parameters(const std::string& path);
 
 /// As load_parameters(), from YAML text; `source` names it in messages.
 Parameters parameters_from_yaml(const std::string& yaml, std::string_view source = "<yaml>");
+
+/// The YAML text as the decoder's value tree, every value located as `source:line`, after every
+/// check of the YAML itself that parameters_from_yaml() makes (malformed text, a second document,
+/// keys given twice, merge keys, quoted numbers marked with a hint, size bounds), but none of the
+/// parameters'. For sources that wrap parameters in a YAML file of their own (a ROS 2 params file
+/// nests them `extra_depth` = 2 levels deeper, under `node: ros__parameters:`).
+/// @throws Error as parameters_from_yaml() for the YAML itself.
+ParameterValue parameter_tree_from_yaml(const std::string& yaml, std::string_view source,
+                                        std::size_t extra_depth = 0);
 
 /// Writes every parameter as YAML that parameters_from_yaml() reads back to the same values.
 std::string parameters_to_yaml(const Parameters& parameters);
