@@ -1,0 +1,306 @@
+// The ROS 2 node's setup, threads and command handling (see node.hpp).
+
+#include "node.hpp"
+
+#include <chrono>
+#include <cstring>
+#include <map>
+#include <vector>
+
+#include <cartesian_impedance/error.hpp>
+#include <cartesian_impedance/runtime/status_reports.hpp>
+
+#include "log.hpp"
+
+namespace cartesian_impedance_ros2 {
+
+namespace ci = cartesian_impedance;
+using Clock = std::chrono::steady_clock;
+using ci::runtime::Mode;
+
+namespace {
+
+void log_line(const ci::runtime::ReportLine& line) {
+  log(line.level == ci::runtime::ReportLine::Level::info ? LogLevel::info : LogLevel::warn,
+      line.text);
+}
+
+}  // namespace
+
+Node::Node(RosArguments arguments, Ros2Configuration configuration)
+    : arguments_(std::move(arguments)), configuration_(std::move(configuration)) {
+  for (const std::string& key : configuration_.common.unknown_keys) {
+    log(LogLevel::warn, "ignoring parameter " + key + ": not a setting or parameter of this node");
+  }
+  frames_ = {settings_.base_link, settings_.tip_link};
+  model_.emplace(ci::RobotModel::from_urdf_string(configuration_.urdf, settings_.base_link,
+                                                  settings_.tip_link));
+  // The command thread waits up to 0.1 s for room in a full inbox (the cycle drains 8 commands
+  // per step), so a burst is delayed rather than lost.
+  ci::LoopCapacity capacity;
+  capacity.send_timeout = 0.1;
+  loop_ = std::make_unique<ci::ControlLoop>(*model_, configuration_.common.parameters, capacity);
+  const int n = model_->num_joints();
+
+  const auto out = [&](const std::string& name) {
+    const std::string topic = arguments_.resolve(name);
+    return std::make_pair("rt" + topic, configuration_.publisher(topic));
+  };
+  const auto in = [&](const std::string& name) {
+    const std::string topic = arguments_.resolve(name);
+    return std::make_pair("rt" + topic, configuration_.subscription(topic));
+  };
+  const auto writer = [&](auto& w, const std::string& name) {
+    const auto [topic, qos] = out(name);
+    w = std::decay_t<decltype(w)>(participant_, topic, qos);
+  };
+  const auto reader = [&](auto& r, const std::string& name) {
+    const auto [topic, qos] = in(name);
+    r = std::decay_t<decltype(r)>(participant_, topic, qos);
+  };
+
+  if (settings_.mode == Mode::sim) {
+    ci::sim::SimulationOptions options;
+    options.timestep = 1.0 / settings_.control_rate;  // one simulation step per control cycle
+    options.joint_names = model_->joint_names();
+    // The simulated firmware compensates gravity like the real robots, unless the controller is
+    // configured to do it itself (then it would be compensated twice).
+    options.gravity_compensation = !configuration_.common.parameters.dynamics.gravity_compensation;
+    simulation_.emplace(ci::sim::Simulation::from_mjcf_file(settings_.mjcf_path, options));
+    runner_.emplace(*simulation_, *loop_);
+    writer(joint_state_writer_, "joint_states");
+  } else {
+    joint_mapper_.emplace(model_->joint_names());
+    joint_samples_.emplace(n);
+    torques_.emplace(n);
+    writer(effort_writer_, configuration_.effort_controller + "/commands");
+    reader(joint_state_reader_, "joint_states");
+  }
+  ci::runtime::ControlThreadOptions thread_options;
+  thread_options.rate = settings_.control_rate;
+  thread_options.measurement_timeout = settings_.joint_states_timeout;
+  thread_options.realtime_priority = settings_.realtime_priority;
+  control_thread_.emplace(thread_options);
+
+  writer(state_writer_, "~/controller_state");
+  writer(full_state_writer_, "~/full_state");
+  writer(torque_writer_, "~/commanded_torques");
+  reader(reference_reader_, "~/reference_pose");
+  reader(stiffness_reader_, "~/set_cartesian_stiffness");
+  reader(wrench_reader_, "~/set_cartesian_wrench");
+  reader(damping_reader_, "~/set_damping_factors");
+  reader(config_reader_, "~/set_config");
+  // Relative, as in the published controller: in the node's namespace.
+  reader(trajectory_reader_, "joint_trajectory");
+  wake_ = Entity(check(dds_create_guardcondition(participant_.get()), "guard condition"));
+
+  std::string joints;
+  for (const std::string& name : model_->joint_names())
+    joints += (joints.empty() ? "" : " ") + name;
+  log(LogLevel::info, arguments_.fully_qualified_name() + ": " + settings_.base_link + " -> " +
+                          settings_.tip_link + ", " + std::to_string(n) + " joints (" + joints +
+                          "), mode " + to_string(settings_.mode) + ", " +
+                          ci::format_number(settings_.control_rate) + " Hz control, " +
+                          ci::format_number(settings_.publish_rate) + " Hz state, DDS domain " +
+                          std::to_string(participant_.domain()));
+}
+
+Node::~Node() {
+  stop_threads();
+}
+
+void Node::stop_threads() {
+  if (control_thread_) control_thread_->stop();
+  stop_ = true;
+  if (wake_.get() > 0) dds_set_guardcondition(wake_.get(), true);
+  if (torques_) torques_->wake();
+  for (std::thread* thread :
+       {&command_thread_, &joint_state_thread_, &publisher_thread_, &effort_thread_}) {
+    if (thread->joinable()) thread->join();
+  }
+}
+
+int Node::run(const std::atomic<bool>& stop) {
+  if (settings_.mode == Mode::topics) {
+    joint_state_thread_ = std::thread([this] { joint_state_thread(); });
+    control_thread_->start(*loop_, *joint_samples_, &*torques_);
+    effort_thread_ = std::thread([this] { effort_thread(); });
+    log(LogLevel::info, "waiting for " + arguments_.resolve("joint_states"));
+  } else {
+    control_thread_->start(*runner_);
+  }
+  if (const int error = control_thread_->scheduling_error()) {
+    log(LogLevel::warn, "cannot give the control thread SCHED_FIFO priority " +
+                            std::to_string(settings_.realtime_priority) + " (" +
+                            std::strerror(error) + "); it runs at normal priority");
+  }
+  publisher_thread_ = std::thread([this] { publisher_thread(); });
+  command_thread_ = std::thread([this] { command_thread(); });
+
+  using State = ci::runtime::ControlThread::State;
+  while (!stop && control_thread_->state() == State::preparing) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  const bool failed = control_thread_->state() == State::failed;
+  if (!failed && control_thread_->running()) {
+    // Commands wait in their readers until now: start() sets the reference to the measured pose,
+    // which would override one sent before.
+    accepting_ = true;
+    log(LogLevel::info,
+        "controller running; commands on " + arguments_.fully_qualified_name() + "/...");
+  }
+  while (!stop && !failed) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  stop_threads();
+  if (failed) {
+    log(LogLevel::fatal, "cannot start the controller: " + control_thread_->failure());
+    return 1;
+  }
+  return 0;
+}
+
+// ---- commands -----------------------------------------------------------------------------------
+
+void Node::command_thread() {
+  // Until the controller runs, samples wait in their readers (keep-last: the newest ones).
+  while (!stop_ && !accepting_) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  const dds_entity_t waitset = dds_create_waitset(participant_.get());
+  if (waitset < 0) {
+    log(LogLevel::error, std::string("DDS: cannot create a waitset: ") + dds_strretcode(waitset));
+    return;
+  }
+  for (const dds_entity_t reader :
+       {reference_reader_.get(), stiffness_reader_.get(), wrench_reader_.get(),
+        damping_reader_.get(), config_reader_.get(), trajectory_reader_.get()}) {
+    dds_set_status_mask(reader, DDS_DATA_AVAILABLE_STATUS);
+    dds_waitset_attach(waitset, reader, reader);
+  }
+  dds_waitset_attach(waitset, wake_.get(), wake_.get());
+  while (!stop_) {
+    take_commands();
+    dds_waitset_wait(waitset, nullptr, 0, DDS_MSECS(100));
+  }
+  dds_delete(waitset);
+}
+
+template <typename Convert>
+void Node::send(const char* topic, Convert&& convert) {
+  // One warning per topic and second, with the count of those not shown, so that a flood of bad
+  // samples cannot flood the log.
+  struct Throttle {
+    Clock::time_point last{};
+    int suppressed = 0;
+  };
+  static thread_local std::map<std::string, Throttle> throttles;
+  try {
+    convert();
+  } catch (const std::exception& error) {
+    Throttle& throttle = throttles[topic];
+    const Clock::time_point now = Clock::now();
+    if (now - throttle.last < std::chrono::seconds(1)) {
+      ++throttle.suppressed;
+      return;
+    }
+    std::string text = std::string(topic) + " rejected: " + error.what();
+    if (throttle.suppressed > 0) {
+      text += " (and " + std::to_string(throttle.suppressed) + " more in the last second)";
+    }
+    log(LogLevel::warn, text);
+    throttle = {now, 0};
+  }
+}
+
+void Node::take_commands() {
+  const int n = model_->num_joints();
+  reference_reader_.take([&](const PoseStamped& message) {
+    send("reference_pose", [&] { loop_->send(reference_from_message(message, frames_)); });
+  });
+  stiffness_reader_.take([&](const WrenchStamped& message) {
+    send("set_cartesian_stiffness", [&] { loop_->send(stiffness_from_message(message, frames_)); });
+  });
+  wrench_reader_.take([&](const WrenchStamped& message) {
+    send("set_cartesian_wrench", [&] { loop_->send(wrench_from_message(message, frames_)); });
+  });
+  damping_reader_.take([&](const WrenchMessage& message) {
+    send("set_damping_factors",
+         [&] { loop_->send(ci::DampingRatio{vector_from_wrench(message)}); });
+  });
+  config_reader_.take([&](const ControllerConfig& message) {
+    send("set_config", [&] { loop_->send_all(config_from_message(message, n)); });
+  });
+  trajectory_reader_.take([&](const JointTrajectoryMessage& message) {
+    send("joint_trajectory", [&] {
+      // No services on this node: an empty trajectory stops the running one, as in ros2_control.
+      if (message.points._length == 0) {
+        loop_->cancel_trajectory();
+        log(LogLevel::info, "joint_trajectory: empty, the running trajectory is cancelled");
+        return;
+      }
+      const std::uint64_t id = loop_->execute_trajectory(trajectory_from_message(message));
+      log(LogLevel::info, "joint_trajectory " + std::to_string(id) + ": " +
+                              std::to_string(message.points._length) + " points");
+    });
+  });
+}
+
+// ---- joint states in, state and torques out -----------------------------------------------------
+
+void Node::joint_state_thread() {
+  const dds_entity_t waitset = dds_create_waitset(participant_.get());
+  if (waitset < 0) return;
+  dds_set_status_mask(joint_state_reader_.get(), DDS_DATA_AVAILABLE_STATUS);
+  dds_waitset_attach(waitset, joint_state_reader_.get(), 0);
+  dds_waitset_attach(waitset, wake_.get(), 1);
+  ci::runtime::JointMeasurement sample;
+  while (!stop_) {
+    joint_state_reader_.take([&](const JointStateMessage& message) {
+      send("joint_states", [&] {
+        // A message about other joints only (fingers, another arm) is not the arm's.
+        if (joint_mapper_->map(joint_state_view(message), sample)) joint_samples_->publish(sample);
+      });
+    });
+    dds_waitset_wait(waitset, nullptr, 0, DDS_MSECS(100));
+  }
+  dds_delete(waitset);
+}
+
+void Node::publisher_thread() {
+  const auto period = std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(1.0 / settings_.publish_rate));
+  OutgoingMessages messages(*model_, frames_);
+  ci::runtime::JointMeasurement measured;
+  ci::runtime::StatusReporter reporter(1.0 / settings_.control_rate, settings_.joint_states_timeout,
+                                       "joint_states");
+  Clock::time_point next = Clock::now();
+  while (!stop_) {
+    next += period;
+    if (control_thread_->running()) {
+      const ci::LoopState state = loop_->latest_state();
+      const ci::runtime::JointMeasurement* effort = nullptr;
+      if (joint_samples_) {
+        joint_samples_->read(measured);
+        effort = &measured;
+      }
+      const ci::runtime::ControlThreadSnapshot timing = control_thread_->snapshot();
+      messages.fill(state, timing.statistics(), effort);
+      state_writer_.write(messages.published_state());
+      full_state_writer_.write(messages.full_state());
+      torque_writer_.write(messages.commanded_torques());
+      if (joint_state_writer_.valid()) joint_state_writer_.write(messages.joint_state());
+      for (const ci::runtime::ReportLine& line : reporter.update(state, timing)) log_line(line);
+    }
+    const Clock::time_point now = Clock::now();
+    if (now - next > period) next = now;
+    std::this_thread::sleep_until(next);
+  }
+}
+
+void Node::effort_thread() {
+  std::vector<double> storage;
+  ci::runtime::TorqueSample sample;
+  while (!stop_) {
+    if (!torques_->wait(0.1, sample)) continue;  // a new cycle's torque, each once
+    effort_writer_.write(OutgoingMessages::torque_message(sample.tau, storage));
+  }
+}
+
+}  // namespace cartesian_impedance_ros2

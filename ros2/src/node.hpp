@@ -1,0 +1,103 @@
+#pragma once
+/// @file
+/// The ROS 2 shell around cartesian_impedance::ControlLoop, on DDS. Threads:
+///
+/// - the control thread is the library's runtime::ControlThread (the same one the ROS 1 node
+///   runs): the cycle at control_rate on absolute deadlines; in sim mode its cycle is the
+///   closed-loop runner stepping MuJoCo, in topics mode the loop fed by joint_states through a
+///   lock-free MeasurementBuffer, its torques leaving through a TorqueOutbox. It never waits on
+///   DDS.
+/// - the command thread waits on a DDS waitset for every command topic, converts and validates
+///   each sample and hands it to the loop's lock-free inbox; a rejected sample is logged with the
+///   field and value and changes nothing.
+/// - the joint-state thread (topics mode) maps joint_states into the MeasurementBuffer, apart
+///   from commands so that a flood of commands cannot delay a measurement.
+/// - the publisher thread writes the state topics at publish_rate and logs status changes; the
+///   effort thread (topics mode) writes each cycle's torque to the effort controller.
+
+#include <atomic>
+#include <memory>
+#include <optional>
+#include <string>
+#include <thread>
+
+#include <cartesian_impedance/control_loop.hpp>
+#include <cartesian_impedance/robot_model.hpp>
+#include <cartesian_impedance/runtime/control_thread.hpp>
+#include <cartesian_impedance/runtime/joint_states.hpp>
+#include <cartesian_impedance/runtime/robot_io.hpp>
+#include <cartesian_impedance/sim/closed_loop_runner.hpp>
+#include <cartesian_impedance/sim/simulation.hpp>
+
+#include "arguments.hpp"
+#include "dds.hpp"
+#include "messages.hpp"
+#include "parameters.hpp"
+
+namespace cartesian_impedance_ros2 {
+
+class Node {
+ public:
+  /// Loads the model (and in sim mode the MJCF) and creates every DDS entity.
+  /// @throws cartesian_impedance::Error with a message for the user.
+  Node(RosArguments arguments, Ros2Configuration configuration);
+  ~Node();
+  Node(const Node&) = delete;
+  Node& operator=(const Node&) = delete;
+
+  /// Runs until `stop` becomes true; returns the process exit code (1 if the controller could
+  /// not start).
+  int run(const std::atomic<bool>& stop);
+
+ private:
+  void command_thread();
+  void joint_state_thread();
+  void publisher_thread();
+  void effort_thread();
+  void stop_threads();
+
+  /// Takes every waiting sample of every command topic and sends what converts and validates.
+  void take_commands();
+  /// Sends commands from one sample to the loop as one (all or none); logs a rejection.
+  template <typename Convert>
+  void send(const char* topic, Convert&& convert);
+
+  RosArguments arguments_;
+  Ros2Configuration configuration_;
+  const cartesian_impedance::runtime::NodeSettings& settings_ = configuration_.common.settings;
+  Frames frames_;
+
+  std::optional<cartesian_impedance::RobotModel> model_;
+  std::unique_ptr<cartesian_impedance::ControlLoop> loop_;
+  std::optional<cartesian_impedance::sim::Simulation> simulation_;              // sim mode
+  std::optional<cartesian_impedance::sim::ClosedLoopRunner> runner_;            // sim mode
+  std::optional<cartesian_impedance::runtime::JointStateMapper> joint_mapper_;  // topics mode
+  std::optional<cartesian_impedance::runtime::MeasurementBuffer> joint_samples_;
+  std::optional<cartesian_impedance::runtime::TorqueOutbox> torques_;
+  std::optional<cartesian_impedance::runtime::ControlThread> control_thread_;
+
+  // DDS: the participant first, so that it outlives (and deletes) everything below.
+  Participant participant_;
+  Writer<PublishedState> state_writer_;
+  Writer<FullState> full_state_writer_;
+  Writer<Float64MultiArray> torque_writer_;
+  Writer<JointStateMessage> joint_state_writer_;  // sim mode
+  Writer<Float64MultiArray> effort_writer_;       // topics mode
+  Reader<PoseStamped> reference_reader_;
+  Reader<WrenchStamped> stiffness_reader_;
+  Reader<WrenchStamped> wrench_reader_;
+  Reader<WrenchMessage> damping_reader_;
+  Reader<ControllerConfig> config_reader_;
+  Reader<JointTrajectoryMessage> trajectory_reader_;
+  Reader<JointStateMessage> joint_state_reader_;  // topics mode
+  Entity wake_;                                   // guard condition: ends the waits
+
+  std::atomic<bool> stop_{false};
+  std::atomic<bool> accepting_{false};  // commands are applied once the controller runs
+  std::thread command_thread_;
+  std::thread joint_state_thread_;
+  std::thread publisher_thread_;
+  std::thread effort_thread_;
+};
+
+}  // namespace cartesian_impedance_ros2

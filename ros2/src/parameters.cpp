@@ -1,0 +1,221 @@
+#include "parameters.hpp"
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <utility>
+
+#include <cartesian_impedance/config.hpp>
+#include <cartesian_impedance/error.hpp>
+#include <cartesian_impedance/parameter_tree.hpp>
+
+namespace cartesian_impedance_ros2 {
+namespace {
+
+namespace ci = cartesian_impedance;
+using ci::ParameterValue;
+
+// Keys the ROS 2 shell reads itself (besides the shared settings and the parameter groups).
+const std::vector<std::string> kShellKeys = {"urdf_path", "robot_description", "effort_controller",
+                                             "parameters_file"};
+// Settings that name files: relative to the params file they are given in.
+const char* const kPathKeys[] = {"urdf_path", "mjcf_path", "parameters_file"};
+
+std::string read_file(const std::string& path, const std::string& what) {
+  std::error_code error;
+  if (std::filesystem::is_directory(path, error))
+    throw ci::Error(what + " '" + path + "' is a directory");
+  std::ifstream file(path);
+  if (!file) throw ci::Error("cannot open " + what + " '" + path + "'");
+  std::stringstream text;
+  text << file.rdbuf();
+  return text.str();
+}
+
+// The parameters as ROS 2 keeps them: one flat list of dotted names, each given once, in the
+// order first given; a later value replaces an earlier one in place.
+class FlatParameters {
+ public:
+  void set(const std::string& key, ParameterValue value) {
+    for (ci::ParameterMember& member : members_) {
+      if (member.key == key) {
+        member.key_location = value.location;
+        member.value = std::move(value);
+        return;
+      }
+    }
+    const std::string location = value.location;
+    members_.push_back({key, std::move(value), location});
+  }
+
+  // Every leaf of map `value` under `prefix`; a path setting relative to `directory`.
+  void add(const std::string& prefix, const ParameterValue& value,
+           const std::filesystem::path& directory) {
+    if (value.is(ParameterValue::Kind::map)) {
+      for (const ci::ParameterMember& member : value.as_map()) {
+        add(prefix.empty() ? member.key : prefix + "." + member.key, member.value, directory);
+      }
+      return;
+    }
+    ParameterValue leaf = value;
+    for (const char* key : kPathKeys) {
+      if (prefix == key && leaf.is(ParameterValue::Kind::string) && !leaf.as_string().empty() &&
+          std::filesystem::path(leaf.as_string()).is_relative() && !directory.empty()) {
+        leaf = ParameterValue::string((directory / leaf.as_string()).lexically_normal().string(),
+                                      value.location);
+      }
+    }
+    set(prefix, std::move(leaf));
+  }
+
+  const ci::ParameterMap& members() const { return members_; }
+  const ParameterValue* find(std::string_view key) const {
+    for (const ci::ParameterMember& member : members_) {
+      if (member.key == key) return &member.value;
+    }
+    return nullptr;
+  }
+
+  std::string location_of(std::string_view key, const std::string& node) const {
+    for (const ci::ParameterMember& member : members_) {
+      if (member.key == key && !member.key_location.empty()) return member.key_location;
+    }
+    return "parameter '" + std::string(key) + "' of " + node;
+  }
+
+ private:
+  ci::ParameterMap members_;
+};
+
+bool names_this_node(const std::string& key, const RosArguments& arguments) {
+  const std::string full = arguments.fully_qualified_name();
+  return key == "/**" || key == full || key == full.substr(1) ||
+         key == "/**/" + arguments.node_name;
+}
+
+TopicQos parse_qos(TopicQos qos, const std::string& policy, const ParameterValue& value) {
+  const std::string where = value.location.empty() ? "" : value.location + ": ";
+  if (policy == "depth") {
+    static const ci::ParameterInfo kDepth{"depth", "", 1, 100000, false, "history depth", nullptr};
+    qos.depth = ci::decode_integer(value, kDepth, "qos depth");
+  } else if (policy == "reliability") {
+    qos.reliable = ci::decode_name(value, "qos reliability", "a reliability",
+                                   {"reliable", "best_effort"}) == "reliable";
+  } else if (policy == "durability") {
+    qos.transient_local = ci::decode_name(value, "qos durability", "a durability",
+                                          {"volatile", "transient_local"}) == "transient_local";
+  } else if (policy == "history") {
+    ci::decode_name(value, "qos history", "a history", {"keep_last"});
+  } else {
+    throw ci::Error(where + "qos policy '" + policy +
+                    "' is not supported (valid: reliability, durability, depth, history)");
+  }
+  return qos;
+}
+
+}  // namespace
+
+TopicQos Ros2Configuration::publisher(const std::string& topic) const {
+  const auto found = publisher_qos.find(topic);
+  return found == publisher_qos.end() ? TopicQos{} : found->second;
+}
+
+TopicQos Ros2Configuration::subscription(const std::string& topic) const {
+  const auto found = subscription_qos.find(topic);
+  return found == subscription_qos.end() ? TopicQos{} : found->second;
+}
+
+Ros2Configuration read_configuration(const RosArguments& arguments) {
+  const std::string node = arguments.fully_qualified_name();
+  FlatParameters flat;
+  for (const std::string& path : arguments.params_files) {
+    // Two levels above the parameters: the node's key and ros__parameters.
+    const ParameterValue tree =
+        ci::parameter_tree_from_yaml(read_file(path, "params file"), path, 2);
+    if (tree.is(ParameterValue::Kind::empty)) continue;
+    if (!tree.is(ParameterValue::Kind::map)) {
+      throw ci::Error(ci::with_location(tree.location, "a params file is a map of node names"));
+    }
+    const std::filesystem::path directory = std::filesystem::absolute(path).parent_path();
+    for (const ci::ParameterMember& entry : tree.as_map()) {
+      if (!names_this_node(entry.key, arguments)) continue;
+      const ParameterValue* parameters = entry.value.member("ros__parameters");
+      if (parameters == nullptr || !parameters->is(ParameterValue::Kind::map)) {
+        throw ci::Error(ci::with_location(entry.key_location,
+                                          "'" + entry.key + "' has no map 'ros__parameters'"));
+      }
+      flat.add("", *parameters, directory);
+    }
+  }
+  for (const auto& [name, text] : arguments.params) {
+    const std::string source = "-p " + name;
+    ParameterValue value = ci::parameter_tree_from_yaml(text, source);
+    value.location = source;
+    flat.add(name, value, std::filesystem::current_path());
+  }
+
+  // parameters_file: a parameter file of the library (config/*.yaml) under everything else.
+  if (const ParameterValue* file = flat.find("parameters_file")) {
+    const std::string path = ci::decode_name(*file, "parameters_file", "a file path");
+    FlatParameters layered;
+    layered.add("", ci::parameter_tree_from_yaml(read_file(path, "parameter file"), path), {});
+    for (const ci::ParameterMember& member : flat.members()) layered.set(member.key, member.value);
+    flat = std::move(layered);
+  }
+
+  Ros2Configuration configuration;
+  ci::ParameterMap common;
+  for (const ci::ParameterMember& member : flat.members()) {
+    if (member.key.rfind("qos_overrides.", 0) != 0) {
+      common.push_back(member);
+      continue;
+    }
+    // qos_overrides.<topic>.<publisher|subscription>.<policy>; topic names have no dots.
+    const std::string rest = member.key.substr(std::string("qos_overrides.").size());
+    const std::size_t first = rest.find('.');
+    const std::size_t second = first == std::string::npos ? first : rest.find('.', first + 1);
+    const std::string entity =
+        second == std::string::npos ? "" : rest.substr(first + 1, second - first - 1);
+    if (second == std::string::npos || (entity != "publisher" && entity != "subscription")) {
+      throw ci::Error(
+          ci::with_location(member.key_location, "'" + member.key +
+                                                     "': expected qos_overrides.<topic>.publisher|"
+                                                     "subscription.<policy>"));
+    }
+    const std::string topic = arguments.resolve(rest.substr(0, first));
+    auto& table =
+        entity == "publisher" ? configuration.publisher_qos : configuration.subscription_qos;
+    table[topic] = parse_qos(table.count(topic) ? table[topic] : TopicQos{},
+                             rest.substr(second + 1), member.value);
+  }
+
+  const ParameterValue tree = ParameterValue::map(std::move(common));
+  configuration.common = ci::runtime::decode_node_configuration(
+      tree, [&](std::string_view key) { return flat.location_of(key, node); }, kShellKeys,
+      "ROS 2 parameters of " + node);
+
+  const ParameterValue* urdf_path = tree.member("urdf_path");
+  const ParameterValue* description = tree.member("robot_description");
+  if ((urdf_path != nullptr) == (description != nullptr)) {
+    throw ci::Error(ci::with_location(
+        urdf_path != nullptr ? flat.location_of("robot_description", node) : "",
+        "give the robot's URDF as exactly one of urdf_path (a file) and robot_description (its "
+        "text)" +
+            std::string(urdf_path != nullptr ? "; both are set" : "; neither is set")));
+  }
+  if (urdf_path != nullptr) {
+    const std::string path = ci::decode_name(*urdf_path, "urdf_path", "a file path");
+    configuration.urdf = read_file(path, "URDF file");
+    configuration.urdf_source = path;
+  } else {
+    configuration.urdf = ci::decode_name(*description, "robot_description", "the URDF's text");
+    configuration.urdf_source = "robot_description";
+  }
+  if (const ParameterValue* controller = tree.member("effort_controller")) {
+    configuration.effort_controller =
+        ci::decode_name(*controller, "effort_controller", "a controller name");
+  }
+  return configuration;
+}
+
+}  // namespace cartesian_impedance_ros2
