@@ -184,8 +184,8 @@ void Node::command_thread() {
 
 template <typename Convert>
 void Node::send(const char* topic, Convert&& convert) {
-  // One warning per topic and second, with the count of those not shown, so that a flood of bad
-  // samples cannot flood the log.
+  // One warning per kind of mistake and second, with the count of those not shown, so that a
+  // flood of bad samples cannot flood the log.
   struct Throttle {
     Clock::time_point last{};
     int suppressed = 0;
@@ -194,7 +194,9 @@ void Node::send(const char* topic, Convert&& convert) {
   try {
     convert();
   } catch (const std::exception& error) {
-    Throttle& throttle = throttles[topic];
+    // Per topic and field (the message up to " = "): a different mistake is reported at once.
+    const std::string what = error.what();
+    Throttle& throttle = throttles[std::string(topic) + " " + what.substr(0, what.find(" = "))];
     const Clock::time_point now = Clock::now();
     if (now - throttle.last < std::chrono::seconds(1)) {
       ++throttle.suppressed;

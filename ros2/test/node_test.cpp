@@ -1,0 +1,391 @@
+// The ROS 2 node end to end over DDS: the node runs as its own process in a private domain; the
+// test talks to it as a ROS 2 node would (same topics, types, QoS) and checks what the simulated
+// arm does. Tolerances: at the Panda's 500 N/m the MuJoCo model's joint friction (the frictionloss
+// of panda.xml, through the Jacobian) holds the flange within about 1.1 mm of where the spring
+// alone would (5.5 mm at 100 N/m, as measured in the ROS 1 node's tests, scales with 1/K).
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <map>
+
+#include "harness.hpp"
+
+namespace cartesian_impedance_ros2::test {
+namespace {
+
+namespace ci = cartesian_impedance;
+
+// What the tests read of full_state, copied out of DDS's memory.
+struct State {
+  std::string status;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  Eigen::Vector4d orientation = Eigen::Vector4d::Zero();  // x, y, z, w
+  Eigen::Vector3d commanded_position = Eigen::Vector3d::Zero();
+  ci::Vector6d commanded_stiffness = ci::Vector6d::Zero();
+  ci::Vector6d commanded_wrench = ci::Vector6d::Zero();
+  std::vector<double> q, nullspace_config, nullspace_stiffness, tau;
+  std::string trajectory_state;
+  std::uint64_t trajectory_id = 0;
+  double trajectory_goal_error = 0.0;
+  std::uint64_t stale_episodes = 0;
+  double period_p50_us = 0.0;
+};
+
+std::vector<double> values(const dds_sequence_double& s) {
+  return std::vector<double>(s._buffer, s._buffer + s._length);
+}
+
+ci::Vector6d six(const geometry_msgs_msg_dds__Wrench_& w) {
+  return vector_from_wrench(w);
+}
+
+State copy_state(const FullState& m) {
+  State s;
+  s.status = m.status;
+  s.position = {m.current_pose.position.x, m.current_pose.position.y, m.current_pose.position.z};
+  s.orientation = {m.current_pose.orientation.x, m.current_pose.orientation.y,
+                   m.current_pose.orientation.z, m.current_pose.orientation.w};
+  s.commanded_position = {m.commanded_reference_pose.position.x,
+                          m.commanded_reference_pose.position.y,
+                          m.commanded_reference_pose.position.z};
+  s.commanded_stiffness = six(m.commanded_cartesian_stiffness);
+  s.commanded_wrench = six(m.commanded_wrench);
+  s.q = values(m.joint_state.position);
+  s.nullspace_config = values(m.nullspace_config);
+  s.nullspace_stiffness = values(m.nullspace_stiffness);
+  s.tau = values(m.commanded_torques);
+  s.trajectory_state = m.trajectory_state;
+  s.trajectory_id = m.trajectory_id;
+  s.trajectory_goal_error = m.trajectory_goal_error;
+  s.stale_episodes = m.stale_episodes;
+  s.period_p50_us = m.period_p50_us;
+  return s;
+}
+
+using StateReader = Latest<FullState, State (*)(const FullState&)>;
+
+std::string sim_params() {
+  return repository() + "/ros2/config/sim_panda.yaml";
+}
+
+// A params file of the test's own (for the error cases and topics mode).
+std::string params_file(const std::string& name, const std::string& body) {
+  const std::string path = std::string(CARTESIAN_IMPEDANCE_BINARY_DIR) + "/" + name;
+  std::ofstream(path) << body;
+  return path;
+}
+
+// A client of one node: its topics, as a ROS 2 node would use them.
+class Client {
+ public:
+  explicit Client(const std::string& node = "/cartesian_impedance_controller")
+      : node_(node),
+        state_(participant(), "rt" + node + "/full_state", &copy_state),
+        reference_(participant(), "rt" + node + "/reference_pose", TopicQos{}),
+        stiffness_(participant(), "rt" + node + "/set_cartesian_stiffness", TopicQos{}),
+        wrench_(participant(), "rt" + node + "/set_cartesian_wrench", TopicQos{}),
+        config_(participant(), "rt" + node + "/set_config", TopicQos{}) {}
+
+  static const Participant& participant() {
+    use_private_domain();
+    static const Participant instance;
+    return instance;
+  }
+
+  // The first state with status ok, and every writer matched (the node reads commands once its
+  // controller runs; its readers exist from the start).
+  State running() {
+    EXPECT_TRUE(state_.wait(15.0, [](const State& s) { return s.status == "ok"; }))
+        << "no full_state with status ok from " << node_;
+    EXPECT_TRUE(eventually(5.0, [&] {
+      return reference_.matched() > 0 && stiffness_.matched() > 0 && wrench_.matched() > 0 &&
+             config_.matched() > 0;
+    }));
+    return state_.value();
+  }
+
+  bool wait(double seconds, const std::function<bool(const State&)>& condition) {
+    return state_.wait(seconds, condition);
+  }
+  // The newest state after `seconds`.
+  State settle(double seconds) {
+    std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+    state_.poll();
+    return state_.value();
+  }
+
+  void pose(const Eigen::Vector3d& p, const Eigen::Vector4d& xyzw, const char* frame = "") {
+    PoseStamped m{};
+    m.header.frame_id = const_cast<char*>(frame);
+    m.pose.position = {p.x(), p.y(), p.z()};
+    m.pose.orientation = {xyzw[0], xyzw[1], xyzw[2], xyzw[3]};
+    ASSERT_TRUE(reference_.write(m));
+  }
+  void stiffness(const ci::Vector6d& k, const char* frame = "") {
+    ASSERT_TRUE(stiffness_.write(stamped(k, frame)));
+  }
+  void wrench(const ci::Vector6d& f, const char* frame = "") {
+    ASSERT_TRUE(wrench_.write(stamped(f, frame)));
+  }
+  void config(const ci::Vector6d& k, const ci::Vector6d& zeta, double k_ns, double zeta_ns,
+              std::vector<double> q) {
+    ControllerConfig m{};
+    m.cartesian_stiffness = wrench_of(k);
+    m.cartesian_damping_factors = wrench_of(zeta);
+    m.nullspace_stiffness = k_ns;
+    m.nullspace_damping_factor = zeta_ns;
+    m.q_d_nullspace._buffer = q.data();
+    m.q_d_nullspace._length = m.q_d_nullspace._maximum = static_cast<std::uint32_t>(q.size());
+    ASSERT_TRUE(config_.write(m));
+  }
+
+ private:
+  static WrenchMessage wrench_of(const ci::Vector6d& v) {
+    WrenchMessage w{};
+    w.force = {v[0], v[1], v[2]};
+    w.torque = {v[3], v[4], v[5]};
+    return w;
+  }
+  static WrenchStamped stamped(const ci::Vector6d& v, const char* frame) {
+    WrenchStamped m{};
+    m.header.frame_id = const_cast<char*>(frame);
+    m.wrench = wrench_of(v);
+    return m;
+  }
+
+  std::string node_;
+  StateReader state_;
+  Writer<PoseStamped> reference_;
+  Writer<WrenchStamped> stiffness_;
+  Writer<WrenchStamped> wrench_;
+  Writer<ControllerConfig> config_;
+};
+
+const Eigen::Vector3d kStep(0.0, 0.05, -0.05);  // 7 cm: well outside every tolerance below
+
+TEST(Ros2Node, ReferencePoseMovesTheArmThere) {
+  NodeProcess node({"--ros-args", "--params-file", sim_params()});
+  Client client;
+  const State start = client.running();
+  // The ready pose of panda.xml: the flange at (0.307, 0, 0.590) m.
+  EXPECT_NEAR(start.position.x(), 0.3069, 2e-3);
+  EXPECT_NEAR(start.position.z(), 0.5903, 2e-3);
+  const Eigen::Vector3d target = start.position + kStep;
+  client.pose(target, start.orientation);
+  // Filter 0.2 s to 95 %, then the arm (critically damped at 500 N/m): settled within 3 s.
+  const State end = client.settle(3.0);
+  EXPECT_LT((end.position - target).norm(), 1.5e-3)
+      << "at " << end.position.transpose() << ", target " << target.transpose();
+  EXPECT_EQ(end.status, "ok");
+  EXPECT_TRUE(node.running());
+  EXPECT_EQ(node.stop(), 0) << node.log();
+}
+
+TEST(Ros2Node, BadCommandsAreRejectedByFieldAndChangeNothing) {
+  NodeProcess node({"--ros-args", "--params-file", sim_params()});
+  Client client;
+  const State start = client.running();
+  const double nan = std::nan("");
+  client.pose({nan, 0.0, 0.5}, start.orientation);
+  client.pose(start.position + kStep, {0, 0, 0, 2});  // quaternion of norm 2
+  client.pose(start.position + kStep, start.orientation, "world");
+  client.stiffness((ci::Vector6d() << -5, 500, 500, 50, 50, 50).finished());
+  client.stiffness((ci::Vector6d() << 800, 800, 800, 50, 50, 50).finished(), "camera");
+  client.wrench(
+      (ci::Vector6d() << 0, 0, std::numeric_limits<double>::infinity(), 0, 0, 0).finished());
+  client.config(ci::Vector6d::Constant(300), ci::Vector6d::Ones(), 10, 1, {0.1, 0.2, 0.3});
+  const State after = client.settle(1.0);
+  EXPECT_LT((after.position - start.position).norm(), 1e-3) << "the arm moved";
+  EXPECT_LT((after.commanded_position - start.commanded_position).norm(), 1e-12);
+  EXPECT_EQ(after.commanded_stiffness, start.commanded_stiffness);
+  EXPECT_EQ(after.commanded_wrench, start.commanded_wrench);
+  EXPECT_EQ(after.status, "ok");
+  const std::string log = node.log();
+  for (const char* expected : {"reference_pose rejected", "nan", "set_cartesian_stiffness rejected",
+                               "-5", "'camera' is not a frame", "set_cartesian_wrench rejected",
+                               "set_config rejected", "q_d_nullspace has 3 values"}) {
+    EXPECT_NE(log.find(expected), std::string::npos) << "no '" << expected << "' in\n" << log;
+  }
+  // And a good command still works.
+  client.pose(start.position + kStep, start.orientation);
+  EXPECT_TRUE(client.wait(3.0, [&](const State& s) {
+    return (s.position - (start.position + kStep)).norm() < 1.5e-3;
+  }));
+}
+
+TEST(Ros2Node, WrenchTopicPushesAgainstTheSpring) {
+  NodeProcess node({"--ros-args", "--params-file", sim_params()});
+  Client client;
+  const State start = client.running();
+  client.wrench((ci::Vector6d() << 0, 0, -5, 0, 0, 0).finished());
+  // 5 N on 500 N/m: 10 mm down, within the friction band.
+  const State end = client.settle(3.0);
+  EXPECT_NEAR(end.position.z() - start.position.z(), -0.010, 1.5e-3);
+  EXPECT_NEAR(end.commanded_wrench[2], -5.0, 1e-12);
+}
+
+TEST(Ros2Node, StiffnessAndConfigTopicsSetTheController) {
+  NodeProcess node({"--ros-args", "--params-file", sim_params()});
+  Client client;
+  const State start = client.running();
+  const ci::Vector6d k = (ci::Vector6d() << 300, 400, 600, 30, 40, 60).finished();
+  client.stiffness(k, "panda_link0");
+  EXPECT_TRUE(client.wait(2.0, [&](const State& s) { return s.commanded_stiffness == k; }));
+  // The published controller's set_config: stiffness, damping, nullspace stiffness and target.
+  std::vector<double> q_d = start.q;
+  q_d[0] += 0.2;
+  const ci::Vector6d k2 = (ci::Vector6d() << 700, 700, 700, 70, 70, 70).finished();
+  client.config(k2, ci::Vector6d::Constant(0.9), 20.0, 1.0, q_d);
+  ASSERT_TRUE(client.wait(2.0, [&](const State& s) {
+    return s.commanded_stiffness == k2 && std::abs(s.nullspace_config[0] - q_d[0]) < 1e-3;
+  }));
+  EXPECT_NEAR(client.settle(0.0).nullspace_stiffness[6], 20.0, 0.5);
+}
+
+TEST(Ros2Node, JointTrajectoryRunsAndAnEmptyOneCancels) {
+  NodeProcess node({"--ros-args", "--params-file", sim_params()});
+  Client client;
+  const State start = client.running();
+  Writer<JointTrajectoryMessage> writer(Client::participant(), "rt/joint_trajectory", TopicQos{});
+  ASSERT_TRUE(eventually(5.0, [&] { return writer.matched() > 0; }));
+  std::vector<std::string> names;
+  for (int i = 1; i <= 7; ++i) names.push_back("panda_joint" + std::to_string(i));
+  std::vector<char*> name_pointers;
+  for (std::string& name : names) name_pointers.push_back(name.data());
+  std::vector<double> goal = start.q;
+  goal[0] += 0.15;
+  trajectory_msgs_msg_dds__JointTrajectoryPoint_ point{};
+  point.positions._buffer = goal.data();
+  point.positions._length = point.positions._maximum = 7;
+  point.time_from_start.sec = 1;
+  JointTrajectoryMessage m{};
+  m.header.frame_id = const_cast<char*>("");
+  m.joint_names._buffer = name_pointers.data();
+  m.joint_names._length = m.joint_names._maximum = 7;
+  m.points._buffer = &point;
+  m.points._length = m.points._maximum = 1;
+  ASSERT_TRUE(writer.write(m));
+  ASSERT_TRUE(client.wait(4.0, [](const State& s) { return s.trajectory_state == "finished"; }))
+      << client.settle(0).trajectory_state;
+  const State end = client.settle(0.5);
+  EXPECT_NEAR(end.q[0], goal[0], 0.01);
+  EXPECT_LT(end.trajectory_goal_error, 0.01);
+
+  // A second one, cancelled by an empty trajectory half-way.
+  goal[0] -= 0.3;
+  point.time_from_start.sec = 2;
+  ASSERT_TRUE(writer.write(m));
+  ASSERT_TRUE(client.wait(2.0, [](const State& s) { return s.trajectory_state == "executing"; }));
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  JointTrajectoryMessage cancel{};
+  cancel.header.frame_id = const_cast<char*>("");
+  ASSERT_TRUE(writer.write(cancel));
+  EXPECT_TRUE(client.wait(1.0, [](const State& s) { return s.trajectory_state == "cancelled"; }));
+  const State stopped = client.settle(1.0);
+  EXPECT_GT(stopped.q[0] - goal[0], 0.05) << "it went on to the goal";
+}
+
+TEST(Ros2Node, TwoNamespacedArmsAreIndependent) {
+  NodeProcess left({"--ros-args", "-r", "__ns:=/left", "--params-file", sim_params()});
+  NodeProcess right(
+      {"--ros-args", "-r", "__ns:=/right", "-r", "__node:=arm", "--params-file", sim_params()});
+  Client left_client("/left/cartesian_impedance_controller");
+  Client right_client("/right/arm");
+  const State left_start = left_client.running();
+  const State right_start = right_client.running();
+  left_client.pose(left_start.position + kStep, left_start.orientation);
+  const State left_end = left_client.settle(3.0);
+  const State right_end = right_client.settle(0.0);
+  EXPECT_LT((left_end.position - (left_start.position + kStep)).norm(), 1.5e-3);
+  EXPECT_LT((right_end.position - right_start.position).norm(), 1e-3) << "the other arm moved";
+}
+
+// Topics mode: joint_states in (as a robot's ros2_control would publish them), torques out to the
+// effort controller, failing closed when joint_states stop.
+TEST(Ros2Node, TopicsModeTakesJointStatesAndCommandsTheEffortController) {
+  const std::string params = params_file("topics_panda.yaml", R"(
+/**:
+  ros__parameters:
+    mode: topics
+    urdf_path: )" + repository() + R"(/models/panda/panda.urdf
+    base_link: panda_link0
+    tip_link: panda_link8
+    parameters_file: )" + repository() + R"(/config/panda.yaml
+    filter: {pose: {time: 0.0}}
+)");
+  NodeProcess node({"--ros-args", "-r", "__ns:=/robot", "--params-file", params});
+  const Participant& participant = Client::participant();
+  Writer<JointStateMessage> joints(participant, "rt/robot/joint_states", TopicQos{});
+  std::vector<std::vector<double>> efforts;
+  Latest<Float64MultiArray, std::vector<double> (*)(const Float64MultiArray&)> commands(
+      participant, "rt/robot/effort_controller/commands",
+      +[](const Float64MultiArray& m) { return values(m.data); });
+  const std::vector<double> ready = {0, -M_PI / 4, 0, -3 * M_PI / 4, 0, M_PI / 2, M_PI / 4};
+  std::vector<std::string> names = {"panda_finger_joint1"};
+  for (int i = 1; i <= 7; ++i) names.push_back("panda_joint" + std::to_string(i));
+  std::vector<char*> name_pointers;
+  for (std::string& name : names) name_pointers.push_back(name.data());
+  std::atomic<bool> publishing{true};
+  std::thread robot([&] {
+    std::vector<double> q = {0.04}, dq(8, 0.0);
+    q.insert(q.end(), ready.begin(), ready.end());
+    JointStateMessage m{};
+    m.header.frame_id = const_cast<char*>("");
+    m.name._buffer = name_pointers.data();
+    m.position._buffer = q.data();
+    m.velocity._buffer = dq.data();
+    m.name._length = m.position._length = m.velocity._length = 8;
+    while (publishing) {
+      joints.write(m);
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+  });
+  Client client("/robot/cartesian_impedance_controller");
+  const State start = client.running();
+  ASSERT_TRUE(commands.wait(2.0, [](const std::vector<double>& tau) { return tau.size() == 7; }));
+  // Held still at the reference: (almost) no torque. Then a reference 1 cm along +x: the
+  // arm cannot move (the "robot" replays one state), so the spring torque is J^T K e with
+  // |K e| = 5 N, and joint 1 (rotation about z) is not involved in a push along x at y = 0.
+  EXPECT_LT(Eigen::Map<const Eigen::VectorXd>(commands.value().data(), 7).norm(), 0.05);
+  client.pose(start.position + Eigen::Vector3d(0.01, 0, 0), start.orientation);
+  ASSERT_TRUE(commands.wait(2.0, [](const std::vector<double>& tau) {
+    return Eigen::Map<const Eigen::VectorXd>(tau.data(), 7).norm() > 1.0;
+  }));
+  EXPECT_NEAR(commands.value()[0], 0.0, 0.05)
+      << Eigen::Map<const Eigen::VectorXd>(commands.value().data(), 7).transpose();
+  // joint_states stop: stale, the torque ramps to zero.
+  publishing = false;
+  robot.join();
+  EXPECT_TRUE(client.wait(2.0, [](const State& s) { return s.stale_episodes >= 1; }));
+  EXPECT_TRUE(commands.wait(3.0, [](const std::vector<double>& tau) {
+    return Eigen::Map<const Eigen::VectorXd>(tau.data(), 7).norm() < 1e-9;
+  }));
+  EXPECT_NE(node.log().find("no joint_states for more than"), std::string::npos) << node.log();
+}
+
+TEST(Ros2Node, BadParametersExitWithCode2NamingTheParameter) {
+  const std::map<std::string, std::vector<std::string>> cases = {
+      {"stiffness.translation", {"-p", "stiffness.translation:=-5"}},
+      {"mode = 'fly'", {"-p", "mode:=fly"}},
+      {"cannot open URDF file", {"-p", "urdf_path:=/nonexistent.urdf"}},
+      {"stiffness.tranlation", {"-p", "stiffness.tranlation:=5"}},
+      {"qos policy 'lifespan'", {"-p", "qos_overrides./x.publisher.lifespan:=1"}},
+  };
+  for (const auto& [expected, extra] : cases) {
+    std::vector<std::string> args = {"--ros-args", "--params-file", sim_params()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    NodeProcess node(args);
+    const std::optional<int> code = node.wait_for_exit(10.0);
+    ASSERT_TRUE(code.has_value()) << expected;
+    EXPECT_EQ(*code, 2) << node.log();
+    EXPECT_NE(node.log().find(expected), std::string::npos) << node.log();
+  }
+  NodeProcess unknown({"--frobnicate"});
+  EXPECT_EQ(unknown.wait_for_exit(10.0).value_or(-1), 2);
+  EXPECT_NE(unknown.log().find("unknown argument '--frobnicate'"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace cartesian_impedance_ros2::test
