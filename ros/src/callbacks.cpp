@@ -28,7 +28,7 @@ void CartesianImpedanceNode::on_joint_states(const sensor_msgs::JointState::Cons
   // One writer (roscpp never runs one subscription's callback twice at once).
   try {
     JointSample sample;
-    if (!joint_mapper_->map(*message, sample)) return;  // about other joints
+    if (!joint_mapper_->map(joint_state_view(*message), sample)) return;  // about other joints
     if (!sample.q.allFinite() || !sample.dq.allFinite()) {
       ROS_WARN_THROTTLE(1.0,
                         "joint_states has non-finite values: passed on, the controller "
@@ -166,12 +166,12 @@ Eigen::Isometry3d CartesianImpedanceNode::lookup(const std::string& frame_id) co
   const std::string frame(strip_slash(frame_id));
   try {
     const geometry_msgs::TransformStamped transform = tf_buffer_->lookupTransform(
-        settings_.base_link, frame, ros::Time(0), ros::Duration(settings_.tf_timeout));
+        settings_.base_link, frame, ros::Time(0), ros::Duration(configuration_.tf_timeout));
     return isometry_from_transform(transform.transform);
   } catch (const tf2::TransformException& error) {
     throw ci::Error("no transform from frame '" + frame + "' to the base frame '" +
-                    settings_.base_link + "' within " + ci::format_number(settings_.tf_timeout) +
-                    " s: " + error.what());
+                    settings_.base_link + "' within " +
+                    ci::format_number(configuration_.tf_timeout) + " s: " + error.what());
   }
 }
 

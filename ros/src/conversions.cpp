@@ -1,9 +1,7 @@
 #include "conversions.hpp"
 
 #include <algorithm>
-#include <cstdio>
 #include <string>
-#include <utility>
 
 #include <cartesian_impedance/error.hpp>
 
@@ -11,58 +9,13 @@ namespace cartesian_impedance_ros {
 
 namespace ci = cartesian_impedance;
 
-JointStateMapper::JointStateMapper(std::vector<std::string> joint_names)
-    : joint_names_(std::move(joint_names)) {}
-
-bool JointStateMapper::map(const sensor_msgs::JointState& message, JointSample& out) const {
-  const std::size_t count = message.name.size();
-  if (message.position.size() != count) {
-    throw ci::Error("joint_states has " + std::to_string(count) + " names but " +
-                    std::to_string(message.position.size()) + " positions");
-  }
-  // Index of each model joint in the message, found by name (n is at most 12).
-  const int n = static_cast<int>(joint_names_.size());
-  int index[ci::kMaxJoints];
-  int found = 0;
-  std::string missing;
-  for (int i = 0; i < n; ++i) {
-    index[i] = -1;
-    for (std::size_t k = 0; k < count; ++k) {
-      if (message.name[k] != joint_names_[static_cast<std::size_t>(i)]) continue;
-      if (index[i] >= 0) throw ci::Error("joint_states lists " + message.name[k] + " twice");
-      index[i] = static_cast<int>(k);
-    }
-    if (index[i] >= 0) {
-      ++found;
-    } else {
-      missing += (missing.empty() ? "" : ", ") + joint_names_[static_cast<std::size_t>(i)];
-    }
-  }
-  if (found == 0) return false;
-  if (found < n) {
-    throw ci::Error("joint_states names some joints of the arm but not " + missing +
-                    " (publish the whole arm in one message)");
-  }
-  if (message.velocity.size() != count) {
-    throw ci::Error("joint_states has " + std::to_string(count) + " names but " +
-                    std::to_string(message.velocity.size()) +
-                    " velocities (velocities are required: the damping acts on them)");
-  }
-  const bool has_effort = !message.effort.empty();
-  if (has_effort && message.effort.size() != count) {
-    throw ci::Error("joint_states has " + std::to_string(count) + " names but " +
-                    std::to_string(message.effort.size()) + " efforts");
-  }
-  out.q.resize(n);
-  out.dq.resize(n);
-  out.effort.resize(has_effort ? n : 0);
-  for (int i = 0; i < n; ++i) {
-    const auto k = static_cast<std::size_t>(index[i]);
-    out.q[i] = message.position[k];
-    out.dq[i] = message.velocity[k];
-    if (has_effort) out.effort[i] = message.effort[k];
-  }
-  return true;
+ci::runtime::JointStateView joint_state_view(const sensor_msgs::JointState& message) {
+  ci::runtime::JointStateView view;
+  view.names.assign(message.name.begin(), message.name.end());
+  view.position = {message.position.data(), message.position.size()};
+  view.velocity = {message.velocity.data(), message.velocity.size()};
+  view.effort = {message.effort.data(), message.effort.size()};
+  return view;
 }
 
 ci::Pose pose_from_message(const geometry_msgs::Pose& message) {
@@ -244,18 +197,6 @@ void fill_timing(const ci::runtime::ControlThreadStatistics& statistics, Control
   message.period_max_us = statistics.period_max_us;
   message.stale_episodes = statistics.stale_episodes;
   message.realtime = statistics.realtime;
-}
-
-std::string overrun_summary(const ci::runtime::ControlThreadStatistics& window,
-                            double period_seconds, double window_seconds) {
-  char line[256];
-  std::snprintf(line, sizeof line,
-                "control cycle: %llu overrun%s of the %g ms period in the last %.0f s (worst %.0f "
-                "us late); period p50 %.0f us, p99 %.0f us, max %.0f us",
-                static_cast<unsigned long long>(window.overruns), window.overruns == 1 ? "" : "s",
-                1e3 * period_seconds, window_seconds, window.worst_lateness_us,
-                window.period_p50_us, window.period_p99_us, window.period_max_us);
-  return line;
 }
 
 }  // namespace cartesian_impedance_ros

@@ -16,6 +16,7 @@
 
 #include <cartesian_impedance/control_loop.hpp>
 #include <cartesian_impedance/runtime/control_thread.hpp>
+#include <cartesian_impedance/runtime/joint_states.hpp>
 #include <cartesian_impedance/runtime/robot_io.hpp>
 #include <cartesian_impedance/trajectory.hpp>
 #include <cartesian_impedance/types.hpp>
@@ -29,26 +30,10 @@ namespace cartesian_impedance_ros {
 /// copying it does not allocate).
 using JointSample = cartesian_impedance::runtime::JointMeasurement;
 
-/// Maps sensor_msgs/JointState messages, whose joints may come in any order and include joints
-/// of other chains (fingers, a second arm), into the model's joint order.
-class JointStateMapper {
- public:
-  explicit JointStateMapper(std::vector<std::string> joint_names);
-
-  /// Fills q, dq and effort of `out` (not its sequence or time). Returns false, leaving `out`
-  /// unchanged, if the message names none of the model's joints (it is about other joints).
-  /// Non-finite values are passed on: the control cycle reports them as invalid_robot_state and
-  /// ramps the torque down, which is the safe reaction to a bad measurement.
-  /// @throws cartesian_impedance::Error if the message lists some but not all of the model's
-  ///         joints, lists one twice, or has position/velocity/effort arrays of the wrong size
-  ///         (velocities are required: the damping acts on them).
-  bool map(const sensor_msgs::JointState& message, JointSample& out) const;
-
-  const std::vector<std::string>& joint_names() const noexcept { return joint_names_; }
-
- private:
-  std::vector<std::string> joint_names_;
-};
+/// A sensor_msgs/JointState as the view the runtime's JointStateMapper maps into the model's
+/// joint order (runtime/joint_states.hpp). The view points into `message`: keep it alive.
+cartesian_impedance::runtime::JointStateView joint_state_view(
+    const sensor_msgs::JointState& message);
 
 /// Position and quaternion (x, y, z, w), not normalised: the library checks the unit norm.
 cartesian_impedance::Pose pose_from_message(const geometry_msgs::Pose& message);
@@ -91,11 +76,5 @@ void fill_state_message(const cartesian_impedance::LoopState& state,
 /// realtime) from the control thread's statistics since it started.
 void fill_timing(const cartesian_impedance::runtime::ControlThreadStatistics& statistics,
                  ControllerState& message);
-
-/// The log line for the overruns in a window of `window_seconds` of a thread with a period of
-/// `period_seconds`, e.g. "control cycle: 37 overruns of the 1 ms period in the last 5 s (worst
-/// 412 us late); period p50 1000 us, p99 1130 us, max 1520 us".
-std::string overrun_summary(const cartesian_impedance::runtime::ControlThreadStatistics& window,
-                            double period_seconds, double window_seconds);
 
 }  // namespace cartesian_impedance_ros

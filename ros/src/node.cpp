@@ -52,7 +52,7 @@ CartesianImpedanceNode::CartesianImpedanceNode(const ros::NodeHandle& node,
     runner_.emplace(*simulation_, *loop_);
     joint_state_publisher_ = node_.advertise<sensor_msgs::JointState>("joint_states", 10);
   } else {
-    joint_mapper_ = std::make_unique<JointStateMapper>(model_->joint_names());
+    joint_mapper_ = std::make_unique<ci::runtime::JointStateMapper>(model_->joint_names());
     joint_samples_.emplace(n);
     torques_.emplace(n);
     effort_publisher_ = node_.advertise<std_msgs::Float64MultiArray>("effort_command", 10);

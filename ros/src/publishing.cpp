@@ -107,7 +107,8 @@ void CartesianImpedanceNode::report(const ci::LoopState& state,
   const ci::runtime::ControlThreadStatistics window = timing.since(reported.window_start);
   if (window.overruns > 0) {
     const double seconds = std::chrono::duration<double>(now - *reported.window_began).count();
-    ROS_WARN("%s", overrun_summary(window, 1.0 / settings_.control_rate, seconds).c_str());
+    ROS_WARN("%s",
+             ci::runtime::overrun_summary(window, 1.0 / settings_.control_rate, seconds).c_str());
   }
   reported.window_began = now;
   reported.window_start = timing;

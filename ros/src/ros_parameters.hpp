@@ -2,45 +2,30 @@
 /// @file
 /// The node's configuration from the ROS parameter server: the controller parameters under the
 /// node's private namespace with the names of config/*.yaml (`~stiffness/translation`,
-/// `~limits/joint_torque`, ..., or dotted: `~stiffness.translation`), decoded by the library's
-/// decode_parameters() (parameter_tree.hpp) from the XmlRpc values, plus the node's own settings
-/// (`~mode`, `~control_rate`, ...), decoded by the same functions. Everything is read from one
-/// XmlRpc value (the whole private namespace), so the parsing is testable without a ROS master.
+/// `~limits/joint_torque`, ..., or dotted: `~stiffness.translation`) and the node's own settings
+/// (`~mode`, `~control_rate`, ...). The XmlRpc values are converted to the library's
+/// ParameterValue, located by their ROS names, and decoded by the runtime's
+/// decode_node_configuration() (runtime/node_settings.hpp), which every ROS shell shares; only
+/// `~tf_timeout` is this node's own. Everything is read from one XmlRpc value (the whole private
+/// namespace), so the parsing is testable without a ROS master.
 
 #include <xmlrpcpp/XmlRpcValue.h>
 
 #include <string>
-#include <vector>
 
-#include <cartesian_impedance/parameters.hpp>
+#include <cartesian_impedance/runtime/node_settings.hpp>
 
 namespace cartesian_impedance_ros {
 
-/// How the node talks to the robot.
-enum class Mode {
-  sim,    ///< MuJoCo simulation of the robot, stepped in the control thread
-  topics  ///< joint_states in, effort_command out (a robot bridge or an effort controller)
-};
+using cartesian_impedance::runtime::Mode;
+using cartesian_impedance::runtime::NodeSettings;
+using cartesian_impedance::runtime::to_string;
 
-/// The node's own settings (not controller parameters). Units in brackets.
-struct NodeSettings {
-  Mode mode = Mode::sim;
-  double control_rate = 1000.0;       ///< [Hz] control cycle rate
-  double publish_rate = 100.0;        ///< [Hz] controller_state, commanded_torques, joint_states
-  std::string base_link;              ///< root of the controlled chain; frame of every pose
-  std::string tip_link;               ///< end-effector link
-  std::string mjcf_path;              ///< sim mode: MuJoCo model of the same robot
-  double joint_states_timeout = 0.1;  ///< [s] topics mode: older joint states count as lost
-  double tf_timeout = 0.1;            ///< [s] longest wait for a tf2 transform in a callback
-  int realtime_priority = 0;          ///< SCHED_FIFO priority of the control thread; 0 = normal
-};
-
-struct NodeConfiguration {
-  NodeSettings settings;
-  cartesian_impedance::Parameters parameters;
-  /// Keys under the private namespace that are neither settings, parameter groups nor the
-  /// node's dynamic_reconfigure namespaces (reported as warnings, e.g. a misspelt group).
-  std::vector<std::string> unknown_keys;
+/// The shells' common configuration (settings, controller parameters, unknown keys) plus what
+/// only this node reads. unknown_keys are full ROS names ("/arm/controller/stifness"); the
+/// node's dynamic_reconfigure namespaces are not among them.
+struct NodeConfiguration : cartesian_impedance::runtime::NodeConfiguration {
+  double tf_timeout = 0.1;  ///< [s] longest wait for a tf2 transform in a callback
 };
 
 /// Parses the private namespace `private_namespace` (a struct; anything else counts as empty),
@@ -53,8 +38,5 @@ struct NodeConfiguration {
 ///         setting. Messages after the location are the decoder's, as for a YAML file.
 NodeConfiguration configuration_from_xmlrpc(XmlRpc::XmlRpcValue& private_namespace,
                                             const std::string& namespace_name);
-
-/// "sim" / "topics".
-const char* to_string(Mode mode) noexcept;
 
 }  // namespace cartesian_impedance_ros

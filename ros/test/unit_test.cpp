@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <iterator>
 #include <limits>
 #include <random>
@@ -152,6 +153,19 @@ TEST(RosParameters, DefaultsAndSettings) {
   EXPECT_EQ(settings.realtime_priority, 80);
 }
 
+TEST(RosParameters, TfTimeoutIsThisNodesOwnSetting) {
+  // The one setting the shared decoder leaves to this node: read here, range as the others.
+  XmlRpcValue root = required_settings();
+  EXPECT_EQ(cir::configuration_from_xmlrpc(root, kNamespace).tf_timeout, 0.1);
+  root["tf_timeout"] = 0;  // no wait: only transforms already in the buffer
+  const cir::NodeConfiguration configuration = cir::configuration_from_xmlrpc(root, kNamespace);
+  EXPECT_EQ(configuration.tf_timeout, 0.0);
+  EXPECT_TRUE(configuration.unknown_keys.empty());
+  root["tf_timeout"] = 11.0;
+  EXPECT_EQ(error_of(root),
+            "ROS parameter " + kNamespace + "/tf_timeout: tf_timeout = 11 s is outside [0, 10]");
+}
+
 TEST(RosParameters, NothingSetNamesTheMissingSetting) {
   XmlRpcValue nothing;  // what the master gives for an empty namespace
   EXPECT_EQ(error_of(nothing),
@@ -246,6 +260,16 @@ TEST(RosParameters, UnknownTopLevelKeysAreWarnings) {
   const cir::NodeConfiguration configuration = cir::configuration_from_xmlrpc(root, kNamespace);
   ASSERT_EQ(configuration.unknown_keys.size(), 1u);
   EXPECT_EQ(configuration.unknown_keys[0], kNamespace + "/stifness");
+
+  // Only an unknown key's name matters: a value no parameter takes (a date) is no error there,
+  // but it is in a parameter group.
+  std::tm date{};
+  root["stifness"] = XmlRpcValue(&date);
+  EXPECT_EQ(error_of(root), "");
+  root["stiffness"]["translation"] = XmlRpcValue(&date);
+  EXPECT_EQ(error_of(root), "ROS parameter " + kNamespace +
+                                "/stiffness/translation: a date/time or binary value, which no "
+                                "parameter or setting takes");
 }
 
 TEST(RosParameters, SameMistakeSameMessageAsTheYamlLoaderAndTheDecoder) {
@@ -334,61 +358,61 @@ TEST(RosParameters, PerJointValuesAreCheckedAgainstTheModel) {
 // ---- joint states ---------------------------------------------------------------------------
 
 TEST(JointStateMapper, ReordersAndIgnoresOtherJoints) {
-  const cir::JointStateMapper mapper({"a", "b", "c"});
+  const ci::runtime::JointStateMapper mapper({"a", "b", "c"});
   sensor_msgs::JointState message;
   message.name = {"finger", "c", "a", "b"};
   message.position = {9, 3, 1, 2};
   message.velocity = {9, 30, 10, 20};
   message.effort = {9, 300, 100, 200};
   cir::JointSample sample;
-  ASSERT_TRUE(mapper.map(message, sample));
+  ASSERT_TRUE(mapper.map(cir::joint_state_view(message), sample));
   EXPECT_EQ(sample.q, (Eigen::Vector3d(1, 2, 3)));
   EXPECT_EQ(sample.dq, (Eigen::Vector3d(10, 20, 30)));
   EXPECT_EQ(sample.effort, (Eigen::Vector3d(100, 200, 300)));
 
   message.effort.clear();  // efforts are optional
-  ASSERT_TRUE(mapper.map(message, sample));
+  ASSERT_TRUE(mapper.map(cir::joint_state_view(message), sample));
   EXPECT_EQ(sample.effort.size(), 0);
 
   sensor_msgs::JointState gripper;
   gripper.name = {"finger"};
   gripper.position = {0.1};
   gripper.velocity = {0.0};
-  EXPECT_FALSE(mapper.map(gripper, sample));
+  EXPECT_FALSE(mapper.map(cir::joint_state_view(gripper), sample));
 }
 
 TEST(JointStateMapper, RejectsIncompleteMessages) {
-  const cir::JointStateMapper mapper({"a", "b", "c"});
+  const ci::runtime::JointStateMapper mapper({"a", "b", "c"});
   cir::JointSample sample;
   sensor_msgs::JointState message;
   message.name = {"a", "b"};
   message.position = {1, 2};
   message.velocity = {1, 2};
-  EXPECT_THROW(mapper.map(message, sample), ci::Error);  // c missing
+  EXPECT_THROW(mapper.map(cir::joint_state_view(message), sample), ci::Error);  // c missing
   message.name = {"a", "b", "c"};
   message.position = {1, 2, 3};
   message.velocity = {};
-  EXPECT_THROW(mapper.map(message, sample), ci::Error);  // no velocities
+  EXPECT_THROW(mapper.map(cir::joint_state_view(message), sample), ci::Error);  // no velocities
   message.velocity = {1, 2, 3};
   message.effort = {1};
-  EXPECT_THROW(mapper.map(message, sample), ci::Error);  // effort size
+  EXPECT_THROW(mapper.map(cir::joint_state_view(message), sample), ci::Error);  // effort size
   message.effort = {};
   message.position = {1, 2};
-  EXPECT_THROW(mapper.map(message, sample), ci::Error);  // position size
+  EXPECT_THROW(mapper.map(cir::joint_state_view(message), sample), ci::Error);  // position size
   message.name = {"a", "b", "c", "a"};
   message.position = {1, 2, 3, 4};
   message.velocity = {1, 2, 3, 4};
-  EXPECT_THROW(mapper.map(message, sample), ci::Error);  // a twice
+  EXPECT_THROW(mapper.map(cir::joint_state_view(message), sample), ci::Error);  // a twice
 }
 
 TEST(JointStateMapper, PassesNonFiniteValuesOnToTheController) {
-  const cir::JointStateMapper mapper({"a"});
+  const ci::runtime::JointStateMapper mapper({"a"});
   sensor_msgs::JointState message;
   message.name = {"a"};
   message.position = {std::numeric_limits<double>::quiet_NaN()};
   message.velocity = {0.0};
   cir::JointSample sample;
-  ASSERT_TRUE(mapper.map(message, sample));
+  ASSERT_TRUE(mapper.map(cir::joint_state_view(message), sample));
   EXPECT_TRUE(std::isnan(sample.q[0]));
 }
 
@@ -528,11 +552,11 @@ TEST(Conversions, TimingOfTheControlThread) {
   EXPECT_EQ(message.stale_episodes, 2u);
   EXPECT_TRUE(message.realtime);
 
-  EXPECT_EQ(cir::overrun_summary(statistics, 0.001, 5.004),
+  EXPECT_EQ(ci::runtime::overrun_summary(statistics, 0.001, 5.004),
             "control cycle: 37 overruns of the 1 ms period in the last 5 s (worst 412 us late); "
             "period p50 1000 us, p99 1130 us, max 1520 us");
   statistics.overruns = 1;
-  const std::string line = cir::overrun_summary(statistics, 0.002, 5.0);
+  const std::string line = ci::runtime::overrun_summary(statistics, 0.002, 5.0);
   EXPECT_EQ(line.rfind("control cycle: 1 overrun of the 2 ms period in the last 5 s", 0), 0u)
       << line;
 }
@@ -586,7 +610,7 @@ TEST(Fuzz, HostileMessagesAreAcceptedOrRejectedWithErrorAndTheCycleStaysSafe) {
   const ci::JointVector ready =
       (ci::JointVector(7) << 0, -M_PI / 4, 0, -3 * M_PI / 4, 0, M_PI / 2, M_PI / 4).finished();
   loop.start(ready, ci::JointVector::Zero(7));
-  const cir::JointStateMapper mapper(model.joint_names());
+  const ci::runtime::JointStateMapper mapper(model.joint_names());
   std::mt19937 rng(20261123);
   int accepted = 0, rejected = 0;
   const int kMessages = 4000;
@@ -650,7 +674,7 @@ TEST(Fuzz, HostileMessagesAreAcceptedOrRejectedWithErrorAndTheCycleStaysSafe) {
           cir::JointSample sample;
           sample.q = ready;
           sample.dq = ci::JointVector::Zero(7);
-          if (mapper.map(message, sample)) {
+          if (mapper.map(cir::joint_state_view(message), sample)) {
             // As the node's control thread: the sample goes to the cycle as it is.
             loop.step(sample.q, sample.dq, 0.001);
           }
