@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <string>
+#include <string_view>
 
 #include <cartesian_impedance/error.hpp>
+#include <cartesian_impedance/runtime/state_message.hpp>
 
 namespace cartesian_impedance_ros {
 
@@ -27,13 +29,7 @@ ci::Pose pose_from_message(const geometry_msgs::Pose& message) {
 }
 
 void pose_to_message(const ci::Pose& pose, geometry_msgs::Pose& message) {
-  message.position.x = pose.position.x();
-  message.position.y = pose.position.y();
-  message.position.z = pose.position.z();
-  message.orientation.x = pose.orientation.x();
-  message.orientation.y = pose.orientation.y();
-  message.orientation.z = pose.orientation.z();
-  message.orientation.w = pose.orientation.w();
+  ci::runtime::fill_pose(pose, message);
 }
 
 ci::Vector6d vector_from_wrench(const geometry_msgs::Wrench& message) {
@@ -44,12 +40,7 @@ ci::Vector6d vector_from_wrench(const geometry_msgs::Wrench& message) {
 }
 
 void vector_to_wrench(const ci::Vector6d& vector, geometry_msgs::Wrench& message) {
-  message.force.x = vector[0];
-  message.force.y = vector[1];
-  message.force.z = vector[2];
-  message.torque.x = vector[3];
-  message.torque.y = vector[4];
-  message.torque.z = vector[5];
+  ci::runtime::fill_wrench(vector, message);
 }
 
 Eigen::Isometry3d isometry_from_transform(const geometry_msgs::Transform& message) {
@@ -110,93 +101,31 @@ ci::JointTrajectory trajectory_from_message(const trajectory_msgs::JointTrajecto
 
 namespace {
 
-template <typename Vector>
-void copy(const Vector& from, std::vector<double>& to) {
-  to.assign(from.data(), from.data() + from.size());
-}
+// How runtime::fill_state_message() writes ROS 1's strings and arrays.
+struct Ros1Fields {
+  void text(std::string& field, std::string_view value) {
+    field.assign(value.data(), value.size());
+  }
+  template <typename Vector>
+  void array(std::vector<double>& field, const Vector& values) {
+    field.assign(values.data(), values.data() + values.size());
+  }
+  void clear(std::vector<double>& field) { field.clear(); }
+  void names(std::vector<std::string>& field, const std::vector<std::string>& names) {
+    field = names;
+  }
+};
 
 }  // namespace
 
 void fill_state_message(const ci::LoopState& state, const std::vector<std::string>& joint_names,
                         const JointSample* measured, ControllerState& message) {
-  const ci::ControllerState& controller = state.controller;
-  message.status = ci::to_string(controller.status);
-  message.cycle = state.cycle;
-  message.time = state.time;
-
-  pose_to_message(controller.pose, message.current_pose);
-  pose_to_message(controller.filtered.pose, message.reference_pose);
-  pose_to_message(controller.commanded.pose, message.commanded_reference_pose);
-  message.pose_error_translation.x = controller.pose_error[0];
-  message.pose_error_translation.y = controller.pose_error[1];
-  message.pose_error_translation.z = controller.pose_error[2];
-  message.pose_error_rotation.x = controller.pose_error[3];
-  message.pose_error_rotation.y = controller.pose_error[4];
-  message.pose_error_rotation.z = controller.pose_error[5];
-
-  message.stiffness_frame = std::string(ci::frame_name(controller.stiffness_frame));
-  vector_to_wrench(controller.filtered.stiffness.diagonal(), message.cartesian_stiffness);
-  vector_to_wrench(controller.commanded.stiffness.diagonal(),
-                   message.commanded_cartesian_stiffness);
-  vector_to_wrench(controller.filtered.damping_ratio, message.damping_ratio);
-  // The damping the law used, in the stiffness frame.
-  vector_to_wrench(controller.damping.diagonal(), message.cartesian_damping);
-
-  message.wrench_frame = std::string(ci::frame_name(controller.wrench_frame));
-  vector_to_wrench(controller.commanded.wrench, message.commanded_wrench);
-  vector_to_wrench(controller.wrench_base, message.wrench);
-
-  message.joint_state.name = joint_names;
-  copy(state.q, message.joint_state.position);
-  copy(state.dq, message.joint_state.velocity);
-  message.joint_state.effort.clear();
-  message.external_torques.clear();
-  if (measured != nullptr && measured->effort.size() == controller.tau.size()) {
-    copy(measured->effort, message.joint_state.effort);
-    const ci::JointVector external = measured->effort - controller.tau;
-    copy(external, message.external_torques);
-  }
-  copy(controller.filtered.nullspace_q, message.nullspace_config);
-  copy(controller.filtered.nullspace_stiffness, message.nullspace_stiffness);
-  message.nullspace_damping_ratio = controller.filtered.nullspace_damping_ratio;
-
-  copy(controller.tau, message.commanded_torques);
-  copy(controller.tau_cartesian, message.cartesian_torques);
-  copy(controller.tau_nullspace, message.nullspace_torques);
-  copy(controller.tau_wrench, message.wrench_torques);
-  copy(controller.tau_gravity, message.gravity_torques);
-
-  const ci::ActiveLimits& limits = controller.limits;
-  message.stiffness_saturated = limits.stiffness_saturated;
-  message.damping_ratio_saturated = limits.damping_ratio_saturated;
-  message.nullspace_stiffness_saturated = limits.nullspace_stiffness_saturated;
-  message.wrench_saturated = limits.wrench_saturated;
-  message.translation_error_clipped = limits.translation_error_clipped;
-  message.rotation_error_clipped = limits.rotation_error_clipped;
-  message.joint_torque_saturated = limits.joint_torque_saturated;
-  message.torque_rate_limited = limits.torque_rate_limited;
-
-  const ci::TrajectoryProgress& trajectory = state.trajectory;
-  message.trajectory_state = ci::to_string(trajectory.state);
-  message.trajectory_id = trajectory.id;
-  message.trajectory_time = trajectory.time;
-  message.trajectory_duration = trajectory.duration;
-  message.trajectory_progress =
-      trajectory.duration > 0.0 ? std::clamp(trajectory.time / trajectory.duration, 0.0, 1.0)
-                                : (trajectory.state == ci::TrajectoryState::finished ? 1.0 : 0.0);
-  message.trajectory_goal_error = trajectory.goal_error;
+  Ros1Fields fields;
+  ci::runtime::fill_state_message(state, joint_names, measured, message, fields);
 }
 
 void fill_timing(const ci::runtime::ControlThreadStatistics& statistics, ControllerState& message) {
-  message.overruns = statistics.overruns;
-  message.latest_lateness_us = statistics.latest_lateness_us;
-  message.worst_lateness_us = statistics.worst_lateness_us;
-  message.period_min_us = statistics.period_min_us;
-  message.period_p50_us = statistics.period_p50_us;
-  message.period_p99_us = statistics.period_p99_us;
-  message.period_max_us = statistics.period_max_us;
-  message.stale_episodes = statistics.stale_episodes;
-  message.realtime = statistics.realtime;
+  ci::runtime::fill_timing(statistics, message);
 }
 
 }  // namespace cartesian_impedance_ros

@@ -87,19 +87,6 @@ class CartesianImpedanceNode {
   void publisher_thread();
   void effort_thread();
   void stop_threads();
-  /// The log lines of the publisher thread: status changes, lost joint_states, and a summary of
-  /// the overruns every few seconds while there are any.
-  struct Reports {
-    cartesian_impedance::Status status = cartesian_impedance::Status::ok;
-    bool stale = false;
-    // The window of the next overrun summary: since when, and the thread's counts then (none
-    // before the first: since the thread started).
-    std::optional<std::chrono::steady_clock::time_point> window_began;
-    cartesian_impedance::runtime::ControlThreadSnapshot window_start;
-  };
-  void report(const cartesian_impedance::LoopState& state,
-              const cartesian_impedance::runtime::ControlThreadSnapshot& timing,
-              Reports& reported) const;
 
   // Set up once the controller runs (so no command is lost to start()): node.cpp and
   // reconfigure.cpp.

@@ -8,6 +8,8 @@
 
 #include <chrono>
 
+#include <cartesian_impedance/runtime/status_reports.hpp>
+
 #include "node.hpp"
 
 namespace cartesian_impedance_ros {
@@ -16,9 +18,6 @@ namespace ci = cartesian_impedance;
 using Clock = std::chrono::steady_clock;
 
 namespace {
-
-// One overrun summary per window at most, none for a window without overruns.
-constexpr std::chrono::seconds kOverrunSummaryInterval{5};
 
 void prepare_array(std_msgs::Float64MultiArray& message, int size) {
   message.layout.dim.resize(1);
@@ -42,7 +41,8 @@ void CartesianImpedanceNode::publisher_thread() {
   sensor_msgs::JointState joint_message;
   joint_message.name = model_->joint_names();
   JointSample measured;
-  Reports reported;
+  ci::runtime::StatusReporter reporter(1.0 / settings_.control_rate, settings_.joint_states_timeout,
+                                       "joint_states");
 
   Clock::time_point next = Clock::now();
   while (!stop_) {
@@ -70,48 +70,18 @@ void CartesianImpedanceNode::publisher_thread() {
         joint_message.effort = state_message.commanded_torques;
         joint_state_publisher_.publish(joint_message);
       }
-      report(state, timing, reported);
+      for (const ci::runtime::ReportLine& line : reporter.update(state, timing)) {
+        if (line.level == ci::runtime::ReportLine::Level::info) {
+          ROS_INFO("%s", line.text.c_str());
+        } else {
+          ROS_WARN("%s", line.text.c_str());
+        }
+      }
     }
     const Clock::time_point now = Clock::now();
     if (now - next > period) next = now;
     std::this_thread::sleep_until(next);
   }
-}
-
-// Reports for the log, from here rather than from the control thread.
-void CartesianImpedanceNode::report(const ci::LoopState& state,
-                                    const ci::runtime::ControlThreadSnapshot& timing,
-                                    Reports& reported) const {
-  const ci::Status status = state.controller.status;
-  if (status != reported.status) {
-    if (status == ci::Status::ok) {
-      ROS_INFO("controller status: ok");
-    } else {
-      ROS_WARN("controller status: %s", ci::to_string(status));
-    }
-    reported.status = status;
-  }
-  if (timing.stale != reported.stale) {
-    if (timing.stale) {
-      ROS_WARN("no joint_states for more than %g s: torque ramps toward zero",
-               settings_.joint_states_timeout);
-    } else {
-      ROS_INFO("joint_states are back");
-    }
-    reported.stale = timing.stale;
-  }
-  // Overruns: one line per window with any, counted from the thread's snapshots.
-  const Clock::time_point now = Clock::now();
-  if (!reported.window_began) reported.window_began = now;  // the first window: since start
-  if (now - *reported.window_began < kOverrunSummaryInterval) return;
-  const ci::runtime::ControlThreadStatistics window = timing.since(reported.window_start);
-  if (window.overruns > 0) {
-    const double seconds = std::chrono::duration<double>(now - *reported.window_began).count();
-    ROS_WARN("%s",
-             ci::runtime::overrun_summary(window, 1.0 / settings_.control_rate, seconds).c_str());
-  }
-  reported.window_began = now;
-  reported.window_start = timing;
 }
 
 void CartesianImpedanceNode::effort_thread() {
