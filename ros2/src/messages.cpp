@@ -182,6 +182,11 @@ OutgoingMessages::OutgoingMessages(const ci::RobotModel& model, const Frames& fr
       kinematics_(workspace_.make_kinematics()),
       storage_(std::make_unique<Storage>()) {
   for (std::string& name : joint_names_) storage_->name_pointers.push_back(name.data());
+  // The torque arrays' layout, as the ROS 1 node writes it: one dimension of the joints.
+  static char kJoints[] = "joints";
+  joints_dimension_.label = kJoints;
+  joints_dimension_.size = joints_dimension_.stride =
+      static_cast<std::uint32_t>(joint_names_.size());
 }
 
 OutgoingMessages::~OutgoingMessages() = default;
@@ -235,8 +240,8 @@ void OutgoingMessages::fill(const ci::LoopState& state,
     published_.cartesian_velocity = (kinematics_.jacobian.topRows<3>() * state.dq).norm();
   }
 
-  torques_.layout.dim._length = 0;
-  torques_.layout.dim._buffer = nullptr;
+  torques_.layout.dim._buffer = &joints_dimension_;
+  torques_.layout.dim._length = torques_.layout.dim._maximum = 1;
   torques_.layout.data_offset = 0;
   out.array(torques_.data, controller.tau);
 
@@ -244,9 +249,13 @@ void OutgoingMessages::fill(const ci::LoopState& state,
 }
 
 Float64MultiArray OutgoingMessages::torque_message(const ci::JointVector& tau,
-                                                   std::vector<double>& storage) {
+                                                   std::vector<double>& storage) const {
   storage.assign(tau.data(), tau.data() + tau.size());
   Float64MultiArray message{};
+  // DDS only reads through the pointer.
+  message.layout.dim._buffer =
+      const_cast<std_msgs_msg_dds__MultiArrayDimension_*>(&joints_dimension_);
+  message.layout.dim._length = message.layout.dim._maximum = 1;
   message.data._buffer = storage.data();
   message.data._length = message.data._maximum = static_cast<std::uint32_t>(storage.size());
   message.data._release = false;

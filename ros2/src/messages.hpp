@@ -94,9 +94,9 @@ class OutgoingMessages {
   const JointStateMessage& joint_state() const noexcept { return joint_state_; }
 
   /// A Float64MultiArray for one torque vector (topics mode: the effort controller's commands),
-  /// pointing into `storage`.
-  static Float64MultiArray torque_message(const cartesian_impedance::JointVector& tau,
-                                          std::vector<double>& storage);
+  /// pointing into `storage` and this object's layout (one dimension "joints").
+  Float64MultiArray torque_message(const cartesian_impedance::JointVector& tau,
+                                   std::vector<double>& storage) const;
 
   struct Storage;  // how strings and arrays are kept (messages.cpp)
 
@@ -106,6 +106,7 @@ class OutgoingMessages {
   cartesian_impedance::ModelWorkspace workspace_;  // the published state's cartesian_velocity
   cartesian_impedance::Kinematics kinematics_;
   std::unique_ptr<Storage> storage_;
+  std_msgs_msg_dds__MultiArrayDimension_ joints_dimension_{};  // label "joints", size n
   PublishedState published_{};
   FullState full_{};
   Float64MultiArray torques_{};

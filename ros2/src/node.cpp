@@ -297,11 +297,12 @@ void Node::publisher_thread() {
 }
 
 void Node::effort_thread() {
+  const OutgoingMessages layout(*model_, frames_);
   std::vector<double> storage;
   ci::runtime::TorqueSample sample;
   while (!stop_) {
     if (!torques_->wait(0.1, sample)) continue;  // a new cycle's torque, each once
-    effort_writer_.write(OutgoingMessages::torque_message(sample.tau, storage));
+    effort_writer_.write(layout.torque_message(sample.tau, storage));
   }
 }
 
