@@ -2,7 +2,8 @@
 """The ROS 2 node against an independent DDS peer: ros2_fastdds_peer (Fast DDS 2.9, what a stock
 ROS 2 node on rmw_fastrtps speaks) drives cartesian_impedance_ros2 (Cyclone DDS) over loopback.
 
-    test_fastdds_peer.py --peer PEER --pose-writer WRITER --node NODE [--models DIR] [--standin] CASE...
+    test_fastdds_peer.py --peer PEER --pose-writer WRITER --node NODE [--models DIR] [--standin]
+                         CASE...
 
 CASE: reference_pose echo wrong_type_name xcdr2 fuzz topics. --standin: NODE is ros2_cyclone_echo,
 the peer's own check (no physics: its current pose is the last reference received).
@@ -20,6 +21,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import traceback
 
 FQ = "/cartesian_impedance_controller"
 JOINTS = ["panda_joint%d" % i for i in range(1, 8)]
@@ -80,6 +82,11 @@ FASTDDS_XML = """<?xml version="1.0" encoding="UTF-8"?>
   </participant>
 </profiles>
 """
+
+
+def parse(output):
+    """The peer's JSON lines (Python's json reads its NaN and Infinity)."""
+    return [json.loads(line) for line in output.splitlines() if line.startswith("{")]
 
 
 def distance(a, b):
@@ -165,8 +172,9 @@ class Harness:
 
     def run(self, command, timeout):
         self.log(" ".join(command))
-        done = subprocess.run(command, env=self.env, capture_output=True, text=True, timeout=timeout)
-        events = [json.loads(line) for line in done.stdout.splitlines() if line.startswith("{")]
+        done = subprocess.run(command, env=self.env, capture_output=True, text=True,
+                              timeout=timeout)
+        events = parse(done.stdout)
         if done.stderr.strip():
             self.log("stderr: " + done.stderr.strip()[-2000:])
         return done.returncode, events
@@ -182,7 +190,7 @@ class Harness:
     @staticmethod
     def collect(proc, timeout):
         out, _ = proc.communicate(timeout=timeout)
-        return proc.returncode, [json.loads(line) for line in out.splitlines() if line.startswith("{")]
+        return proc.returncode, parse(out)
 
     def states(self, count, ns=FQ, timeout=15):
         """The next `count` controller states (the node's topics are up once this returns)."""
@@ -419,10 +427,8 @@ def main():
         try:
             CASES[name](h)
             ok = True
-        except AssertionError as error:
+        except Exception as error:  # a failed assertion, a peer that hung, ...
             h.log("FAIL %s: %s" % (name, error))
-            import traceback
-
             traceback.print_exc()
         finally:
             h.close(ok)
