@@ -21,7 +21,7 @@ import tempfile
 import unittest
 
 # ROS 2's published hashes. Those without a source named were checked on a ROS 2 Jazzy system
-# (ros2 topic info --verbose; /work/shared/PLATFORM.md, item 11). The others are read from
+# (`ros2 topic info --verbose`). The others are read from
 # rosidl-generated `*__description.c` files committed to public repositories: the hash of the file's
 # own type, or the EXPECTED_HASH of a type it references (rosidl asserts those at run time).
 PUBLISHED = {
