@@ -1,5 +1,6 @@
 #include "cartesian_impedance/runtime/status_reports.hpp"
 
+#include <thread>
 #include <utility>
 
 #include "cartesian_impedance/parameters.hpp"
@@ -48,6 +49,38 @@ std::vector<ReportLine> StatusReporter::update(const LoopState& state,
   window_began_ = now;
   window_start_ = timing;
   return lines;
+}
+
+void run_publisher(const PublisherOptions& options, const std::atomic<bool>& stop,
+                   const ControlThread& thread, const ControlLoop& loop,
+                   const MeasurementBuffer* measurements,
+                   const std::function<void(const PublisherSample&)>& publish,
+                   const std::function<void(const ReportLine&)>& log) {
+  using Clock = std::chrono::steady_clock;
+  const auto period = std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(1.0 / options.rate));
+  StatusReporter reporter(1.0 / thread.options().rate, options.measurement_timeout,
+                          options.measurements);
+  PublisherSample sample;
+  JointMeasurement measured;
+  Clock::time_point next = Clock::now();
+  while (!stop) {
+    next += period;
+    if (thread.running()) {
+      sample.state = loop.latest_state();
+      sample.measured = nullptr;
+      if (measurements != nullptr) {
+        measurements->read(measured);
+        sample.measured = &measured;
+      }
+      sample.timing = thread.snapshot();
+      publish(sample);
+      for (const ReportLine& line : reporter.update(sample.state, sample.timing)) log(line);
+    }
+    const Clock::time_point now = Clock::now();
+    if (now - next > period) next = now;
+    std::this_thread::sleep_until(next);
+  }
 }
 
 }  // namespace cartesian_impedance::runtime

@@ -6,8 +6,6 @@
 
 #include <std_msgs/Float64MultiArray.h>
 
-#include <chrono>
-
 #include <cartesian_impedance/runtime/status_reports.hpp>
 
 #include "node.hpp"
@@ -15,7 +13,6 @@
 namespace cartesian_impedance_ros {
 
 namespace ci = cartesian_impedance;
-using Clock = std::chrono::steady_clock;
 
 namespace {
 
@@ -31,57 +28,42 @@ void prepare_array(std_msgs::Float64MultiArray& message, int size) {
 }  // namespace
 
 void CartesianImpedanceNode::publisher_thread() {
-  const auto period = std::chrono::duration_cast<Clock::duration>(
-      std::chrono::duration<double>(1.0 / settings_.publish_rate));
-  const int n = model_->num_joints();
   ControllerState state_message;
   state_message.header.frame_id = settings_.base_link;
   std_msgs::Float64MultiArray torque_message;
-  prepare_array(torque_message, n);
+  prepare_array(torque_message, model_->num_joints());
   sensor_msgs::JointState joint_message;
   joint_message.name = model_->joint_names();
-  JointSample measured;
-  ci::runtime::StatusReporter reporter(1.0 / settings_.control_rate, settings_.joint_states_timeout,
-                                       "joint_states");
-
-  Clock::time_point next = Clock::now();
-  while (!stop_) {
-    next += period;
-    if (control_thread_->running()) {
-      const ci::LoopState state = loop_->latest_state();
-      const ros::Time stamp = ros::Time::now();
-      const JointSample* effort = nullptr;
-      if (joint_samples_) {
-        joint_samples_->read(measured);
-        effort = &measured;
-      }
-      const ci::runtime::ControlThreadSnapshot timing = control_thread_->snapshot();
-      fill_state_message(state, model_->joint_names(), effort, state_message);
-      fill_timing(timing.statistics(), state_message);
-      state_message.header.stamp = stamp;
-      state_publisher_.publish(state_message);
-      torque_message.data.assign(state.controller.tau.data(),
-                                 state.controller.tau.data() + state.controller.tau.size());
-      torque_publisher_.publish(torque_message);
-      if (simulation_) {
-        joint_message.header.stamp = stamp;
-        joint_message.position.assign(state.q.data(), state.q.data() + state.q.size());
-        joint_message.velocity.assign(state.dq.data(), state.dq.data() + state.dq.size());
-        joint_message.effort = state_message.commanded_torques;
-        joint_state_publisher_.publish(joint_message);
-      }
-      for (const ci::runtime::ReportLine& line : reporter.update(state, timing)) {
+  ci::runtime::PublisherOptions options;
+  options.rate = settings_.publish_rate;
+  options.measurement_timeout = settings_.joint_states_timeout;
+  ci::runtime::run_publisher(
+      options, stop_, *control_thread_, *loop_, joint_samples_ ? &*joint_samples_ : nullptr,
+      [&](const ci::runtime::PublisherSample& sample) {
+        const ci::LoopState& state = sample.state;
+        const ros::Time stamp = ros::Time::now();
+        fill_state_message(state, model_->joint_names(), sample.measured, state_message);
+        fill_timing(sample.timing.statistics(), state_message);
+        state_message.header.stamp = stamp;
+        state_publisher_.publish(state_message);
+        torque_message.data.assign(state.controller.tau.data(),
+                                   state.controller.tau.data() + state.controller.tau.size());
+        torque_publisher_.publish(torque_message);
+        if (simulation_) {
+          joint_message.header.stamp = stamp;
+          joint_message.position.assign(state.q.data(), state.q.data() + state.q.size());
+          joint_message.velocity.assign(state.dq.data(), state.dq.data() + state.dq.size());
+          joint_message.effort = state_message.commanded_torques;
+          joint_state_publisher_.publish(joint_message);
+        }
+      },
+      [](const ci::runtime::ReportLine& line) {
         if (line.level == ci::runtime::ReportLine::Level::info) {
           ROS_INFO("%s", line.text.c_str());
         } else {
           ROS_WARN("%s", line.text.c_str());
         }
-      }
-    }
-    const Clock::time_point now = Clock::now();
-    if (now - next > period) next = now;
-    std::this_thread::sleep_until(next);
-  }
+      });
 }
 
 void CartesianImpedanceNode::effort_thread() {

@@ -180,13 +180,9 @@ OutgoingMessages::OutgoingMessages(const ci::RobotModel& model, const Frames& fr
       frames_(frames),
       workspace_(model),
       kinematics_(workspace_.make_kinematics()),
-      storage_(std::make_unique<Storage>()) {
+      storage_(std::make_unique<Storage>()),
+      torques_(model.num_joints()) {
   for (std::string& name : joint_names_) storage_->name_pointers.push_back(name.data());
-  // The torque arrays' layout, as the ROS 1 node writes it: one dimension of the joints.
-  static char kJoints[] = "joints";
-  joints_dimension_.label = kJoints;
-  joints_dimension_.size = joints_dimension_.stride =
-      static_cast<std::uint32_t>(joint_names_.size());
 }
 
 OutgoingMessages::~OutgoingMessages() = default;
@@ -240,26 +236,23 @@ void OutgoingMessages::fill(const ci::LoopState& state,
     published_.cartesian_velocity = (kinematics_.jacobian.topRows<3>() * state.dq).norm();
   }
 
-  torques_.layout.dim._buffer = &joints_dimension_;
-  torques_.layout.dim._length = torques_.layout.dim._maximum = 1;
-  torques_.layout.data_offset = 0;
-  out.array(torques_.data, controller.tau);
+  torques_.set(controller.tau);
 
   joint_state_ = full_.joint_state;
 }
 
-Float64MultiArray OutgoingMessages::torque_message(const ci::JointVector& tau,
-                                                   std::vector<double>& storage) const {
-  storage.assign(tau.data(), tau.data() + tau.size());
-  Float64MultiArray message{};
-  // DDS only reads through the pointer.
-  message.layout.dim._buffer =
-      const_cast<std_msgs_msg_dds__MultiArrayDimension_*>(&joints_dimension_);
-  message.layout.dim._length = message.layout.dim._maximum = 1;
-  message.data._buffer = storage.data();
-  message.data._length = message.data._maximum = static_cast<std::uint32_t>(storage.size());
-  message.data._release = false;
-  return message;
+TorqueArray::TorqueArray(int num_joints) : data_(static_cast<std::size_t>(num_joints)) {
+  dimension_.label = label_.data();
+  dimension_.size = dimension_.stride = static_cast<std::uint32_t>(num_joints);
+  message_.layout.dim._buffer = &dimension_;
+  message_.layout.dim._length = message_.layout.dim._maximum = 1;
+}
+
+const Float64MultiArray& TorqueArray::set(const ci::JointVector& tau) {
+  data_.assign(tau.data(), tau.data() + tau.size());
+  message_.data._buffer = data_.data();
+  message_.data._length = message_.data._maximum = static_cast<std::uint32_t>(data_.size());
+  return message_;
 }
 
 }  // namespace cartesian_impedance_ros2

@@ -72,6 +72,25 @@ cartesian_impedance::runtime::JointStateView joint_state_view(const JointStateMe
 /// builtin_interfaces/Time of a wall-clock instant (ROS 2 stamps are system time).
 builtin_interfaces_msg_dds__Time_ stamp_now();
 
+/// A Float64MultiArray of joint torques with storage of its own and the layout the ROS 1 node
+/// writes (one dimension, "joints"): commanded_torques, and the effort controller's commands.
+class TorqueArray {
+ public:
+  explicit TorqueArray(int num_joints);
+  TorqueArray(const TorqueArray&) = delete;
+  TorqueArray& operator=(const TorqueArray&) = delete;
+
+  /// The message holding `tau` (valid until the next call). No allocation after the first.
+  const Float64MultiArray& set(const cartesian_impedance::JointVector& tau);
+  const Float64MultiArray& message() const noexcept { return message_; }
+
+ private:
+  std::vector<double> data_;
+  std::string label_ = "joints";
+  std_msgs_msg_dds__MultiArrayDimension_ dimension_{};
+  Float64MultiArray message_{};
+};
+
 /// The node's outgoing messages. Their strings and sequences point into this object's storage,
 /// which is sized at construction and reused: filling allocates nothing once the strings have
 /// reached their length. One thread fills and writes them.
@@ -90,13 +109,8 @@ class OutgoingMessages {
 
   const PublishedState& published_state() const noexcept { return published_; }
   const FullState& full_state() const noexcept { return full_; }
-  const Float64MultiArray& commanded_torques() const noexcept { return torques_; }
+  const Float64MultiArray& commanded_torques() const noexcept { return torques_.message(); }
   const JointStateMessage& joint_state() const noexcept { return joint_state_; }
-
-  /// A Float64MultiArray for one torque vector (topics mode: the effort controller's commands),
-  /// pointing into `storage` and this object's layout (one dimension "joints").
-  Float64MultiArray torque_message(const cartesian_impedance::JointVector& tau,
-                                   std::vector<double>& storage) const;
 
   struct Storage;  // how strings and arrays are kept (messages.cpp)
 
@@ -106,10 +120,9 @@ class OutgoingMessages {
   cartesian_impedance::ModelWorkspace workspace_;  // the published state's cartesian_velocity
   cartesian_impedance::Kinematics kinematics_;
   std::unique_ptr<Storage> storage_;
-  std_msgs_msg_dds__MultiArrayDimension_ joints_dimension_{};  // label "joints", size n
   PublishedState published_{};
   FullState full_{};
-  Float64MultiArray torques_{};
+  TorqueArray torques_;
   JointStateMessage joint_state_{};
 };
 

@@ -266,43 +266,28 @@ void Node::joint_state_thread() {
 }
 
 void Node::publisher_thread() {
-  const auto period = std::chrono::duration_cast<Clock::duration>(
-      std::chrono::duration<double>(1.0 / settings_.publish_rate));
   OutgoingMessages messages(*model_, frames_);
-  ci::runtime::JointMeasurement measured;
-  ci::runtime::StatusReporter reporter(1.0 / settings_.control_rate, settings_.joint_states_timeout,
-                                       "joint_states");
-  Clock::time_point next = Clock::now();
-  while (!stop_) {
-    next += period;
-    if (control_thread_->running()) {
-      const ci::LoopState state = loop_->latest_state();
-      const ci::runtime::JointMeasurement* effort = nullptr;
-      if (joint_samples_) {
-        joint_samples_->read(measured);
-        effort = &measured;
-      }
-      const ci::runtime::ControlThreadSnapshot timing = control_thread_->snapshot();
-      messages.fill(state, timing.statistics(), effort);
-      state_writer_.write(messages.published_state());
-      full_state_writer_.write(messages.full_state());
-      torque_writer_.write(messages.commanded_torques());
-      if (joint_state_writer_.valid()) joint_state_writer_.write(messages.joint_state());
-      for (const ci::runtime::ReportLine& line : reporter.update(state, timing)) log_line(line);
-    }
-    const Clock::time_point now = Clock::now();
-    if (now - next > period) next = now;
-    std::this_thread::sleep_until(next);
-  }
+  ci::runtime::PublisherOptions options;
+  options.rate = settings_.publish_rate;
+  options.measurement_timeout = settings_.joint_states_timeout;
+  ci::runtime::run_publisher(
+      options, stop_, *control_thread_, *loop_, joint_samples_ ? &*joint_samples_ : nullptr,
+      [&](const ci::runtime::PublisherSample& sample) {
+        messages.fill(sample.state, sample.timing.statistics(), sample.measured);
+        state_writer_.write(messages.published_state());
+        full_state_writer_.write(messages.full_state());
+        torque_writer_.write(messages.commanded_torques());
+        if (joint_state_writer_.valid()) joint_state_writer_.write(messages.joint_state());
+      },
+      log_line);
 }
 
 void Node::effort_thread() {
-  const OutgoingMessages layout(*model_, frames_);
-  std::vector<double> storage;
+  TorqueArray commands(model_->num_joints());
   ci::runtime::TorqueSample sample;
   while (!stop_) {
     if (!torques_->wait(0.1, sample)) continue;  // a new cycle's torque, each once
-    effort_writer_.write(layout.torque_message(sample.tau, storage));
+    effort_writer_.write(commands.set(sample.tau));
   }
 }
 

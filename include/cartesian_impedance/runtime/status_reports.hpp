@@ -1,17 +1,21 @@
 #pragma once
 /// @file
-/// What a node logs about its control thread, decided in one place for every shell: status
-/// changes, measurements lost and back, and every few seconds while there are any, a summary of
-/// the overruns. The shell calls update() from its publisher thread (never the control thread)
-/// with the newest state and timing snapshot and logs the lines it returns with its own logger.
+/// A node's publisher thread, the same for every shell: at a fixed rate, the newest loop state,
+/// measurement and timing snapshot go to the shell's publish function, and what the node logs
+/// about its control thread is decided here (status changes, measurements lost and back, and
+/// every few seconds while there are any, a summary of the overruns) and handed to the shell's
+/// logger. Never the control thread: it reads the loop's and the thread's lock-free outboxes.
 
+#include <atomic>
 #include <chrono>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "cartesian_impedance/control_loop.hpp"
 #include "cartesian_impedance/runtime/control_thread.hpp"
+#include "cartesian_impedance/runtime/robot_io.hpp"
 
 namespace cartesian_impedance::runtime {
 
@@ -43,5 +47,28 @@ class StatusReporter {
   std::optional<std::chrono::steady_clock::time_point> window_began_;
   ControlThreadSnapshot window_start_;
 };
+
+/// What the publisher thread hands the shell each period.
+struct PublisherSample {
+  LoopState state;
+  /// The newest measurement (topics mode), null without a measurement buffer (sim mode).
+  const JointMeasurement* measured = nullptr;
+  ControlThreadSnapshot timing;
+};
+
+struct PublisherOptions {
+  double rate = 100.0;  ///< [Hz] publish() calls per second; missed periods are skipped
+  /// Named in the log lines about lost measurements.
+  double measurement_timeout = 0.1;
+  std::string measurements = "joint_states";
+};
+
+/// Runs until `stop` is true: every period while `thread` runs, reads a sample, calls
+/// `publish(sample)` and passes each report line to `log`. `measurements` may be null.
+void run_publisher(const PublisherOptions& options, const std::atomic<bool>& stop,
+                   const ControlThread& thread, const ControlLoop& loop,
+                   const MeasurementBuffer* measurements,
+                   const std::function<void(const PublisherSample&)>& publish,
+                   const std::function<void(const ReportLine&)>& log);
 
 }  // namespace cartesian_impedance::runtime
