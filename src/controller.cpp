@@ -114,6 +114,9 @@ CartesianImpedanceController::CartesianImpedanceController(int num_joints,
   tau_previous_ = JointVector::Zero(n);
   max_step_ = JointVector::Zero(n);
   tau_0_ = JointVector::Zero(n);
+  nullspace_damping_ = JointVector::Zero(n);
+  scheduled_nullspace_damping_ = JointVector::Zero(n);
+  scheduled_damping_.setZero();
   damping_frame_.setZero();
   state_.damping.setZero();
   damping_computed_for_stiffness_.setConstant(std::nan(""));
@@ -180,7 +183,8 @@ void CartesianImpedanceController::change_frames(Frame stiffness_frame,
 void CartesianImpedanceController::commit(const Parameters& parameters, const Command& command,
                                           Targets commanded) noexcept {
   // Callers have validated everything; from here on nothing can fail, so a rejected command
-  // never leaves a half-applied change behind.
+  // never leaves a half-applied change behind. A command of the impedance ends a schedule().
+  scheduled_ = false;
   change_frames(parameters.stiffness.frame, parameters.wrench.frame);
   parameters_ = parameters;
   state_.stiffness_frame = parameters.stiffness.frame;
@@ -463,7 +467,10 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
   // square roots; a full one a 6x6 eigen-decomposition, done only while K or zeta move. Shaped
   // by the task-space inertia, it changes with q and is computed every cycle.
   bool damping_diagonal = stiffness_diagonal_;
-  if (dynamics.inertia_shaped_damping) {
+  if (scheduled_) {
+    damping_frame_ = scheduled_damping_;
+    damping_diagonal = stiffness_diagonal_ && scheduled_damping_diagonal_;
+  } else if (dynamics.inertia_shaped_damping) {
     Matrix6d inertia;
     if (!task_space_inertia(jacobian, robot.mass, parameters_.nullspace.pseudo_inverse_damping,
                             inertia)) {
@@ -526,9 +533,13 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
 
   // Nullspace joint impedance, projected so that it does not disturb the end effector.
   const JointVector& stiffness_ns = filtered.nullspace_stiffness;
+  if (scheduled_) {
+    nullspace_damping_ = scheduled_nullspace_damping_;
+  } else {
+    nullspace_damping_ = (2.0 * filtered.nullspace_damping_ratio) * stiffness_ns.cwiseSqrt();
+  }
   tau_0_ = -stiffness_ns.cwiseProduct(robot.q - filtered.nullspace_q) -
-           ((2.0 * filtered.nullspace_damping_ratio) * stiffness_ns.cwiseSqrt())
-               .cwiseMax(parameters_.minimum_damping.nullspace)
+           nullspace_damping_.cwiseMax(parameters_.minimum_damping.nullspace)
                .cwiseProduct(robot.dq - filtered.nullspace_dq);
   if (robot.secondary_torque.size() == num_joints_) tau_0_ += robot.secondary_torque;
   const double lambda = parameters_.nullspace.pseudo_inverse_damping;
@@ -566,6 +577,21 @@ void CartesianImpedanceController::track(const Pose& pose_base, const Vector6d& 
     targets->nullspace_q = q_desired;
     targets->nullspace_dq = dq_desired;
   }
+}
+
+void CartesianImpedanceController::schedule(const ScheduledImpedance& impedance) noexcept {
+  for (Targets* targets : {&state_.commanded, &state_.filtered}) {
+    targets->pose = impedance.reference;
+    targets->stiffness = impedance.stiffness;
+    targets->nullspace_q = impedance.nullspace_q;
+    targets->nullspace_stiffness = impedance.nullspace_stiffness;
+    targets->wrench = impedance.wrench;
+  }
+  scheduled_damping_ = impedance.damping;
+  scheduled_damping_diagonal_ = is_diagonal(impedance.damping);
+  scheduled_nullspace_damping_ = impedance.nullspace_damping;
+  scheduled_ = true;
+  refresh_damping_mode();
 }
 
 void CartesianImpedanceController::stop_tracking() noexcept {

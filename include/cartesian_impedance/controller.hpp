@@ -112,6 +112,19 @@ struct ControllerState {
   Matrix6d damping_base() const noexcept;
 };
 
+/// The impedance of one cycle as its caller schedules it: every quantity the law uses, with the
+/// damping given explicitly instead of derived from damping ratios. See
+/// CartesianImpedanceController::schedule().
+struct ScheduledImpedance {
+  Pose reference;                   ///< reference pose T_base_ref (unit quaternion)
+  Matrix6d stiffness;               ///< K in the stiffness frame [N/m, Nm/rad], symmetric PSD
+  Matrix6d damping;                 ///< D in the stiffness frame [N s/m, Nm s/rad], symmetric PSD
+  JointVector nullspace_q;          ///< nullspace target q_d [rad or m]
+  JointVector nullspace_stiffness;  ///< K_ns per joint [Nm/rad]
+  JointVector nullspace_damping;    ///< D_ns per joint [Nm s/rad]
+  Vector6d wrench;                  ///< F in the wrench frame [N; Nm]
+};
+
 class CartesianImpedanceController : public CommandSetters<CartesianImpedanceController> {
  public:
   /// @throws Error if num_joints is outside [1, kMaxJoints] or the parameters are invalid.
@@ -152,6 +165,17 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
              const JointVector& dq_desired) noexcept;
   /// Ends tracking: the reference stays where it is, the feed-forward velocities become zero.
   void stop_tracking() noexcept;
+
+  /// Sets the commanded and filtered impedance of the next cycles directly, bypassing the
+  /// filters, the saturation of commands and the damping rule: for a caller that schedules K and
+  /// D itself (a learned variable-impedance policy, or the compatibility API with the published
+  /// controller's filter semantics). The law, the minimum damping, the pose-error clipping, the
+  /// torque and rate limits and the fail-closed checks still apply. The explicit damping holds
+  /// until the next command other than a reference pose or nullspace target. noexcept, no
+  /// allocation; the caller guarantees finite values of the right sizes and a unit quaternion.
+  void schedule(const ScheduledImpedance& impedance) noexcept;
+  /// True while a schedule() is in force (no command has replaced it).
+  bool scheduled() const noexcept { return scheduled_; }
 
   /// One control cycle: filters the targets with the elapsed `dt` [s], evaluates the law at the
   /// measured `robot` state and applies the limits. The result is torque() and state(). Never
@@ -212,6 +236,12 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   Matrix6d damping_computed_for_stiffness_;  // filtered K the damping was last computed for
   Vector6d damping_computed_for_ratio_;      // filtered zeta the damping was last computed for
   NullspaceProjector projector_;
+  JointVector nullspace_damping_;  // D_ns of the cycle
+  // Set by schedule(): the damping then comes from the caller, not from the damping ratios.
+  bool scheduled_ = false;
+  bool scheduled_damping_diagonal_ = true;
+  Matrix6d scheduled_damping_;
+  JointVector scheduled_nullspace_damping_;
 };
 
 }  // namespace cartesian_impedance

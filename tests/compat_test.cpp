@@ -1,0 +1,459 @@
+// The drop-in for the published base library's API (compat/cartesian_impedance_controller.hpp):
+// - the same scripted session (stiffness with and without auto-damping, damping factors, pose,
+//   nullspace and wrench steps, every filter, the torque delta) gives the published library's
+//   torques to 1e-9 Nm, cycle by cycle; the oracle is support/published_reference.hpp, the
+//   published semantics written anew with dynamic Eigen types and an SVD pseudo-inverse;
+// - without filters it gives the native API's torques for the equivalent parameters;
+// - invalid input throws the library's error, names the argument, and changes nothing;
+// - a bad measurement fails the call closed.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "cartesian_impedance/compat/cartesian_impedance_controller.hpp"
+#include "cartesian_impedance/controller.hpp"
+#include "cartesian_impedance/error.hpp"
+#include "support/published_reference.hpp"
+
+namespace ci = cartesian_impedance;
+using Compat = cartesian_impedance_controller::CartesianImpedanceController;
+using Published = published_reference::Controller;
+
+namespace {
+
+constexpr double kTolerance = 1e-9;  // [Nm] the published library's torques, as promised
+
+struct Measurement {
+  Eigen::VectorXd q, dq;
+  Eigen::Vector3d position;
+  Eigen::Quaterniond orientation;
+  Eigen::MatrixXd jacobian;
+};
+
+// A smooth, deterministic stream of measurements. The law does not need q, the pose and J to be
+// consistent, so they are independent smooth functions of time around a seeded, well-conditioned
+// Jacobian; every term of the law is exercised and nothing depends on a simulator.
+class MeasurementStream {
+ public:
+  explicit MeasurementStream(int n) : n_(n) {
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+    base_jacobian_ = Eigen::MatrixXd::NullaryExpr(6, n, [&] { return 0.4 * uniform(rng); });
+    for (int i = 0; i < std::min(n, 6); ++i) base_jacobian_(i, i) += 0.8;
+  }
+
+  Measurement at(int k) const {
+    const double t = 1e-3 * k;
+    Measurement m;
+    m.q.resize(n_);
+    m.dq.resize(n_);
+    for (int i = 0; i < n_; ++i) {
+      m.q[i] = 0.2 * i - 0.5 + 0.3 * std::sin(0.9 * t + i);
+      m.dq[i] = 0.27 * std::cos(0.9 * t + i);
+    }
+    m.position = Eigen::Vector3d(0.4 + 0.03 * std::sin(t), 0.1 * std::cos(1.3 * t), 0.5);
+    m.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(0.2 * std::sin(t), axis_)) * start_;
+    m.jacobian = base_jacobian_;
+    for (int c = 0; c < n_; ++c) m.jacobian.col(c) *= 1.0 + 0.1 * std::sin(m.q[c]);
+    return m;
+  }
+
+  const Eigen::Quaterniond& start_orientation() const { return start_; }
+
+ private:
+  int n_;
+  Eigen::MatrixXd base_jacobian_;
+  Eigen::Vector3d axis_ = Eigen::Vector3d(1, 2, 3).normalized();
+  Eigen::Quaterniond start_ = Eigen::Quaterniond(0.0, 1.0, 0.0, 0.0);  // flange pointing down
+};
+
+struct Record {
+  std::vector<Eigen::VectorXd> torque;
+  std::vector<Eigen::Matrix<double, 6, 1>> pose_error, wrench;
+  std::vector<Eigen::Matrix<double, 6, 6>> stiffness, damping;
+  std::vector<double> nullspace_stiffness;
+  std::vector<Eigen::VectorXd> nullspace_q;
+  std::vector<Eigen::Vector4d> orientation_d;
+};
+
+enum class Filters { off, on };
+
+// A session a user of the published library might run: every setter, mid-run, with the torque
+// delta binding at times. Written once and run on both classes.
+template <typename Controller>
+Record run_session(Controller& c, int n, Filters filters, int cycles = 450) {
+  const MeasurementStream stream(n);
+  const Measurement first = stream.at(0);
+  c.setNumberOfJoints(static_cast<size_t>(n));
+  if (filters == Filters::on) c.setFiltering(1000.0, 0.3, 0.5, 0.4, 0.6);
+  c.setMaxTorqueDelta(0.1);
+  c.initDesiredPose(first.position, first.orientation);
+  c.initNullspaceConfig(first.q);
+  c.setStiffness(400.0, 300.0, 500.0, 30.0, 20.0, 25.0, 8.0);
+  Record record;
+  for (int k = 0; k < cycles; ++k) {
+    if (k == 40) {
+      c.setReferencePose(
+          first.position + Eigen::Vector3d(0.05, -0.02, 0.03),
+          Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitZ())) * first.orientation);
+    }
+    if (k == 100) c.setStiffness(800.0, 800.0, 200.0, 40.0, 40.0, 10.0, 15.0);
+    if (k == 150) c.setDampingFactors(0.7, 0.8, 0.9, 1.1, 1.2, 0.5, 0.6);
+    if (k == 200) c.setStiffness(100.0, 100.0, 100.0, 5.0, 5.0, 5.0, false);  // damping stays
+    if (k == 250) c.setNullspaceConfig(first.q + Eigen::VectorXd::Constant(n, 0.2));
+    if (k == 300)
+      c.applyWrench((Eigen::Matrix<double, 6, 1>() << 5, -3, 8, 0.5, 0, -0.4).finished());
+    if (k == 350) {
+      if (filters == Filters::on) c.setFiltering(500.0, 0.9, 0.2, 0.7, 0.1);
+      c.setMaxTorqueDelta(0.8, filters == Filters::on ? 500.0 : 1000.0);
+    }
+    if (k == 400) c.setStiffness(600.0, 600.0, 600.0, 50.0, 50.0, 50.0, 3.0);
+    const Measurement m = stream.at(k);
+    record.torque.push_back(
+        c.calculateCommandedTorques(m.q, m.dq, m.position, m.orientation, m.jacobian));
+    record.pose_error.push_back(c.getPoseError());
+    record.wrench.push_back(c.getAppliedWrench());
+    Eigen::Vector3d position_d;
+    Eigen::Quaterniond orientation_d;
+    Eigen::Matrix<double, 6, 6> stiffness, damping;
+    double nullspace_stiffness = 0.0;
+    Eigen::VectorXd nullspace_q;
+    c.getState(&position_d, &orientation_d, &stiffness, &nullspace_stiffness, &nullspace_q,
+               &damping);
+    record.stiffness.push_back(stiffness);
+    record.damping.push_back(damping);
+    record.nullspace_stiffness.push_back(nullspace_stiffness);
+    record.nullspace_q.push_back(nullspace_q);
+    record.orientation_d.push_back(orientation_d.coeffs());
+  }
+  return record;
+}
+
+template <typename A, typename B>
+double max_difference(const std::vector<A>& a, const std::vector<B>& b) {
+  double worst = 0.0;
+  for (size_t k = 0; k < a.size(); ++k) {
+    worst = std::max(worst, (a[k] - b[k]).cwiseAbs().maxCoeff());
+  }
+  return worst;
+}
+
+void expect_same_session(const Record& compat, const Record& published) {
+  ASSERT_EQ(compat.torque.size(), published.torque.size());
+  for (size_t k = 0; k < compat.torque.size(); ++k) {
+    ASSERT_LE((compat.torque[k] - published.torque[k]).cwiseAbs().maxCoeff(), kTolerance)
+        << "cycle " << k << "\ncompat    " << compat.torque[k].transpose() << "\npublished "
+        << published.torque[k].transpose();
+  }
+  ::testing::Test::RecordProperty(
+      "max_torque_difference_nm",
+      ci::format_number(max_difference(compat.torque, published.torque)));
+  // The filtered targets and getters, to rounding: the same filter steps on the same values.
+  EXPECT_LE(max_difference(compat.pose_error, published.pose_error), 1e-12);
+  EXPECT_LE(max_difference(compat.wrench, published.wrench), 1e-12);
+  EXPECT_LE(max_difference(compat.stiffness, published.stiffness), 1e-10);
+  EXPECT_LE(max_difference(compat.damping, published.damping), 1e-10);
+  EXPECT_LE(max_difference(compat.nullspace_q, published.nullspace_q), 1e-12);
+  EXPECT_LE(max_difference(compat.orientation_d, published.orientation_d), 1e-12);
+  double nullspace = 0.0;
+  for (size_t k = 0; k < compat.nullspace_stiffness.size(); ++k) {
+    nullspace = std::max(
+        nullspace, std::abs(compat.nullspace_stiffness[k] - published.nullspace_stiffness[k]));
+  }
+  EXPECT_LE(nullspace, 1e-12);
+}
+
+// How many cycles the torque delta bound: the session must exercise both the limit and the law.
+int rate_limited_cycles(const Record& record, double delta_before, double delta_after) {
+  int limited = 0;
+  for (size_t k = 1; k < record.torque.size(); ++k) {
+    const double delta = k < 350 ? delta_before : delta_after;
+    const double step = (record.torque[k] - record.torque[k - 1]).cwiseAbs().maxCoeff();
+    if (step > delta - 1e-12) ++limited;
+  }
+  return limited;
+}
+
+}  // namespace
+
+class CompatSession : public ::testing::TestWithParam<int> {};
+
+TEST_P(CompatSession, FilteredSessionGivesThePublishedTorques) {
+  const int n = GetParam();
+  Compat compat;
+  Published published;
+  const Record a = run_session(compat, n, Filters::on);
+  const Record b = run_session(published, n, Filters::on);
+  expect_same_session(a, b);
+  // The session means something: the delta limit binds on some cycles and not on others, and the
+  // filters change the torques by far more than the tolerance.
+  const int limited = rate_limited_cycles(b, 0.1, 0.8);
+  EXPECT_GT(limited, 10) << limited;
+  RecordProperty("rate_limited_cycles", limited);
+  EXPECT_LT(limited, static_cast<int>(b.torque.size()) - 100);
+  Published unfiltered;
+  const Record c = run_session(unfiltered, n, Filters::off);
+  EXPECT_GT(max_difference(b.torque, c.torque), 0.1);
+}
+
+TEST_P(CompatSession, UnfilteredSessionGivesThePublishedTorques) {
+  const int n = GetParam();
+  Compat compat;
+  Published published;
+  expect_same_session(run_session(compat, n, Filters::off),
+                      run_session(published, n, Filters::off));
+}
+
+// 7 joints is the published library's own case (its projector is fixed at 7); the oracle
+// generalises it, as the compatibility class does.
+INSTANTIATE_TEST_SUITE_P(JointCounts, CompatSession, ::testing::Values(7, 6, 3));
+
+TEST(Compat, DefaultsAreThePublishedDefaults) {
+  Compat compat;
+  Published published;
+  Eigen::Vector3d position_d[2];
+  Eigen::Quaterniond orientation_d[2];
+  Eigen::Matrix<double, 6, 6> stiffness[2], damping[2];
+  double nullspace_stiffness[2];
+  Eigen::VectorXd nullspace_q[2];
+  published.setNumberOfJoints(7);  // the published constructor leaves the joint count unset
+  compat.getState(&position_d[0], &orientation_d[0], &stiffness[0], &nullspace_stiffness[0],
+                  &nullspace_q[0], &damping[0]);
+  published.getState(&position_d[1], &orientation_d[1], &stiffness[1], &nullspace_stiffness[1],
+                     &nullspace_q[1], &damping[1]);
+  EXPECT_EQ(stiffness[0], stiffness[1]);
+  EXPECT_EQ(damping[0], damping[1]);
+  EXPECT_EQ(nullspace_stiffness[0], nullspace_stiffness[1]);
+  EXPECT_EQ(nullspace_q[0], nullspace_q[1]);
+  EXPECT_EQ(stiffness[0].diagonal()[0], 200.0);
+  EXPECT_DOUBLE_EQ(damping[0].diagonal()[3], 2.0 * std::sqrt(20.0));
+}
+
+// Without filters the compatibility class and the native API, configured alike, are the same
+// controller: the published semantics are a configuration of the library, not a second law.
+TEST(Compat, MatchesTheNativeApiConfiguredAlike) {
+  const int n = 7;
+  const MeasurementStream stream(n);
+  const Measurement first = stream.at(0);
+  const Eigen::Vector3d target = first.position + Eigen::Vector3d(0.04, 0.01, -0.02);
+  const ci::Vector6d stiffness = (ci::Vector6d() << 600, 500, 400, 40, 30, 20).finished();
+  const ci::Vector6d factors = (ci::Vector6d() << 0.8, 0.9, 1.0, 1.1, 0.7, 0.6).finished();
+  const double nullspace_stiffness = 12.0, nullspace_factor = 0.9, delta = 0.3;
+
+  Compat compat;
+  compat.setNumberOfJoints(n);
+  compat.setMaxTorqueDelta(delta);
+  compat.initDesiredPose(target, first.orientation);
+  compat.initNullspaceConfig(first.q);
+  compat.setStiffness(stiffness[0], stiffness[1], stiffness[2], stiffness[3], stiffness[4],
+                      stiffness[5], nullspace_stiffness);
+  compat.setDampingFactors(factors[0], factors[1], factors[2], factors[3], factors[4], factors[5],
+                           nullspace_factor);
+
+  ci::Parameters parameters;
+  for (ci::FilterSettings* f : {&parameters.filter.pose, &parameters.filter.stiffness,
+                                &parameters.filter.nullspace, &parameters.filter.wrench}) {
+    f->time = 0.0;
+  }
+  parameters.minimum_damping = {0.0, 0.0, 0.0};
+  parameters.nullspace.pseudo_inverse_damping = 0.2;
+  parameters.dynamics.inertia_shaped_damping = false;  // the published unit-mass damping
+  parameters.limits.joint_torque_rate = ci::JointVector::Constant(1, delta * 1000.0);
+  parameters.stiffness.translation = stiffness.head<3>();
+  parameters.stiffness.rotation = stiffness.tail<3>();
+  parameters.damping_ratio.translation = factors.head<3>();
+  parameters.damping_ratio.rotation = factors.tail<3>();
+  parameters.nullspace.stiffness = ci::JointVector::Constant(1, nullspace_stiffness);
+  parameters.nullspace.damping_ratio = nullspace_factor;
+  ci::CartesianImpedanceController native(n, parameters);
+  ci::RobotState robot = ci::make_robot_state(n);
+  const auto load = [&robot](const Measurement& m) {
+    robot.q = m.q;
+    robot.dq = m.dq;
+    robot.pose = ci::Pose{m.position, m.orientation};
+    robot.jacobian = m.jacobian;
+  };
+  load(first);
+  native.start(robot);
+  native.set_reference_pose(ci::Pose{target, first.orientation});
+
+  double worst = 0.0, largest = 0.0;
+  for (int k = 0; k < 300; ++k) {
+    const Measurement m = stream.at(k);
+    load(m);
+    ASSERT_EQ(native.update(robot, 1e-3), ci::Status::ok);
+    const Eigen::VectorXd tau =
+        compat.calculateCommandedTorques(m.q, m.dq, m.position, m.orientation, m.jacobian);
+    worst = std::max(worst, (tau - Eigen::VectorXd(native.torque())).cwiseAbs().maxCoeff());
+    largest = std::max(largest, tau.cwiseAbs().maxCoeff());
+  }
+  EXPECT_LE(worst, 1e-12);
+  EXPECT_GT(largest, 5.0);  // a real pull toward the target, not zeros compared with zeros
+}
+
+namespace {
+
+// Two controllers that run the same session; one then receives a rejected call. Both step again:
+// the same torques and state show that the rejected call changed nothing.
+struct Twins {
+  Compat a, b;
+  MeasurementStream stream{7};
+  int k = 0;
+
+  Twins() {
+    for (Compat* c : {&a, &b}) {
+      const Measurement first = stream.at(0);
+      c->setFiltering(1000.0, 0.5, 0.5, 0.5, 0.5);
+      c->setMaxTorqueDelta(0.5);
+      c->initDesiredPose(first.position + Eigen::Vector3d(0.03, 0, 0), first.orientation);
+      c->initNullspaceConfig(first.q);
+      c->setStiffness(500.0, 500.0, 500.0, 40.0, 40.0, 40.0, 5.0);
+    }
+    step(20);
+  }
+
+  void step(int cycles) {
+    for (int i = 0; i < cycles; ++i, ++k) {
+      const Measurement m = stream.at(k);
+      ta = a.calculateCommandedTorques(m.q, m.dq, m.position, m.orientation, m.jacobian);
+      tb = b.calculateCommandedTorques(m.q, m.dq, m.position, m.orientation, m.jacobian);
+    }
+  }
+
+  void expect_unchanged() {
+    step(5);
+    EXPECT_EQ(ta, tb);
+    EXPECT_EQ(a.getAppliedWrench(), b.getAppliedWrench());
+    EXPECT_EQ(a.getPoseError(), b.getPoseError());
+  }
+
+  Eigen::VectorXd ta, tb;
+};
+
+// Runs `call` on twin a, expects cartesian_impedance::Error whose message contains each of
+// `words`, and expects nothing to have changed.
+template <typename Call>
+void expect_rejected(Call call, std::initializer_list<const char*> words) {
+  Twins twins;
+  try {
+    call(twins.a);
+    ADD_FAILURE() << "accepted";
+  } catch (const ci::Error& error) {
+    for (const char* word : words) {
+      EXPECT_NE(std::string(error.what()).find(word), std::string::npos)
+          << "'" << error.what() << "' does not name " << word;
+    }
+  }
+  twins.expect_unchanged();
+}
+
+}  // namespace
+
+TEST(CompatBadInput, SettersThrowTheLibraryErrorNamingTheArgumentAndChangeNothing) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  expect_rejected([](Compat& c) { c.setStiffness(-100.0, 500.0, 500.0, 40.0, 40.0, 40.0, 5.0); },
+                  {"setStiffness", "t_x", "-100"});
+  expect_rejected([nan](Compat& c) { c.setStiffness(500.0, 500.0, 500.0, 40.0, nan, 40.0, 5.0); },
+                  {"r_y", "not finite"});
+  expect_rejected([](Compat& c) { c.setStiffness(500.0, 500.0, 500.0, 40.0, 40.0, 40.0, -1.0); },
+                  {"setStiffness: n"});
+  expect_rejected([](Compat& c) { c.setDampingFactors(1, 1, -0.5, 1, 1, 1, 1); },
+                  {"setDampingFactors", "d_z", "-0.5"});
+  expect_rejected([](Compat& c) { c.setFiltering(0.0, 0.5, 0.5, 0.5, 0.5); },
+                  {"update_frequency", "0"});
+  expect_rejected([](Compat& c) { c.setFiltering(1000.0, 1.5, 0.5, 0.5, 0.5); },
+                  {"filter_params_nullspace_config", "1.5"});
+  expect_rejected([nan](Compat& c) { c.setFiltering(1000.0, 0.5, 0.5, nan, 0.5); },
+                  {"filter_params_pose", "not finite"});
+  expect_rejected([](Compat& c) { c.setMaxTorqueDelta(-2.0); }, {"setMaxTorqueDelta", "-2"});
+  expect_rejected([nan](Compat& c) { c.setMaxTorqueDelta(nan); }, {"setMaxTorqueDelta"});
+  expect_rejected([](Compat& c) { c.setMaxTorqueDelta(2.0, -100.0); }, {"update_frequency"});
+  expect_rejected([](Compat& c) { c.setNullspaceConfig(Eigen::VectorXd::Zero(6)); },
+                  {"setNullspaceConfig", "6 values; expected 7"});
+  expect_rejected(
+      [nan](Compat& c) {
+        Eigen::VectorXd q = Eigen::VectorXd::Zero(7);
+        q[3] = nan;
+        c.setNullspaceConfig(q);
+      },
+      {"q_d_nullspace_target[3]", "not finite"});
+  expect_rejected(
+      [](Compat& c) {
+        c.setReferencePose(Eigen::Vector3d(0.5, 0, 0.5), Eigen::Quaterniond(2.0, 0, 0, 0));
+      },
+      {"setReferencePose", "orientation"});
+  expect_rejected(
+      [nan](Compat& c) {
+        c.initDesiredPose(Eigen::Vector3d(nan, 0, 0.5), Eigen::Quaterniond::Identity());
+      },
+      {"setReferencePose", "position"});
+  expect_rejected(
+      [nan](Compat& c) {
+        c.applyWrench((Eigen::Matrix<double, 6, 1>() << 0, 0, nan, 0, 0, 0).finished());
+      },
+      {"applyWrench", "f_z"});
+  expect_rejected([](Compat& c) { c.setNumberOfJoints(0); }, {"setNumberOfJoints", "0"});
+  expect_rejected([](Compat& c) { c.setNumberOfJoints(static_cast<size_t>(-7)); },
+                  {"n_joints = -7"});
+}
+
+TEST(CompatBadInput, ABadMeasurementFailsTheCallClosedAndTheNextGoodOneResumes) {
+  Twins twins;
+  const Measurement good = twins.stream.at(twins.k);
+  const Eigen::VectorXd before = twins.a.getLastCommands();
+  ASSERT_GT(before.cwiseAbs().maxCoeff(), 0.5);  // a torque worth ramping down
+  Eigen::VectorXd q_before;
+  twins.a.getState(&q_before, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr,
+                   nullptr, nullptr);
+
+  Measurement bad = good;
+  bad.dq[4] = std::numeric_limits<double>::quiet_NaN();
+  const Eigen::VectorXd tau =
+      twins.a.calculateCommandedTorques(bad.q, bad.dq, bad.position, bad.orientation, bad.jacobian);
+  EXPECT_EQ(twins.a.status(), ci::Status::invalid_robot_state);
+  EXPECT_EQ(std::string(twins.a.fault().input), "dq");
+  EXPECT_EQ(twins.a.fault().index, 4);
+  // Toward zero by exactly the torque delta, as the published rate limit allows.
+  for (int i = 0; i < 7; ++i) {
+    EXPECT_NEAR(std::abs(tau[i]), std::max(0.0, std::abs(before[i]) - 0.5), 1e-12) << i;
+  }
+  EXPECT_TRUE(tau.allFinite());
+  Eigen::VectorXd q_after;
+  twins.a.getState(&q_after, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr,
+                   nullptr);
+  EXPECT_EQ(q_after, q_before);  // the bad measurement was not kept
+
+  Measurement wrong = good;
+  wrong.jacobian = Eigen::MatrixXd::Zero(6, 6);
+  twins.a.calculateCommandedTorques(wrong.q, wrong.dq, wrong.position, wrong.orientation,
+                                    wrong.jacobian);
+  EXPECT_EQ(std::string(twins.a.fault().input), "jacobian");
+  Measurement unnormalised = good;
+  unnormalised.orientation.coeffs() *= 1.5;
+  twins.a.calculateCommandedTorques(unnormalised.q, unnormalised.dq, unnormalised.position,
+                                    unnormalised.orientation, unnormalised.jacobian);
+  EXPECT_EQ(std::string(twins.a.fault().input), "pose.orientation");
+
+  // The filters did not advance on the rejected calls: after one good call each, the twins'
+  // filtered targets agree again.
+  twins.step(1);
+  EXPECT_EQ(twins.a.status(), ci::Status::ok);
+  EXPECT_EQ(twins.a.getPoseError(), twins.b.getPoseError());
+  EXPECT_EQ(twins.a.getAppliedWrench(), twins.b.getAppliedWrench());
+}
+
+TEST(CompatBadInput, AWronglySizedOutputComputesNothing) {
+  Twins twins;
+  const Measurement m = twins.stream.at(twins.k);
+  Eigen::VectorXd tau = Eigen::VectorXd::Zero(6);
+  EXPECT_EQ(
+      twins.a.calculateCommandedTorques(m.q, m.dq, m.position, m.orientation, m.jacobian, tau),
+      ci::Status::invalid_robot_state);
+  EXPECT_EQ(std::string(twins.a.fault().input), "tau");
+  twins.expect_unchanged();
+}
