@@ -30,8 +30,13 @@ T blend(const T& current, const T& target, double step) {
   return (1.0 - step) * current + step * target;
 }
 
-void check_row(const char* row, const std::string& element, double value) {
-  ci::parameter_info(row).check(element, value);
+// Checks `value` against a row of the parameter table; the message names the published argument
+// ("setStiffness: t_x"). The name is only built for a message, so a valid call allocates nothing.
+void check_row(const char* row, const char* function, const char* argument, double value) {
+  const ci::ParameterInfo& info = ci::parameter_info(row);
+  const bool above_min = info.min_exclusive ? value > info.min : value >= info.min;
+  if (std::isfinite(value) && above_min && value <= info.max) return;
+  info.check(std::string(function) + ": " + argument, value);
 }
 
 void check_filter_fraction(const char* name, double value) {
@@ -126,7 +131,7 @@ void CartesianImpedanceController::setStiffness(const Eigen::Matrix<double, 7, 1
                                       "stiffness.rotation",    "stiffness.rotation",
                                       "nullspace.stiffness"};
   for (int i = 0; i < 7; ++i) {
-    check_row(rows[i], std::string("setStiffness: ") + names[i], stiffness[i]);
+    check_row(rows[i], "setStiffness", names[i], stiffness[i]);
   }
   stiffness_target_.setZero();
   stiffness_target_.diagonal() = stiffness.head<6>();
@@ -153,8 +158,7 @@ void CartesianImpedanceController::setDampingFactors(double d_x, double d_y, dou
   factors << d_x, d_y, d_z, d_a, d_b, d_c, d_n;
   static const char* const names[7] = {"d_x", "d_y", "d_z", "d_a", "d_b", "d_c", "d_n"};
   for (int i = 0; i < 7; ++i) {
-    check_row("damping_ratio.translation", std::string("setDampingFactors: ") + names[i],
-              factors[i]);
+    check_row("damping_ratio.translation", "setDampingFactors", names[i], factors[i]);
   }
   damping_factors_ = factors;
   apply_damping_rule();
@@ -240,8 +244,7 @@ void CartesianImpedanceController::reconfigure(double max_torque_delta, double u
 void CartesianImpedanceController::applyWrench(const Eigen::Matrix<double, 6, 1>& wrench) {
   static const char* const names[6] = {"f_x", "f_y", "f_z", "tau_x", "tau_y", "tau_z"};
   for (int i = 0; i < 6; ++i) {
-    check_row(i < 3 ? "wrench.force" : "wrench.torque", std::string("applyWrench: ") + names[i],
-              wrench[i]);
+    check_row(i < 3 ? "wrench.force" : "wrench.torque", "applyWrench", names[i], wrench[i]);
   }
   wrench_target_ = wrench;
 }

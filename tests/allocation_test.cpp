@@ -5,6 +5,7 @@
 
 #include <random>
 
+#include "cartesian_impedance/compat/cartesian_impedance_controller.hpp"
 #include "cartesian_impedance/controller.hpp"
 #include "support/allocation_counter.hpp"
 #include "support/random_cases.hpp"
@@ -90,3 +91,42 @@ TEST_P(AllocationFree, UpdateAllocatesNothingWithEveryFeatureOn) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Joints, AllocationFree, ::testing::Values(6, 7));
+
+// The compatibility API: its own overload allocates nothing per call, filters and rate limit
+// running, bad measurements included; the published signature allocates exactly its returned
+// vector.
+TEST(CompatAllocations, TheWritingOverloadAllocatesNothingThePublishedOneItsResult) {
+  const int n = 7;
+  std::mt19937 rng(5);
+  const ci::RobotState robot = random_robot_state(n, rng);
+  cartesian_impedance_controller::CartesianImpedanceController compat;
+  compat.setFiltering(1000.0, 0.5, 0.5, 0.5, 0.5);
+  compat.setMaxTorqueDelta(0.05);
+  compat.initNullspaceConfig(Eigen::VectorXd(robot.q));
+  compat.setReferencePose(robot.pose.position + Eigen::Vector3d(0.05, 0, 0),
+                          robot.pose.orientation);
+  // The caller's data, as Eigen::VectorXd / MatrixXd, allocated before counting.
+  Eigen::VectorXd q = robot.q, dq = robot.dq, tau = Eigen::VectorXd::Zero(n);
+  const Eigen::MatrixXd jacobian = robot.jacobian;
+  const Eigen::Vector3d position = robot.pose.position;
+  const Eigen::Quaterniond orientation = robot.pose.orientation;
+  {
+    allocation_counter::Scope scope;
+    for (int k = 0; k < 2000; ++k) {
+      q[k % n] += 1e-5;
+      compat.calculateCommandedTorques(q, dq, position, orientation, jacobian, tau);
+      if (k == 1000) compat.setStiffness(800.0, 800.0, 800.0, 60.0, 60.0, 60.0, 10.0);
+    }
+    q[2] = std::nan("");
+    compat.calculateCommandedTorques(q, dq, position, orientation, jacobian, tau);
+    EXPECT_EQ(compat.status(), ci::Status::invalid_robot_state);
+    q[2] = 0.0;
+    EXPECT_EQ(scope.allocations(), 0);
+  }
+  allocation_counter::Scope scope;
+  for (int k = 0; k < 100; ++k) {
+    compat.calculateCommandedTorques(q, dq, position, orientation, jacobian);
+  }
+  EXPECT_EQ(scope.allocations(), 100);
+  EXPECT_GT(tau.cwiseAbs().maxCoeff(), 0.5);  // the cycles did work
+}
