@@ -123,6 +123,40 @@ TEST(SpringLaw, DampingOpposesVelocity) {
   EXPECT_LE((controller.torque() + damping.cwiseProduct(robot.dq)).cwiseAbs().maxCoeff(), 1e-12);
 }
 
+TEST(ScheduledImpedance, ExplicitFullDampingIsUsedUntilACommandReplacesIt) {
+  // J = I: the torque is the Cartesian force itself, -K e - D v, with D not derivable from K.
+  ci::CartesianImpedanceController controller(6, bare_parameters());
+  ci::RobotState robot = cartesian_robot();
+  controller.start(robot);
+  ci::ScheduledImpedance impedance;
+  impedance.reference = robot.pose;
+  impedance.reference.position += Eigen::Vector3d(0.01, -0.02, 0.0);
+  impedance.stiffness = six(300, 300, 300, 20, 20, 20).asDiagonal();
+  impedance.damping = six(50, 60, 70, 3, 4, 5).asDiagonal();
+  impedance.damping(0, 1) = impedance.damping(1, 0) = 10.0;  // a coupled damper
+  impedance.nullspace_q = robot.q;
+  impedance.nullspace_stiffness = ci::JointVector::Zero(6);
+  impedance.nullspace_damping = ci::JointVector::Zero(6);
+  impedance.wrench = six(0, 0, 2, 0, 0, 0);
+  controller.schedule(impedance);
+  EXPECT_TRUE(controller.scheduled());
+  robot.dq = six(0.1, -0.2, 0.05, 0.3, 0.0, -0.1);
+  ASSERT_EQ(controller.update(robot, 0.001), ci::Status::ok);
+  ci::Vector6d error;
+  error << robot.pose.position - impedance.reference.position, 0, 0, 0;
+  const ci::Vector6d expected =
+      -impedance.stiffness * error - impedance.damping * robot.dq + impedance.wrench;
+  EXPECT_LE((controller.torque() - expected).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_EQ(controller.state().damping, impedance.damping);
+
+  // A stiffness command ends the schedule: the damping follows the ratio rule again.
+  controller.set_stiffness(six(400, 400, 400, 25, 25, 25));
+  EXPECT_FALSE(controller.scheduled());
+  ASSERT_EQ(controller.update(robot, 0.001), ci::Status::ok);
+  EXPECT_DOUBLE_EQ(controller.state().damping(0, 0), 2.0 * std::sqrt(400.0));
+  EXPECT_EQ(controller.state().damping(0, 1), 0.0);
+}
+
 TEST(WrenchLaw, TorqueIsJacobianTransposeTimesWrenchInEitherFrame) {
   std::mt19937 rng(12);
   for (int n : {6, 7}) {

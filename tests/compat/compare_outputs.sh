@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Runs the program built against the compatibility header ($1) and against the oracle of the
+# Runs examples/published_api.cpp built against the compatibility header ($1) and against the oracle of the
 # published semantics ($2); each must pass its own physics check (exit 0), and every number they
 # print must agree to 1e-9.
 set -euo pipefail

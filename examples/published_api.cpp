@@ -3,10 +3,11 @@
 // the controller with its filters and torque delta on, then pushed with a commanded 5 N wrench.
 // The one line that differs from a program built on the published library is the include.
 //
-// It is built twice: against the compatibility header, and against the oracle of the published
-// semantics (tests/support/published_reference.hpp, through a header of the same name); the test
-// compares both outputs to 1e-9 (compare_outputs.sh). It also checks what the physics says:
-// the arm reaches the reference, and the wrench moves it by F / K.
+// Link it with cartesian_impedance::compat. The tests build it twice, against the compatibility
+// header and against the oracle of the published semantics (tests/support/published_reference.hpp,
+// through a header of the same name), and compare both outputs to 1e-9
+// (tests/compat/compare_outputs.sh). It checks what the physics says itself: the arm reaches the
+// reference, and the wrench moves it by F / K; it exits with 1 otherwise.
 
 #include <Eigen/Dense>
 #include <cartesian_impedance/compat/cartesian_impedance_controller.hpp>
