@@ -10,8 +10,10 @@
 #include <random>
 #include <vector>
 
+#include "cartesian_impedance/compat/cartesian_impedance_controller.hpp"
 #include "cartesian_impedance/controller.hpp"
 #include "support/allocation_counter.hpp"
+#include "support/published_reference.hpp"
 #include "support/random_cases.hpp"
 #include "support/reference_controller.hpp"
 
@@ -120,6 +122,58 @@ void BM_UpdateInertiaShapedDamping(benchmark::State& state) {
   run_update(state, false, true);
 }
 BENCHMARK(BM_UpdateInertiaShapedDamping);
+
+// The published base library's API, every filter moving and the torque delta on: on the
+// compatibility class (its writing overload; the published signature adds one allocation for the
+// returned vector) and on the oracle of the published semantics, written as plainly as the
+// published code (dynamic matrices, an SVD pseudo-inverse per call).
+template <typename Controller>
+void configure_published_session(Controller& controller, const Setup& setup) {
+  controller.setNumberOfJoints(kJoints);
+  controller.setFiltering(1000.0, 0.1, 0.1, 0.1, 0.1);  // still moving after 10^6 calls
+  controller.setMaxTorqueDelta(0.5);
+  controller.initDesiredPose(setup.robot.pose.position, setup.robot.pose.orientation);
+  controller.initNullspaceConfig(Eigen::VectorXd(setup.robot.q));
+  controller.setStiffness(800.0, 600.0, 400.0, 40.0, 30.0, 20.0, 10.0);
+  controller.setReferencePose(setup.reference.position, setup.reference.orientation);
+  controller.setNullspaceConfig(Eigen::VectorXd(setup.q_desired));
+  controller.applyWrench(setup.wrench);
+}
+
+void BM_CompatPublishedApi(benchmark::State& state) {
+  Setup setup;
+  cartesian_impedance_controller::CartesianImpedanceController controller;
+  configure_published_session(controller, setup);
+  Eigen::VectorXd q = setup.robot.q, tau = Eigen::VectorXd::Zero(kJoints);
+  const Eigen::VectorXd dq = setup.robot.dq;
+  const Eigen::MatrixXd jacobian = setup.robot.jacobian;
+  allocation_counter::Scope allocations;
+  for (auto _ : state) {
+    q[0] += 1e-9;
+    benchmark::DoNotOptimize(controller.calculateCommandedTorques(
+        q, dq, setup.robot.pose.position, setup.robot.pose.orientation, jacobian, tau));
+  }
+  report_allocations(state, allocations.allocations());
+  if (controller.status() != ci::Status::ok) state.SkipWithError("the compat step failed");
+}
+BENCHMARK(BM_CompatPublishedApi);
+
+void BM_PublishedSemanticsSvd(benchmark::State& state) {
+  Setup setup;
+  published_reference::Controller controller;
+  configure_published_session(controller, setup);
+  Eigen::VectorXd q = setup.robot.q;
+  const Eigen::VectorXd dq = setup.robot.dq;
+  const Eigen::MatrixXd jacobian = setup.robot.jacobian;
+  allocation_counter::Scope allocations;
+  for (auto _ : state) {
+    q[0] += 1e-9;
+    benchmark::DoNotOptimize(controller.calculateCommandedTorques(
+        q, dq, setup.robot.pose.position, setup.robot.pose.orientation, jacobian));
+  }
+  report_allocations(state, allocations.allocations());
+}
+BENCHMARK(BM_PublishedSemanticsSvd);
 
 // The same law written plainly with dynamic matrices and SVDs.
 void BM_ReferenceSvd(benchmark::State& state) {
