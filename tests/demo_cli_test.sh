@@ -29,6 +29,20 @@ expect_error "unknown scenario 'nope' (valid: hold, compliance, " --scenario nop
 expect_error "--out needs a value" --out
 printf 'stiffness:\n  translation: -5\n' >"$scratch/bad.yaml"
 expect_error "bad.yaml:2: stiffness.translation = -5 N/m is outside [0, 100000]" --config "$scratch/bad.yaml"
+printf 'nullspace:\n  stiffness: [10, 10, 10]\n' >"$scratch/three.yaml"
+expect_error "three.yaml' for 7 joints: nullspace.stiffness" --config "$scratch/three.yaml"
+expect_error "--urdf: " --urdf "$source_dir/models/panda/panda.urdf" --base-link panda_link0 --tip-link gripper
+
+# A scenario that cannot run is its own verdict (exit 3), not a FAIL. (Today a URDF-only robot
+# cannot run the table scenario.)
+"$demo" --urdf "$source_dir/models/panda/panda.urdf" --base-link panda_link0 --tip-link panda_link8 \
+  --scenario wrench --no-render --no-plots --out "$scratch/not_run" >"$scratch/not_run.log" 2>&1
+status=$?
+if [ "$status" -ne 3 ] || ! grep -q "1 of 1 scenarios could not run" "$scratch/not_run.log" ||
+  grep -q "disagree" "$scratch/not_run.log"; then
+  echo "FAIL: a scenario that could not run gave exit $status:"; cat "$scratch/not_run.log"
+  failures=$((failures + 1))
+fi
 "$demo" --help | grep -q "Usage: cartesian_impedance_demo" || { echo "FAIL: --help"; failures=$((failures + 1)); }
 
 # A short tour on the iiwa14, with plots and (where EGL works) pictures.
