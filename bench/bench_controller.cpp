@@ -140,9 +140,11 @@ void configure_published_session(Controller& controller, const Setup& setup) {
   controller.applyWrench(setup.wrench);
 }
 
-void BM_CompatPublishedApi(benchmark::State& state) {
+// Times `step(controller, q, dq, jacobian, tau)` on the published session, the caller's data as
+// Eigen::VectorXd / MatrixXd, allocated before counting.
+template <typename Controller, typename Step>
+void run_published_session(benchmark::State& state, Controller& controller, Step step) {
   Setup setup;
-  cartesian_impedance_controller::CartesianImpedanceController controller;
   configure_published_session(controller, setup);
   Eigen::VectorXd q = setup.robot.q, tau = Eigen::VectorXd::Zero(kJoints);
   const Eigen::VectorXd dq = setup.robot.dq;
@@ -150,28 +152,31 @@ void BM_CompatPublishedApi(benchmark::State& state) {
   allocation_counter::Scope allocations;
   for (auto _ : state) {
     q[0] += 1e-9;
-    benchmark::DoNotOptimize(controller.calculateCommandedTorques(
-        q, dq, setup.robot.pose.position, setup.robot.pose.orientation, jacobian, tau));
+    step(controller, q, dq, setup.robot.pose, jacobian, tau);
   }
   report_allocations(state, allocations.allocations());
+}
+
+void BM_CompatPublishedApi(benchmark::State& state) {
+  cartesian_impedance_controller::CartesianImpedanceController controller;
+  run_published_session(state, controller,
+                        [](auto& c, const auto& q, const auto& dq, const ci::Pose& pose,
+                           const auto& jacobian, Eigen::VectorXd& tau) {
+                          benchmark::DoNotOptimize(c.calculateCommandedTorques(
+                              q, dq, pose.position, pose.orientation, jacobian, tau));
+                        });
   if (controller.status() != ci::Status::ok) state.SkipWithError("the compat step failed");
 }
 BENCHMARK(BM_CompatPublishedApi);
 
 void BM_PublishedSemanticsSvd(benchmark::State& state) {
-  Setup setup;
   published_reference::Controller controller;
-  configure_published_session(controller, setup);
-  Eigen::VectorXd q = setup.robot.q;
-  const Eigen::VectorXd dq = setup.robot.dq;
-  const Eigen::MatrixXd jacobian = setup.robot.jacobian;
-  allocation_counter::Scope allocations;
-  for (auto _ : state) {
-    q[0] += 1e-9;
-    benchmark::DoNotOptimize(controller.calculateCommandedTorques(
-        q, dq, setup.robot.pose.position, setup.robot.pose.orientation, jacobian));
-  }
-  report_allocations(state, allocations.allocations());
+  run_published_session(state, controller,
+                        [](auto& c, const auto& q, const auto& dq, const ci::Pose& pose,
+                           const auto& jacobian, Eigen::VectorXd&) {
+                          benchmark::DoNotOptimize(c.calculateCommandedTorques(
+                              q, dq, pose.position, pose.orientation, jacobian));
+                        });
 }
 BENCHMARK(BM_PublishedSemanticsSvd);
 

@@ -81,21 +81,21 @@ CartesianImpedanceController::CartesianImpedanceController()
   setNumberOfJoints(7);
   setStiffness(200.0, 200.0, 200.0, 20.0, 20.0, 20.0, 0.0);
   // As published, only the Cartesian stiffness and damping start at their targets.
-  filtered_.stiffness = stiffness_target_;
-  filtered_.damping = damping_target_;
+  filtered_.stiffness = targets_.stiffness;
+  filtered_.damping = targets_.damping;
 }
 
 void CartesianImpedanceController::initDesiredPose(const Eigen::Vector3d& position_d_target,
                                                    const Eigen::Quaterniond& orientation_d_target) {
   setReferencePose(position_d_target, orientation_d_target);
-  filtered_.position_d = position_d_target_;
-  filtered_.orientation_d = orientation_d_target_;
+  filtered_.position_d = targets_.position_d;
+  filtered_.orientation_d = targets_.orientation_d;
 }
 
 void CartesianImpedanceController::initNullspaceConfig(
     const Eigen::VectorXd& q_d_nullspace_target) {
   setNullspaceConfig(q_d_nullspace_target);
-  filtered_.q_d_nullspace = q_d_nullspace_target_;
+  filtered_.q_d_nullspace = targets_.q_d_nullspace;
 }
 
 void CartesianImpedanceController::setNumberOfJoints(size_t n_joints) {
@@ -114,11 +114,8 @@ void CartesianImpedanceController::setNumberOfJoints(size_t n_joints) {
   const ci::Pose measured_pose = measured_.pose;
   measured_ = ci::make_robot_state(n);
   measured_.pose = measured_pose;
-  input_ = measured_;
   filtered_.q_d_nullspace = ci::JointVector::Zero(n);
-  q_d_nullspace_target_ = filtered_.q_d_nullspace;
-  schedule_.nullspace_stiffness = ci::JointVector::Zero(n);
-  schedule_.nullspace_damping = ci::JointVector::Zero(n);
+  targets_.q_d_nullspace = filtered_.q_d_nullspace;
   status_ = ci::Status::not_started;
   fault_ = ci::Fault{};
 }
@@ -133,9 +130,9 @@ void CartesianImpedanceController::setStiffness(const Eigen::Matrix<double, 7, 1
   for (int i = 0; i < 7; ++i) {
     check_row(rows[i], "setStiffness", names[i], stiffness[i]);
   }
-  stiffness_target_.setZero();
-  stiffness_target_.diagonal() = stiffness.head<6>();
-  nullspace_stiffness_target_ = stiffness[6];
+  targets_.stiffness.setZero();
+  targets_.stiffness.diagonal() = stiffness.head<6>();
+  targets_.nullspace_stiffness = stiffness[6];
   if (auto_damping) apply_damping_rule();
 }
 
@@ -149,7 +146,7 @@ void CartesianImpedanceController::setStiffness(double t_x, double t_y, double t
 
 void CartesianImpedanceController::setStiffness(double t_x, double t_y, double t_z, double r_x,
                                                 double r_y, double r_z, bool auto_damping) {
-  setStiffness(t_x, t_y, t_z, r_x, r_y, r_z, nullspace_stiffness_target_, auto_damping);
+  setStiffness(t_x, t_y, t_z, r_x, r_y, r_z, targets_.nullspace_stiffness, auto_damping);
 }
 
 void CartesianImpedanceController::setDampingFactors(double d_x, double d_y, double d_z, double d_a,
@@ -166,18 +163,19 @@ void CartesianImpedanceController::setDampingFactors(double d_x, double d_y, dou
 
 void CartesianImpedanceController::apply_damping_rule() {
   // The published "unit mass" rule: d = factor * 2 sqrt(k), per axis and for the nullspace.
-  damping_target_.setZero();
+  targets_.damping.setZero();
   for (int i = 0; i < 6; ++i) {
-    damping_target_(i, i) = damping_factors_[i] * (2.0 * std::sqrt(stiffness_target_(i, i)));
+    targets_.damping(i, i) = damping_factors_[i] * (2.0 * std::sqrt(targets_.stiffness(i, i)));
   }
-  nullspace_damping_target_ = damping_factors_[6] * (2.0 * std::sqrt(nullspace_stiffness_target_));
+  targets_.nullspace_damping =
+      damping_factors_[6] * (2.0 * std::sqrt(targets_.nullspace_stiffness));
 }
 
 void CartesianImpedanceController::setReferencePose(const Eigen::Vector3d& position_d,
                                                     const Eigen::Quaterniond& orientation_d) {
   const ci::Pose pose = ci::checks::pose("setReferencePose", ci::Pose{position_d, orientation_d});
-  position_d_target_ = pose.position;
-  orientation_d_target_ = pose.orientation;
+  targets_.position_d = pose.position;
+  targets_.orientation_d = pose.orientation;
 }
 
 void CartesianImpedanceController::setNullspaceConfig(const Eigen::VectorXd& q_d_nullspace_target) {
@@ -185,7 +183,7 @@ void CartesianImpedanceController::setNullspaceConfig(const Eigen::VectorXd& q_d
                    n_joints_);
   ci::checks::bounded_vector("setNullspaceConfig: q_d_nullspace_target", q_d_nullspace_target,
                              ci::checks::kMaxJointPosition, "rad");
-  q_d_nullspace_target_ = q_d_nullspace_target;
+  targets_.q_d_nullspace = q_d_nullspace_target;
 }
 
 void CartesianImpedanceController::setFiltering(double update_frequency,
@@ -203,10 +201,7 @@ void CartesianImpedanceController::setFiltering(double update_frequency,
   filter_stiffness_ = std::max(filter_params_stiffness, 1e-7);
   filter_pose_ = std::max(filter_params_pose, 1e-7);
   filter_wrench_ = std::max(filter_params_wrench, 1e-7);
-  step_nullspace_ = published_filter_step(update_frequency_, filter_nullspace_);
-  step_stiffness_ = published_filter_step(update_frequency_, filter_stiffness_);
-  step_pose_ = published_filter_step(update_frequency_, filter_pose_);
-  step_wrench_ = published_filter_step(update_frequency_, filter_wrench_);
+  update_filter_steps();
 }
 
 void CartesianImpedanceController::setMaxTorqueDelta(double d) {
@@ -215,6 +210,10 @@ void CartesianImpedanceController::setMaxTorqueDelta(double d) {
 
 void CartesianImpedanceController::setMaxTorqueDelta(double d, double update_frequency) {
   reconfigure(d, update_frequency);
+  update_filter_steps();
+}
+
+void CartesianImpedanceController::update_filter_steps() {
   step_nullspace_ = published_filter_step(update_frequency_, filter_nullspace_);
   step_stiffness_ = published_filter_step(update_frequency_, filter_stiffness_);
   step_pose_ = published_filter_step(update_frequency_, filter_pose_);
@@ -246,42 +245,42 @@ void CartesianImpedanceController::applyWrench(const Eigen::Matrix<double, 6, 1>
   for (int i = 0; i < 6; ++i) {
     check_row(i < 3 ? "wrench.force" : "wrench.torque", "applyWrench", names[i], wrench[i]);
   }
-  wrench_target_ = wrench;
+  targets_.wrench = wrench;
 }
 
-void CartesianImpedanceController::filter_step(Filtered& next) const noexcept {
+void CartesianImpedanceController::filter_step(Impedance& next) const noexcept {
   // The published order and switches: a parameter of exactly 1 takes the target at once; an
   // unfiltered stiffness also snaps the nullspace configuration to its target.
   if (filter_nullspace_ == 1.0) {
-    next.q_d_nullspace = q_d_nullspace_target_;
+    next.q_d_nullspace = targets_.q_d_nullspace;
   } else {
-    next.q_d_nullspace = blend(next.q_d_nullspace, q_d_nullspace_target_, step_nullspace_);
+    next.q_d_nullspace = blend(next.q_d_nullspace, targets_.q_d_nullspace, step_nullspace_);
   }
   if (filter_stiffness_ == 1.0) {
-    next.stiffness = stiffness_target_;
-    next.damping = damping_target_;
-    next.nullspace_stiffness = nullspace_stiffness_target_;
-    next.q_d_nullspace = q_d_nullspace_target_;
-    next.nullspace_damping = nullspace_damping_target_;
+    next.stiffness = targets_.stiffness;
+    next.damping = targets_.damping;
+    next.nullspace_stiffness = targets_.nullspace_stiffness;
+    next.q_d_nullspace = targets_.q_d_nullspace;
+    next.nullspace_damping = targets_.nullspace_damping;
   } else {
-    next.stiffness = blend(next.stiffness, stiffness_target_, step_stiffness_);
-    next.damping = blend(next.damping, damping_target_, step_stiffness_);
+    next.stiffness = blend(next.stiffness, targets_.stiffness, step_stiffness_);
+    next.damping = blend(next.damping, targets_.damping, step_stiffness_);
     next.nullspace_stiffness =
-        blend(next.nullspace_stiffness, nullspace_stiffness_target_, step_stiffness_);
+        blend(next.nullspace_stiffness, targets_.nullspace_stiffness, step_stiffness_);
     next.nullspace_damping =
-        blend(next.nullspace_damping, nullspace_damping_target_, step_stiffness_);
+        blend(next.nullspace_damping, targets_.nullspace_damping, step_stiffness_);
   }
   if (filter_pose_ == 1.0) {
-    next.position_d = position_d_target_;
-    next.orientation_d = orientation_d_target_;
+    next.position_d = targets_.position_d;
+    next.orientation_d = targets_.orientation_d;
   } else {
-    next.position_d = blend(next.position_d, position_d_target_, step_pose_);
-    next.orientation_d = next.orientation_d.slerp(step_pose_, orientation_d_target_);
+    next.position_d = blend(next.position_d, targets_.position_d, step_pose_);
+    next.orientation_d = next.orientation_d.slerp(step_pose_, targets_.orientation_d);
   }
   if (filter_wrench_ == 1.0) {
-    next.wrench = wrench_target_;
+    next.wrench = targets_.wrench;
   } else {
-    next.wrench = blend(next.wrench, wrench_target_, step_wrench_);
+    next.wrench = blend(next.wrench, targets_.wrench, step_wrench_);
   }
 }
 

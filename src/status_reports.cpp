@@ -51,6 +51,13 @@ std::vector<ReportLine> StatusReporter::update(const LoopState& state,
   return lines;
 }
 
+PublisherOptions publisher_options(const NodeSettings& settings) {
+  PublisherOptions options;
+  options.rate = settings.publish_rate;
+  options.measurement_timeout = settings.joint_states_timeout;
+  return options;
+}
+
 void run_publisher(const PublisherOptions& options, const std::atomic<bool>& stop,
                    const ControlThread& thread, const ControlLoop& loop,
                    const MeasurementBuffer* measurements,

@@ -34,11 +34,9 @@ void CartesianImpedanceNode::publisher_thread() {
   prepare_array(torque_message, model_->num_joints());
   sensor_msgs::JointState joint_message;
   joint_message.name = model_->joint_names();
-  ci::runtime::PublisherOptions options;
-  options.rate = settings_.publish_rate;
-  options.measurement_timeout = settings_.joint_states_timeout;
   ci::runtime::run_publisher(
-      options, stop_, *control_thread_, *loop_, joint_samples_ ? &*joint_samples_ : nullptr,
+      ci::runtime::publisher_options(settings_), stop_, *control_thread_, *loop_,
+      joint_samples_ ? &*joint_samples_ : nullptr,
       [&](const ci::runtime::PublisherSample& sample) {
         const ci::LoopState& state = sample.state;
         const ros::Time stamp = ros::Time::now();

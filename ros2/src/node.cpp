@@ -267,11 +267,9 @@ void Node::joint_state_thread() {
 
 void Node::publisher_thread() {
   OutgoingMessages messages(*model_, frames_);
-  ci::runtime::PublisherOptions options;
-  options.rate = settings_.publish_rate;
-  options.measurement_timeout = settings_.joint_states_timeout;
   ci::runtime::run_publisher(
-      options, stop_, *control_thread_, *loop_, joint_samples_ ? &*joint_samples_ : nullptr,
+      ci::runtime::publisher_options(settings_), stop_, *control_thread_, *loop_,
+      joint_samples_ ? &*joint_samples_ : nullptr,
       [&](const ci::runtime::PublisherSample& sample) {
         messages.fill(sample.state, sample.timing.statistics(), sample.measured);
         state_writer_.write(messages.published_state());

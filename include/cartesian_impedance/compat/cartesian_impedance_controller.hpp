@@ -121,8 +121,9 @@ class CartesianImpedanceController {
   }
 
  private:
-  // The published targets after filtering: what the law is evaluated with.
-  struct Filtered {
+  // What the published law is evaluated with; held twice, as targets and as their filtered
+  // values (which the law uses).
+  struct Impedance {
     Eigen::Vector3d position_d = Eigen::Vector3d::Zero();
     Eigen::Quaterniond orientation_d = Eigen::Quaterniond::Identity();
     cartesian_impedance::Matrix6d stiffness = cartesian_impedance::Matrix6d::Identity();
@@ -137,7 +138,8 @@ class CartesianImpedanceController {
 
   void reconfigure(double max_torque_delta, double update_frequency);
   void apply_damping_rule();
-  void filter_step(Filtered& next) const noexcept;
+  void update_filter_steps();
+  void filter_step(Impedance& next) const noexcept;
   cartesian_impedance::Status step(const cartesian_impedance::RobotState& measured) noexcept;
 
   int n_joints_ = 7;
@@ -148,16 +150,9 @@ class CartesianImpedanceController {
   cartesian_impedance::Status status_ = cartesian_impedance::Status::not_started;
   cartesian_impedance::Fault fault_;
 
-  Filtered filtered_;
-  Filtered next_;
-  Eigen::Vector3d position_d_target_ = Eigen::Vector3d::Zero();
-  Eigen::Quaterniond orientation_d_target_ = Eigen::Quaterniond::Identity();
-  cartesian_impedance::Matrix6d stiffness_target_ = cartesian_impedance::Matrix6d::Identity();
-  cartesian_impedance::Matrix6d damping_target_ = cartesian_impedance::Matrix6d::Identity();
-  cartesian_impedance::JointVector q_d_nullspace_target_;
-  double nullspace_stiffness_target_ = 1.0;
-  double nullspace_damping_target_ = 1.0;
-  cartesian_impedance::Vector6d wrench_target_ = cartesian_impedance::Vector6d::Zero();
+  Impedance targets_;
+  Impedance filtered_;
+  Impedance next_;
   Eigen::Matrix<double, 7, 1> damping_factors_ = Eigen::Matrix<double, 7, 1>::Ones();
 
   double update_frequency_ = 1000.0;  // [Hz]

@@ -15,6 +15,7 @@
 
 #include "cartesian_impedance/control_loop.hpp"
 #include "cartesian_impedance/runtime/control_thread.hpp"
+#include "cartesian_impedance/runtime/node_settings.hpp"
 #include "cartesian_impedance/runtime/robot_io.hpp"
 
 namespace cartesian_impedance::runtime {
@@ -62,6 +63,9 @@ struct PublisherOptions {
   double measurement_timeout = 0.1;
   std::string measurements = "joint_states";
 };
+
+/// A node's publisher as its settings configure it: publish_rate, joint_states_timeout.
+PublisherOptions publisher_options(const NodeSettings& settings);
 
 /// Runs until `stop` is true: every period while `thread` runs, reads a sample, calls
 /// `publish(sample)` and passes each report line to `log`. `measurements` may be null.
