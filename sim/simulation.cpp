@@ -368,7 +368,16 @@ Simulation Simulation::from_mjcf_file(const std::string& path, SimulationOptions
 }
 
 Simulation Simulation::from_urdf_file(const std::string& path, SimulationOptions options) {
-  return detail::load_simulation(path, nullptr, "URDF", std::move(options));
+  std::error_code error_code;
+  if (!std::filesystem::is_regular_file(path, error_code)) {
+    throw Error("URDF file '" + path + "' does not exist or is not a regular file");
+  }
+  const std::string mjcf = detail::mjcf_from_urdf(path, detail::UrdfImportOptions{});
+  const std::filesystem::path absolute = std::filesystem::absolute(path);
+  const std::string name = absolute.stem().string() + "_cartesian_impedance.xml";
+  const detail::VirtualFile file(name, mjcf);
+  return detail::load_simulation((absolute.parent_path() / name).string(), file.vfs(), "URDF",
+                                 std::move(options));
 }
 
 int Simulation::num_joints() const noexcept {

@@ -43,6 +43,29 @@ class MujocoErrorTrap {
 Simulation load_simulation(const std::string& path, const mjVFS* vfs, const std::string& kind,
                            SimulationOptions options);
 
+/// A MuJoCo virtual file system holding one document (about 2 MB: kept off the stack).
+class VirtualFile {
+ public:
+  VirtualFile(const std::string& name, const std::string& content);
+  ~VirtualFile();
+  VirtualFile(const VirtualFile&) = delete;
+  VirtualFile& operator=(const VirtualFile&) = delete;
+  const mjVFS* vfs() const noexcept { return vfs_.get(); }
+
+ private:
+  std::unique_ptr<mjVFS> vfs_;
+};
+
+/// What a URDF lacks for a simulation, filled in by mjcf_from_urdf() where the URDF gives none.
+struct UrdfImportOptions {
+  double armature = 0.1;  ///< [kg m^2] reflected rotor inertia per joint
+  double damping = 0.5;   ///< [N m s/rad] joint damping
+};
+
+/// MJCF text of the robot in `urdf_path` with every link kept as a body (fixed joints too),
+/// armature and damping on each joint, non-colliding arm geoms, a floor, lights and a sky.
+std::string mjcf_from_urdf(const std::string& urdf_path, const UrdfImportOptions& options);
+
 /// "a, b, c" of every named object of `type` (mjtObj), "(none)" if there is none.
 std::string list_names(const mjModel* model, int type);
 

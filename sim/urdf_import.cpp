@@ -1,0 +1,179 @@
+// WIP (branch i12-urdf-sim, issue 12 item 1): one path from a URDF to a simulated robot.
+// MuJoCo 2.2's URDF import merges fixed links into their parents, keeps no armature, and gives
+// no floor, light or sky. So the URDF is imported with fusestatic="false", saved back as MJCF
+// (mj_saveLastXML), and that MJCF is completed: rotor inertia (armature) and damping on every
+// joint that has none, arm geoms that do not collide with each other, a floor, lights and a sky.
+
+#include <mujoco/mujoco.h>
+#include <tinyxml2.h>
+
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "simulation_impl.hpp"
+
+namespace cartesian_impedance::sim::detail {
+namespace {
+
+std::string read_file(const std::string& path) {
+  std::ifstream file(path, std::ios::binary);
+  std::stringstream content;
+  content << file.rdbuf();
+  if (!file) throw Error("cannot read '" + path + "'");
+  return content.str();
+}
+
+tinyxml2::XMLElement* child(tinyxml2::XMLDocument& document, tinyxml2::XMLElement* parent,
+                            const char* name, bool first = false) {
+  tinyxml2::XMLElement* element = parent->FirstChildElement(name);
+  if (element != nullptr) return element;
+  element = document.NewElement(name);
+  if (first) {
+    parent->InsertFirstChild(element);
+  } else {
+    parent->InsertEndChild(element);
+  }
+  return element;
+}
+
+std::string print(tinyxml2::XMLDocument& document) {
+  tinyxml2::XMLPrinter printer;
+  document.Print(&printer);
+  return printer.CStr();
+}
+
+}  // namespace
+
+VirtualFile::VirtualFile(const std::string& name, const std::string& content)
+    : vfs_(std::make_unique<mjVFS>()) {
+  mj_defaultVFS(vfs_.get());
+  if (mj_makeEmptyFileVFS(vfs_.get(), name.c_str(), static_cast<int>(content.size())) != 0) {
+    mj_deleteVFS(vfs_.get());
+    throw Error("cannot create '" + name + "' in MuJoCo's virtual file system");
+  }
+  std::copy(content.begin(), content.end(),
+            static_cast<char*>(vfs_->filedata[mj_findFileVFS(vfs_.get(), name.c_str())]));
+}
+
+VirtualFile::~VirtualFile() {
+  mj_deleteVFS(vfs_.get());
+}
+
+std::string mjcf_from_urdf(const std::string& urdf_path, const UrdfImportOptions& options) {
+  tinyxml2::XMLDocument urdf;
+  if (urdf.Parse(read_file(urdf_path).c_str()) != tinyxml2::XML_SUCCESS) {
+    throw Error("URDF file '" + urdf_path + "' is not well-formed XML: " + urdf.ErrorStr());
+  }
+  tinyxml2::XMLElement* robot = urdf.FirstChildElement("robot");
+  if (robot == nullptr) throw Error("URDF file '" + urdf_path + "' has no <robot> element");
+  // Keep every link as a body (a tool frame on a fixed joint stays addressable) and drop the
+  // visual meshes, which MuJoCo would otherwise need to find.
+  tinyxml2::XMLElement* compiler = child(urdf, child(urdf, robot, "mujoco", true), "compiler");
+  compiler->SetAttribute("fusestatic", "false");
+  compiler->SetAttribute("discardvisual", "true");
+
+  // The edited URDF goes through the virtual file system beside the original, so relative mesh
+  // paths resolve as for the original.
+  const std::filesystem::path path = std::filesystem::absolute(urdf_path);
+  const std::string name = path.stem().string() + "_cartesian_impedance_import.urdf";
+  const std::string text = print(urdf);
+  const VirtualFile file(name, text);
+  char error[1024] = "";
+  ModelPtr model;
+  {
+    MujocoErrorTrap trap;
+    model.reset(mj_loadXML((path.parent_path() / name).c_str(), file.vfs(), error, sizeof(error)));
+  }
+  if (!model) throw Error("cannot load URDF file '" + urdf_path + "': " + error);
+
+  const std::filesystem::path saved =
+      std::filesystem::temp_directory_path() /
+      ("cartesian_impedance_" + std::to_string(reinterpret_cast<std::uintptr_t>(model.get())) +
+       ".xml");
+  if (mj_saveLastXML(saved.c_str(), model.get(), error, sizeof(error)) == 0) {
+    throw Error("cannot convert URDF file '" + urdf_path + "' to MJCF: " + error);
+  }
+  const std::string saved_text = read_file(saved.string());
+  std::filesystem::remove(saved);
+
+  tinyxml2::XMLDocument mjcf;
+  if (mjcf.Parse(saved_text.c_str()) != tinyxml2::XML_SUCCESS) {
+    throw Error("MuJoCo's MJCF of '" + urdf_path + "' does not parse: " + mjcf.ErrorStr());
+  }
+  tinyxml2::XMLElement* root = mjcf.FirstChildElement("mujoco");
+  tinyxml2::XMLElement* worldbody = child(mjcf, root, "worldbody");
+
+  // Joints: armature and damping where the URDF gave none; arm geoms collide with the
+  // environment but not with each other.
+  std::vector<tinyxml2::XMLElement*> stack{worldbody};
+  while (!stack.empty()) {
+    tinyxml2::XMLElement* element = stack.back();
+    stack.pop_back();
+    for (tinyxml2::XMLElement* e = element->FirstChildElement(); e != nullptr;
+         e = e->NextSiblingElement()) {
+      const std::string tag = e->Name();
+      if (tag == "joint") {
+        if (e->Attribute("armature") == nullptr) e->SetAttribute("armature", options.armature);
+        if (e->Attribute("damping") == nullptr) e->SetAttribute("damping", options.damping);
+      } else if (tag == "geom") {
+        e->SetAttribute("contype", 0);
+        e->SetAttribute("conaffinity", 1);
+      } else if (tag == "body") {
+        stack.push_back(e);
+      }
+    }
+  }
+
+  // A floor (drawn, not colliding: the arm stands on it), lights and a sky.
+  tinyxml2::XMLElement* asset = child(mjcf, root, "asset");
+  asset->InsertEndChild(mjcf.NewElement("texture"));
+  tinyxml2::XMLElement* sky = asset->LastChildElement("texture");
+  sky->SetAttribute("name", "cartesian_impedance_sky");
+  sky->SetAttribute("type", "skybox");
+  sky->SetAttribute("builtin", "gradient");
+  sky->SetAttribute("rgb1", "0.55 0.7 0.85");
+  sky->SetAttribute("rgb2", "0.95 0.97 1");
+  sky->SetAttribute("width", 256);
+  sky->SetAttribute("height", 256);
+  tinyxml2::XMLElement* grid = mjcf.NewElement("texture");
+  grid->SetAttribute("name", "cartesian_impedance_grid");
+  grid->SetAttribute("type", "2d");
+  grid->SetAttribute("builtin", "checker");
+  grid->SetAttribute("width", 512);
+  grid->SetAttribute("height", 512);
+  grid->SetAttribute("rgb1", "0.55 0.6 0.65");
+  grid->SetAttribute("rgb2", "0.45 0.5 0.55");
+  asset->InsertEndChild(grid);
+  tinyxml2::XMLElement* material = mjcf.NewElement("material");
+  material->SetAttribute("name", "cartesian_impedance_floor");
+  material->SetAttribute("texture", "cartesian_impedance_grid");
+  material->SetAttribute("texrepeat", "8 8");
+  asset->InsertEndChild(material);
+
+  tinyxml2::XMLElement* floor = mjcf.NewElement("geom");
+  floor->SetAttribute("name", "floor");
+  floor->SetAttribute("type", "plane");
+  floor->SetAttribute("size", "2 2 0.05");
+  floor->SetAttribute("material", "cartesian_impedance_floor");
+  floor->SetAttribute("contype", 0);
+  floor->SetAttribute("conaffinity", 0);
+  worldbody->InsertFirstChild(floor);
+  for (const char* light_spec : {"0 0 3|0 0 -1|0.8 0.8 0.8", "2 -2 2|-1 1 -1|0.3 0.3 0.3"}) {
+    const std::string spec = light_spec;
+    const std::size_t a = spec.find('|'), b = spec.find('|', a + 1);
+    tinyxml2::XMLElement* light = mjcf.NewElement("light");
+    light->SetAttribute("directional", "true");
+    light->SetAttribute("pos", spec.substr(0, a).c_str());
+    light->SetAttribute("dir", spec.substr(a + 1, b - a - 1).c_str());
+    light->SetAttribute("diffuse", spec.substr(b + 1).c_str());
+    worldbody->InsertFirstChild(light);
+  }
+  return print(mjcf);
+}
+
+}  // namespace cartesian_impedance::sim::detail
