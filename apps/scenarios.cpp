@@ -653,11 +653,11 @@ sim::Simulation make_simulation(const RobotSetup& robot, const RobotModel& model
                                 const std::vector<sim::Box>& boxes) {
   sim::SimulationOptions options;
   options.joint_names = model.joint_names();
-  if (robot.mjcf.empty()) {
-    if (!boxes.empty()) throw Error("scenes with a table need an MJCF model of the robot");
-    return sim::Simulation::from_urdf_file(robot.urdf, options);
+  if (boxes.empty()) {
+    return robot.mjcf.empty() ? sim::Simulation::from_urdf_file(robot.urdf, options)
+                              : sim::Simulation::from_mjcf_file(robot.mjcf, options);
   }
-  return sim::make_scene(robot.mjcf, boxes, options);
+  return sim::make_scene(robot.mjcf.empty() ? robot.urdf : robot.mjcf, boxes, options);
 }
 }  // namespace
 

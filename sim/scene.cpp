@@ -111,6 +111,10 @@ Simulation make_scene(const std::string& robot_mjcf, const std::vector<Box>& box
 
   // A second <worldbody> section is merged with the first by MuJoCo's parser, so the boxes can
   // go right before the closing tag without parsing the robot file.
+  // A URDF becomes the same complete model Simulation::from_urdf_file() simulates.
+  if (root_element(document) == "robot") {
+    document = detail::mjcf_from_urdf(robot_mjcf, detail::UrdfImportOptions{});
+  }
   const std::string root = root_element(document);
   const std::size_t end = document.rfind("</mujoco>");
   if (root != "mujoco" || end == std::string::npos) {
