@@ -1,0 +1,170 @@
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <sstream>
+
+#include "cartesian_impedance/config.hpp"
+#include "cartesian_impedance/error.hpp"
+#include "scenario_support.hpp"
+
+namespace cartesian_impedance::scenarios {
+
+using namespace detail;
+
+RobotSetup builtin_robot(const std::string& name, const std::string& source_dir) {
+  if (name == "panda") {
+    return {"panda",
+            source_dir + "/models/panda/panda.urdf",
+            source_dir + "/models/panda/panda.xml",
+            "panda_link0",
+            "panda_link8",
+            "flange",
+            source_dir + "/config/panda.yaml"};
+  }
+  if (name == "iiwa14") {
+    return {"iiwa14",
+            source_dir + "/models/iiwa14/iiwa14.urdf",
+            source_dir + "/models/iiwa14/iiwa14.xml",
+            "iiwa_link_0",
+            "iiwa_link_ee",
+            "flange",
+            source_dir + "/config/iiwa14.yaml"};
+  }
+  throw Error("robot '" + name + "' is not built in (panda, iiwa14); give --urdf for your own");
+}
+
+Parameters base_parameters(const RobotSetup& robot) {
+  return robot.parameters_file.empty() ? Parameters{} : load_parameters(robot.parameters_file);
+}
+
+namespace {
+sim::Simulation make_simulation(const RobotSetup& robot, const RobotModel& model,
+                                const std::vector<sim::Box>& boxes) {
+  sim::SimulationOptions options;
+  options.joint_names = model.joint_names();
+  if (boxes.empty()) {
+    return robot.mjcf.empty() ? sim::Simulation::from_urdf_file(robot.urdf, options)
+                              : sim::Simulation::from_mjcf_file(robot.mjcf, options);
+  }
+  return sim::make_scene(robot.mjcf.empty() ? robot.urdf : robot.mjcf, boxes, options);
+}
+}  // namespace
+
+Rig::Rig(const RobotSetup& robot, const Parameters& parameters, const std::vector<sim::Box>& boxes)
+    : robot_(robot),
+      model_(RobotModel::from_urdf_file(robot.urdf, robot.base_link, robot.tip_link)),
+      sim_(make_simulation(robot, model_, boxes)),
+      loop_(std::make_unique<ControlLoop>(model_, parameters)),
+      runner_(sim_, *loop_) {
+  // The tip is a site in the project's MJCF files; a robot simulated from its URDF has only
+  // bodies, named like its links.
+  try {
+    sim_.site_pose(robot_.flange);
+  } catch (const Error&) {
+    flange_is_site_ = false;
+    sim_.body_pose(robot_.flange);  // throws, naming it, if it is neither
+  }
+  set_mutation(runner_, robot_.mutation);
+  runner_.start();
+  previous_tau_ = JointVector::Zero(model_.num_joints());
+}
+
+Pose Rig::flange() const {
+  const Pose base = sim_.body_pose(robot_.base_link);
+  const Pose tip = flange_is_site_ ? sim_.site_pose(robot_.flange) : sim_.body_pose(robot_.flange);
+  const Eigen::Quaterniond to_base = base.orientation.conjugate();
+  return Pose{to_base * (tip.position - base.position), to_base * tip.orientation};
+}
+
+Eigen::Vector3d Rig::contact_force() const {
+  return sim_.contact_wrench(robot_.tip_link).head<3>();
+}
+
+void Rig::push(const Eigen::Vector3d& force, const Eigen::Vector3d& torque) {
+  sim_.clear_pushes();
+  Vector6d wrench;
+  wrench << force, torque;
+  sim_.push(robot_.flange, wrench, kForever);
+  push_force_ = force;
+}
+
+void Rig::release() {
+  sim_.clear_pushes();
+  push_force_.setZero();
+}
+
+void Rig::run(double seconds) {
+  const Parameters& parameters = loop_->controller().parameters();
+  const JointVector rate_limit =
+      per_joint(parameters.limits.joint_torque_rate, model_.num_joints());
+  runner_.run_for(seconds, [&](std::int64_t) {
+    const JointVector& tau = runner_.torque();
+    const JointVector rate = (tau - previous_tau_).cwiseAbs() / kDt;
+    largest_rate_fraction_ =
+        std::max(largest_rate_fraction_, rate.cwiseQuotient(rate_limit).maxCoeff());
+    rate_since_sample_ = std::max(rate_since_sample_, rate.maxCoeff());
+    previous_tau_ = tau;
+    time_ += kDt;
+    if (++steps_ % 10 == 0) {
+      const LoopState& state = loop_->state();
+      Sample sample;
+      sample.time = time_;
+      sample.position = flange().position;
+      sample.reference = state.controller.filtered.pose.position;
+      sample.commanded = state.controller.commanded.pose.position;
+      sample.pose_error = state.controller.pose_error;
+      sample.stiffness_x = state.controller.filtered.stiffness(0, 0);
+      sample.commanded_stiffness_x = state.controller.commanded.stiffness(0, 0);
+      sample.push = push_force_;
+      sample.contact = contact_force();
+      sample.wrench = state.controller.wrench_base.head<3>();
+      sample.tau = tau;
+      sample.max_torque_rate = rate_since_sample_;
+      rate_since_sample_ = 0.0;
+      samples_.push_back(sample);
+    }
+  });
+}
+
+// ---- registry -----------------------------------------------------------------------------------
+
+namespace {
+using Scenario = Outcome (*)(const RobotSetup&, const MomentCallback&);
+const std::vector<std::pair<std::string, Scenario>>& registry() {
+  static const std::vector<std::pair<std::string, Scenario>> scenarios = {
+      {"hold", hold},
+      {"compliance", compliance},
+      {"reference_step", reference_step},
+      {"wrench", wrench_on_table},
+      {"nullspace", nullspace},
+      {"teaching", teaching},
+      {"trajectory", trajectory},
+      {"stability_grid", stability_grid},
+      {"convergence", convergence},
+      {"two_arms", two_arms},
+  };
+  return scenarios;
+}
+}  // namespace
+
+const std::vector<std::string>& scenario_names() {
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> list;
+    for (const auto& [name, scenario] : registry()) list.push_back(name);
+    return list;
+  }();
+  return names;
+}
+
+Outcome run_scenario(const std::string& name, const RobotSetup& robot,
+                     const MomentCallback& moment) {
+  for (const auto& [known, scenario] : registry()) {
+    if (known == name) return scenario(robot, moment);
+  }
+  std::string names;
+  for (const std::string& known : scenario_names()) names += (names.empty() ? "" : ", ") + known;
+  throw Error("unknown scenario '" + name + "' (valid: " + names + ")");
+}
+
+}  // namespace cartesian_impedance::scenarios

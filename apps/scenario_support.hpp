@@ -1,0 +1,54 @@
+#pragma once
+// What the scenarios share: result lines, the Rig's helpers and the registry's entries. Internal
+// to the scenarios library (the demo and the tests include scenarios.hpp).
+
+#include <limits>
+#include <string>
+
+#include "scenarios.hpp"
+
+namespace cartesian_impedance::scenarios::detail {
+
+constexpr double kDt = 0.001;
+constexpr double kForever = std::numeric_limits<double>::infinity();
+
+/// Breaks the runner's controllers on purpose (for tests of the tests): the hook replaces the
+/// torque they computed with what a broken controller would apply.
+void set_mutation(sim::ClosedLoopRunner& runner, Mutation mutation);
+
+Vector6d six(double a, double b, double c, double d, double e, double f);
+
+/// |measured - expected| <= tolerance.
+Result compare(const std::string& scenario, const std::string& quantity, double expected,
+               double measured, const std::string& unit, double tolerance,
+               const std::string& note = "");
+Result at_most(const std::string& scenario, const std::string& quantity, double bound,
+               double measured, const std::string& unit, const std::string& note = "");
+Result at_least(const std::string& scenario, const std::string& quantity, double bound,
+                double measured, const std::string& unit, const std::string& note = "");
+
+Eigen::Vector3d rotation_between(const Pose& from, const Pose& to);
+
+void notify(const MomentCallback& moment, const std::string& label, Rig& rig);
+
+/// The largest force and torque at the flange that the joints' Coulomb friction can hold at q:
+/// a spring pulling with less may leave the arm standing short of its rest position.
+struct FrictionBand {
+  double force = 0.0;   ///< [N]
+  double torque = 0.0;  ///< [Nm]
+};
+FrictionBand friction_band(Rig& rig);
+
+// The scenarios, in scenarios.cpp and scenarios_sweeps.cpp.
+Outcome hold(const RobotSetup& robot, const MomentCallback& moment);
+Outcome compliance(const RobotSetup& robot, const MomentCallback& moment);
+Outcome reference_step(const RobotSetup& robot, const MomentCallback& moment);
+Outcome wrench_on_table(const RobotSetup& robot, const MomentCallback& moment);
+Outcome nullspace(const RobotSetup& robot, const MomentCallback& moment);
+Outcome teaching(const RobotSetup& robot, const MomentCallback& moment);
+Outcome trajectory(const RobotSetup& robot, const MomentCallback& moment);
+Outcome stability_grid(const RobotSetup& robot, const MomentCallback& moment);
+Outcome convergence(const RobotSetup& robot, const MomentCallback& moment);
+Outcome two_arms(const RobotSetup& robot, const MomentCallback& moment);
+
+}  // namespace cartesian_impedance::scenarios::detail
