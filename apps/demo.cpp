@@ -2,6 +2,7 @@
 // with what theory predicts next to what was measured, CSV logs, plots and pictures.
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -31,13 +32,16 @@ stability grid, two arms) and prints, for each scenario, what theory predicts an
 measured. Writes CSV logs, plots and rendered pictures to the output folder.
 
 Options:
-  --robot panda|iiwa14     built-in robot (default: panda)
+  --robot NAME             a robot the project ships: panda, iiwa14 (URDF + MJCF), ur5e,
+                           planar3 (URDF only) (default: panda)
   --urdf FILE              your robot's URDF (needs --base-link and --tip-link)
   --mjcf FILE              your robot's MJCF for the simulation (default: simulate the URDF)
   --base-link NAME         first link of the controlled chain (with --urdf)
   --tip-link NAME          end-effector link (with --urdf)
   --flange NAME            site or body at the tip in the simulation (default: the tip link)
   --config FILE            controller parameters (YAML; default: config/<robot>.yaml)
+  --start-q Q1,Q2,...      start configuration [rad or m], one value per joint (default: the
+                           MJCF's keyframe 'ready', the shipped robot's, or q = 0)
   --scenario NAME          run only this scenario (repeatable); names: )";
 
 struct Options {
@@ -75,7 +79,7 @@ void require_file(const std::string& option, const std::string& path) {
 
 Options parse(int argc, char** argv) {
   Options options;
-  std::string robot = "panda", urdf, mjcf, base, tip, flange, config;
+  std::string robot = "panda", urdf, mjcf, base, tip, flange, config, start_q;
   for (int i = 1; i < argc; ++i) {
     const std::string argument = argv[i];
     auto value = [&]() -> std::string {
@@ -99,6 +103,8 @@ Options parse(int argc, char** argv) {
       flange = value();
     } else if (argument == "--config") {
       config = value();
+    } else if (argument == "--start-q") {
+      start_q = value();
     } else if (argument == "--scenario") {
       options.scenarios.push_back(value());
     } else if (argument == "--out") {
@@ -110,7 +116,7 @@ Options parse(int argc, char** argv) {
     } else {
       usage_error("unknown argument '" + argument +
                   "' (valid: --robot, --urdf, --mjcf, --base-link, --tip-link, --flange, --config, "
-                  "--scenario, --out, --no-render, --no-plots, --help)");
+                  "--start-q, --scenario, --out, --no-render, --no-plots, --help)");
     }
   }
   if (!urdf.empty()) {
@@ -154,6 +160,41 @@ Options parse(int argc, char** argv) {
                      ? std::string("the robot's configuration: ")
                      : "--config '" + config + "' for " + std::to_string(joints) + " joints: ") +
                 error.what());
+  }
+  if (!start_q.empty()) {
+    std::vector<double> values;
+    std::stringstream list(start_q);
+    std::string item;
+    while (std::getline(list, item, ',')) {
+      char* end = nullptr;
+      const double value = std::strtod(item.c_str(), &end);
+      if (item.empty() || end == item.c_str() || *end != '\0' || !std::isfinite(value)) {
+        usage_error("--start-q '" + start_q + "': '" + item + "' is not a number");
+      }
+      values.push_back(value);
+    }
+    if (static_cast<int>(values.size()) != joints) {
+      usage_error("--start-q '" + start_q + "' has " + std::to_string(values.size()) +
+                  " values; the robot has " + std::to_string(joints) + " joints");
+    }
+    options.robot.start_q = Eigen::Map<const Eigen::VectorXd>(values.data(), joints);
+  }
+  // A start at a singularity or at a joint limit makes every scenario look broken; say so once.
+  // (An MJCF starts at its keyframe, checked by whoever wrote it; a URDF alone at q = 0.)
+  if (options.robot.start_q.size() == joints || options.robot.mjcf.empty()) {
+    const ci::RobotModel model = ci::RobotModel::from_urdf_file(
+        options.robot.urdf, options.robot.base_link, options.robot.tip_link);
+    const ci::JointVector q = options.robot.start_q.size() == joints
+                                  ? options.robot.start_q
+                                  : ci::JointVector::Zero(joints);
+    const ci::ConfigurationCheck check = ci::check_configuration(model, q);
+    for (const std::string& warning : check.warnings) {
+      std::cout << "Warning: start configuration: " << warning << "\n";
+    }
+    if (check.limit_distance < 0.0) {
+      usage_error("the start configuration is outside the joint range (" + check.warnings.back() +
+                  "); give one inside it with --start-q");
+    }
   }
   const std::vector<std::string>& known = scenarios::scenario_names();
   for (const std::string& name : options.scenarios) {
@@ -259,28 +300,45 @@ int main(int argc, char** argv) {
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
     std::printf("%.1f s\n", seconds);
+    for (const std::string& line : outcome.overrides) {
+      std::printf("    (uses %s)\n", line.c_str());
+    }
     for (const scenarios::Result& result : outcome.results) {
-      std::printf("    %s %-62s theory %-22s measured %s\n", result.passed ? "ok  " : "FAIL",
-                  result.quantity.c_str(), expectation(result).c_str(),
-                  measurement(result).c_str());
-      if (!result.passed && !result.note.empty()) std::printf("         %s\n", result.note.c_str());
-      every_check_passed &= result.passed;
+      if (!result.applicable) {
+        std::printf("    n/a  %-62s %s\n", result.quantity.c_str(), result.note.c_str());
+      } else {
+        std::printf("    %s %-62s theory %-22s measured %s\n", result.passed ? "ok  " : "FAIL",
+                    result.quantity.c_str(), expectation(result).c_str(),
+                    measurement(result).c_str());
+        if (!result.passed && !result.note.empty()) {
+          std::printf("         %s\n", result.note.c_str());
+        }
+        every_check_passed &= result.passed;
+      }
       all.push_back(result);
     }
     if (!outcome.samples.empty()) write_samples(options.out / (name + ".csv"), outcome.samples);
   }
 
   std::ofstream summary(options.out / "summary.csv");
-  summary << "scenario,quantity,theory,measured,unit,tolerance,passed\n";
+  summary << "scenario,quantity,theory,measured,unit,tolerance,passed\n";  // passed: yes, no, n/a
   for (const scenarios::Result& r : all) {
     summary << csv_field(r.scenario) << "," << csv_field(r.quantity) << "," << r.expected << ","
             << r.measured << "," << csv_field(r.unit) << "," << r.tolerance << ","
-            << (r.passed ? "yes" : "no") << "\n";
+            << (!r.applicable ? "n/a"
+                : r.passed    ? "yes"
+                              : "no")
+            << "\n";
   }
   summary.close();
 
   std::printf("\n%-18s %-62s %-22s %-16s %s\n", "scenario", "what", "theory", "measured", "");
   for (const scenarios::Result& r : all) {
+    if (!r.applicable) {
+      std::printf("%-18s %-62s %-22s %-16s %s\n", r.scenario.c_str(), r.quantity.c_str(), "-", "-",
+                  "n/a");
+      continue;
+    }
     std::printf("%-18s %-62s %-22s %-16s %s\n", r.scenario.c_str(), r.quantity.c_str(),
                 expectation(r).c_str(), measurement(r).c_str(), r.passed ? "ok" : "FAIL");
   }
@@ -304,6 +362,11 @@ int main(int argc, char** argv) {
     std::cout << not_run.size() << " of " << options.scenarios.size()
               << " scenarios could not run; every measurement that was made agrees with theory.\n";
     return 3;
+  }
+  const auto not_applicable = std::count_if(
+      all.begin(), all.end(), [](const scenarios::Result& r) { return !r.applicable; });
+  if (not_applicable > 0) {
+    std::cout << not_applicable << " checks do not apply to this robot (n/a above, with why).\n";
   }
   std::cout << "Every measurement agrees with theory.\n";
   return 0;

@@ -31,7 +31,22 @@ RobotSetup builtin_robot(const std::string& name, const std::string& source_dir)
             "flange",
             source_dir + "/config/iiwa14.yaml"};
   }
-  throw Error("robot '" + name + "' is not built in (panda, iiwa14); give --urdf for your own");
+  // Simulated from their URDF alone (no MJCF), as a user's own arm would be.
+  if (name == "ur5e") {
+    RobotSetup robot{"ur5e",  source_dir + "/models/ur5e/ur5e.urdf", "", "base_link", "tool0",
+                     "tool0", source_dir + "/config/ur5e.yaml"};
+    robot.start_q = (JointVector(6) << 0.0, -1.9, 1.9, -1.57, -1.57, 0.0).finished();
+    return robot;
+  }
+  if (name == "planar3") {
+    RobotSetup robot{
+        "planar3", source_dir + "/models/planar3/planar3.urdf", "", "base_link", "tool0",
+        "tool0",   source_dir + "/config/planar3.yaml"};
+    robot.start_q = (JointVector(3) << 0.5, 1.0, 0.8).finished();
+    return robot;
+  }
+  throw Error("robot '" + name +
+              "' is not built in (panda, iiwa14, ur5e, planar3); give --urdf for your own");
 }
 
 Parameters base_parameters(const RobotSetup& robot) {
@@ -39,23 +54,37 @@ Parameters base_parameters(const RobotSetup& robot) {
 }
 
 namespace {
+// The simulation's rotor inertia is the controller's dynamics.armature where the configuration
+// gives one; otherwise the model's own (the MJCF's, or the URDF import's default), which the
+// controller then takes over, so that its M(q) is the simulated one.
+bool configures_armature(const Parameters& parameters) {
+  return (parameters.dynamics.armature.array() != 0.0).any();
+}
+
 sim::Simulation make_simulation(const RobotSetup& robot, const RobotModel& model,
-                                const std::vector<sim::Box>& boxes) {
+                                const Parameters& parameters, const std::vector<sim::Box>& boxes) {
   sim::SimulationOptions options;
   options.joint_names = model.joint_names();
+  options.start_q = robot.start_q;
+  if (configures_armature(parameters)) options.armature = parameters.dynamics.armature;
   if (boxes.empty()) {
     return robot.mjcf.empty() ? sim::Simulation::from_urdf_file(robot.urdf, options)
                               : sim::Simulation::from_mjcf_file(robot.mjcf, options);
   }
   return sim::make_scene(robot.mjcf.empty() ? robot.urdf : robot.mjcf, boxes, options);
 }
+
+Parameters with_armature_of(Parameters parameters, const sim::Simulation& sim) {
+  if (!configures_armature(parameters)) parameters.dynamics.armature = sim.armature();
+  return parameters;
+}
 }  // namespace
 
 Rig::Rig(const RobotSetup& robot, const Parameters& parameters, const std::vector<sim::Box>& boxes)
     : robot_(robot),
       model_(RobotModel::from_urdf_file(robot.urdf, robot.base_link, robot.tip_link)),
-      sim_(make_simulation(robot, model_, boxes)),
-      loop_(std::make_unique<ControlLoop>(model_, parameters)),
+      sim_(make_simulation(robot, model_, parameters, boxes)),
+      loop_(std::make_unique<ControlLoop>(model_, with_armature_of(parameters, sim_))),
       runner_(sim_, *loop_) {
   // The tip is a site in the project's MJCF files; a robot simulated from its URDF has only
   // bodies, named like its links.

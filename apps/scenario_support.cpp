@@ -1,5 +1,8 @@
+#include <Eigen/QR>
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
+#include <sstream>
 
 #include "scenario_support.hpp"
 
@@ -63,7 +66,10 @@ FrictionBand friction_band(Rig& rig) {
   Kinematics kinematics = workspace.make_kinematics();
   workspace.compute(rig.sim().q(), rig.sim().dq(), kinematics);
   const Eigen::MatrixXd jacobian = kinematics.jacobian;
-  const Eigen::MatrixXd map = (jacobian * jacobian.transpose()).ldlt().solve(jacobian);
+  // The least-norm wrench with J^T F = tau: (J J^T)^-1 J for a full-rank J, and still defined
+  // for a chain that controls fewer than six directions.
+  const Eigen::MatrixXd map =
+      Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(jacobian.transpose()).pseudoInverse();
   const JointVector friction = rig.sim().friction_loss();
   const int n = static_cast<int>(friction.size());
   FrictionBand band;
@@ -75,6 +81,94 @@ FrictionBand friction_band(Rig& rig) {
     band.torque = std::max(band.torque, wrench.tail<3>().norm());
   }
   return band;
+}
+
+Result not_applicable(const std::string& scenario, const std::string& quantity,
+                      const std::string& reason) {
+  Result result{scenario, quantity, 0.0, 0.0, "", 0.0, false, false, "not applicable: " + reason};
+  result.applicable = false;
+  return result;
+}
+
+namespace {
+const char* const kDirectionNames[6] = {
+    "x", "y", "z", "rotation about x", "rotation about y", "rotation about z"};
+}  // namespace
+
+std::string TaskDirections::describe() const {
+  std::string text;
+  for (int i = 0; i < 6; ++i) {
+    if (controlled[i]) text += (text.empty() ? "" : ", ") + std::string(kDirectionNames[i]);
+  }
+  return text.empty() ? "nothing" : text;
+}
+
+int TaskDirections::first_of(std::initializer_list<int> preferred) const {
+  for (int i : preferred) {
+    if (controlled[static_cast<std::size_t>(i)]) return i;
+  }
+  return -1;
+}
+
+TaskDirections task_directions(Rig& rig) {
+  ModelWorkspace workspace(rig.model());
+  Kinematics kinematics = workspace.make_kinematics();
+  workspace.compute(rig.sim().q(), rig.sim().dq(), kinematics);
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(Eigen::MatrixXd(kinematics.jacobian),
+                                              Eigen::ComputeFullU);
+  const Eigen::VectorXd& sigma = svd.singularValues();
+  // Rank relative to the largest singular value: an upright arm's lost direction leaves a value
+  // of about 1e-17, a well-conditioned one none below 1e-2.
+  int rank = 0;
+  while (rank < sigma.size() && sigma[rank] > 1e-6 * sigma[0]) ++rank;
+  const Eigen::MatrixXd range = svd.matrixU().leftCols(rank);
+  TaskDirections directions;
+  for (int i = 0; i < 6; ++i) {
+    // The part of the unit direction the flange can move in; 1 if wholly, 0 if not at all.
+    directions.controlled[static_cast<std::size_t>(i)] = range.row(i).squaredNorm() > 0.999;
+    directions.dimension += directions.controlled[static_cast<std::size_t>(i)] ? 1 : 0;
+  }
+  directions.redundancy = rig.model().num_joints() - rank;
+  return directions;
+}
+
+namespace {
+void compare_three(const std::string& name, const Eigen::Vector3d& configured,
+                   const Eigen::Vector3d& used, const char* unit, std::vector<std::string>& out) {
+  if (configured == used) return;
+  std::ostringstream text;
+  text << name << " = " << used.transpose() << " " << unit
+       << " (configured: " << configured.transpose() << ")";
+  out.push_back(text.str());
+}
+}  // namespace
+
+std::vector<std::string> overrides(const RobotSetup& robot, const Parameters& used) {
+  const Parameters configured = base_parameters(robot);
+  std::vector<std::string> out;
+  compare_three("stiffness.translation", configured.stiffness.translation,
+                used.stiffness.translation, "N/m", out);
+  compare_three("stiffness.rotation", configured.stiffness.rotation, used.stiffness.rotation,
+                "Nm/rad", out);
+  compare_three("damping_ratio.translation", configured.damping_ratio.translation,
+                used.damping_ratio.translation, "", out);
+  compare_three("damping_ratio.rotation", configured.damping_ratio.rotation,
+                used.damping_ratio.rotation, "", out);
+  if (configured.nullspace.stiffness != used.nullspace.stiffness) {
+    std::ostringstream text;
+    text << "nullspace.stiffness = " << used.nullspace.stiffness.transpose()
+         << " Nm/rad (configured: " << configured.nullspace.stiffness.transpose() << ")";
+    out.push_back(text.str());
+  }
+  if (configured.filter.nullspace.time != used.filter.nullspace.time) {
+    out.push_back("filter.nullspace.time = " + std::to_string(used.filter.nullspace.time) +
+                  " s (configured: " + std::to_string(configured.filter.nullspace.time) + ")");
+  }
+  if (configured.filter.pose.time != used.filter.pose.time) {
+    out.push_back("filter.pose.time = " + std::to_string(used.filter.pose.time) +
+                  " s (configured: " + std::to_string(configured.filter.pose.time) + ")");
+  }
+  return out;
 }
 
 }  // namespace cartesian_impedance::scenarios::detail

@@ -2,8 +2,11 @@
 // What the scenarios share: result lines, the Rig's helpers and the registry's entries. Internal
 // to the scenarios library (the demo and the tests include scenarios.hpp).
 
+#include <array>
+#include <initializer_list>
 #include <limits>
 #include <string>
+#include <vector>
 
 #include "scenarios.hpp"
 
@@ -26,6 +29,26 @@ Result at_most(const std::string& scenario, const std::string& quantity, double 
                double measured, const std::string& unit, const std::string& note = "");
 Result at_least(const std::string& scenario, const std::string& quantity, double bound,
                 double measured, const std::string& unit, const std::string& note = "");
+
+/// A line for something `robot` cannot do, with the reason.
+Result not_applicable(const std::string& scenario, const std::string& quantity,
+                      const std::string& reason);
+
+/// The task directions (x, y, z, rotation about x, y, z; base frame) that the chain can move its
+/// flange in at the rig's current configuration: those in the range of its Jacobian.
+struct TaskDirections {
+  std::array<bool, 6> controlled{};
+  int dimension = 0;   ///< how many of the six; the rank of the Jacobian may exceed it (coupled)
+  int redundancy = 0;  ///< joints minus the Jacobian's rank
+  /// "x, z, rotation about y"
+  std::string describe() const;
+  /// The first controlled of `preferred` (indices 0..5), or -1.
+  int first_of(std::initializer_list<int> preferred) const;
+};
+TaskDirections task_directions(Rig& rig);
+
+/// The scenario's parameters that differ from the robot's configuration, for Outcome::overrides.
+std::vector<std::string> overrides(const RobotSetup& robot, const Parameters& used);
 
 Eigen::Vector3d rotation_between(const Pose& from, const Pose& to);
 

@@ -1,3 +1,5 @@
+#include <Eigen/QR>
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -14,6 +16,13 @@ namespace cartesian_impedance::scenarios::detail {
 // spring sag by m g / K, and the arm then stays there. A dead controller would let it fall.
 Outcome hold(const RobotSetup& robot, const MomentCallback& moment) {
   Rig rig(robot, base_parameters(robot));
+  const TaskDirections directions = task_directions(rig);
+  if (!directions.controlled[2]) {
+    return {{not_applicable("hold", "sag under an unknown 1 kg payload",
+                            "the arm cannot move its flange along z (it moves in " +
+                                directions.describe() + ")")},
+            {}};
+  }
   rig.run(0.5);
   const Pose reference = rig.loop().state().controller.filtered.pose;
   const double payload = 1.0;  // [kg]
@@ -76,50 +85,74 @@ Outcome compliance(const RobotSetup& robot, const MomentCallback& moment) {
   parameters.stiffness.translation.setConstant(500.0);
   parameters.stiffness.rotation.setConstant(50.0);
   Rig rig(robot, parameters);
+  const TaskDirections directions = task_directions(rig);
   Outcome outcome;
+  outcome.overrides = overrides(robot, parameters);
   const char* axes = "xyz";
+  const std::string cannot = "the arm cannot move its flange in this direction (it moves in " +
+                             directions.describe() + ")";
   // Loads well above the joints' friction (0.1-0.2 Nm), which would otherwise hold the arm a
   // few per cent short of the spring's equilibrium.
   const double force = 20.0, torque = 5.0;
   for (int axis = 0; axis < 3; ++axis) {
+    const std::string quantity = std::string("force along ") + axes[axis] + ": 20 N at 500 N/m";
+    if (!directions.controlled[static_cast<std::size_t>(axis)]) {
+      outcome.results.push_back(not_applicable("compliance", quantity, cannot));
+      continue;
+    }
     const Eigen::Vector3d direction = Eigen::Vector3d::Unit(axis);
     const double expected = 1e3 * force / parameters.stiffness.translation[axis];
     const double measured =
         1e3 * respond(rig, force * direction, Eigen::Vector3d::Zero()).displacement.dot(direction);
     if (axis == 0) notify(moment, "pushed 20 N along x", rig);
     outcome.results.push_back(
-        compare("compliance", std::string("force along ") + axes[axis] + ": 20 N at 500 N/m",
-                expected, measured, "mm", 0.05 * expected));
+        compare("compliance", quantity, expected, measured, "mm", 0.05 * expected));
   }
   for (int axis = 0; axis < 3; ++axis) {
+    const std::string quantity = std::string("torque about ") + axes[axis] + ": 5 Nm at 50 Nm/rad";
+    if (!directions.controlled[static_cast<std::size_t>(3 + axis)]) {
+      outcome.results.push_back(not_applicable("compliance", quantity, cannot));
+      continue;
+    }
     const Eigen::Vector3d direction = Eigen::Vector3d::Unit(axis);
     const double expected = torque / parameters.stiffness.rotation[axis];
     const double measured =
         respond(rig, Eigen::Vector3d::Zero(), torque * direction).rotation.dot(direction);
     outcome.results.push_back(
-        compare("compliance", std::string("torque about ") + axes[axis] + ": 5 Nm at 50 Nm/rad",
-                expected, measured, "rad", 0.05 * expected));
+        compare("compliance", quantity, expected, measured, "rad", 0.05 * expected));
   }
-  // A sweep along x: displacement against force is a line of slope 1 / K.
+  // A sweep along x (or the first direction the arm moves in): displacement against force is a
+  // line of slope 1 / K.
+  const int along = directions.first_of({0, 1, 2});
+  if (along < 0) {
+    outcome.results.push_back(not_applicable("compliance sweep", "displacement under 5..20 N",
+                                             "the arm cannot move its flange along any axis"));
+    outcome.samples = rig.samples();
+    return outcome;
+  }
+  const Eigen::Vector3d unit = Eigen::Vector3d::Unit(along);
   for (const double sweep : {5.0, 10.0, 15.0, 20.0}) {
-    const double expected = 1e3 * sweep / parameters.stiffness.translation.x();
+    const double expected = 1e3 * sweep / parameters.stiffness.translation[along];
     const double measured =
-        1e3 * respond(rig, Eigen::Vector3d(sweep, 0, 0), Eigen::Vector3d::Zero()).displacement.x();
+        1e3 * respond(rig, sweep * unit, Eigen::Vector3d::Zero()).displacement.dot(unit);
     char quantity[64];
-    std::snprintf(quantity, sizeof(quantity), "displacement along x under %.0f N", sweep);
+    std::snprintf(quantity, sizeof(quantity), "displacement along %c under %.0f N", axes[along],
+                  sweep);
     outcome.results.push_back(
         compare("compliance sweep", quantity, expected, measured, "mm", 0.05 * expected));
   }
   // Doubling K online (filtered) halves the displacement under the same push.
-  const double soft =
-      respond(rig, Eigen::Vector3d(force, 0, 0), Eigen::Vector3d::Zero()).displacement.x();
-  rig.loop().set_stiffness(six(1000, 500, 500, 50, 50, 50));
-  const double stiff =
-      respond(rig, Eigen::Vector3d(force, 0, 0), Eigen::Vector3d::Zero()).displacement.x();
+  const double soft = respond(rig, force * unit, Eigen::Vector3d::Zero()).displacement.dot(unit);
+  Vector6d doubled = six(500, 500, 500, 50, 50, 50);
+  doubled[along] = 1000;
+  rig.loop().set_stiffness(doubled);
+  const double stiff = respond(rig, force * unit, Eigen::Vector3d::Zero()).displacement.dot(unit);
   notify(moment, "stiffness doubled", rig);
   rig.release();
-  outcome.results.push_back(compare("stiffness change", "displacement at 1000 N/m / at 500 N/m",
-                                    0.5, stiff / soft, "", 0.05 * 0.5));
+  outcome.results.push_back(
+      compare("stiffness change",
+              std::string("displacement along ") + axes[along] + " at 1000 N/m / at 500 N/m", 0.5,
+              stiff / soft, "", 0.05 * 0.5));
   outcome.samples = rig.samples();
   return outcome;
 }
@@ -131,13 +164,20 @@ Outcome reference_step(const RobotSetup& robot, const MomentCallback& moment) {
   parameters.damping_ratio.translation.setOnes();
   parameters.damping_ratio.rotation.setOnes();
   Rig rig(robot, parameters);
+  const TaskDirections directions = task_directions(rig);
   rig.run(0.2);
   const Pose start = rig.flange();
   Pose target = start;
-  const Eigen::Vector3d step(0.10, 0.05, -0.05);
+  // A step in every direction the arm can move in, and a turn about z (or the axis it can turn
+  // about).
+  Eigen::Vector3d step(0.10, 0.05, -0.05);
+  for (int i = 0; i < 3; ++i)
+    step[i] = directions.controlled[static_cast<std::size_t>(i)] ? step[i] : 0.0;
+  const int turn_axis = directions.first_of({5, 4, 3});
+  const double turn = turn_axis < 0 ? 0.0 : 0.3;
+  const Eigen::Vector3d axis = Eigen::Vector3d::Unit(turn_axis < 0 ? 2 : turn_axis - 3);
   target.position += step;
-  target.orientation =
-      Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ())) * start.orientation;
+  target.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(turn, axis)) * start.orientation;
   rig.loop().set_reference_pose(target);
   // Overshoot: how far the flange goes past the target along the step, and past the target
   // orientation about the turn's axis.
@@ -147,23 +187,30 @@ Outcome reference_step(const RobotSetup& robot, const MomentCallback& moment) {
     const Pose now = rig.flange();
     overshoot = std::max(overshoot, (now.position - target.position).dot(step.normalized()));
     turn_overshoot =
-        std::max(turn_overshoot, orientation_error(now.orientation, target.orientation).z());
+        std::max(turn_overshoot, orientation_error(now.orientation, target.orientation).dot(axis));
   }
   notify(moment, "reached the new reference", rig);
   const Pose end = rig.flange();
-  return {{at_most("reference step", "position error after 4 s (step of 122 mm)", 2.0,
-                   1e3 * (end.position - target.position).norm(), "mm"),
-           at_most("reference step", "orientation error after 4 s (step of 0.3 rad)", 0.01,
-                   rotation_between(target, end).norm(), "rad"),
-           // Zero for a linear critically damped system; 1 % of the step for an arm that is not
-           // linear (the task-space inertia changes along the way).
-           at_most("reference step", "overshoot along the step at damping ratio 1", 1.0,
-                   1e3 * std::max(overshoot, 0.0), "mm"),
-           at_most("reference step", "overshoot of the turn at damping ratio 1", 0.003,
-                   std::max(turn_overshoot, 0.0), "rad"),
-           at_most("reference step", "largest torque rate / limit", 1.0 + 1e-9,
-                   rig.largest_rate_fraction(), "")},
-          rig.samples()};
+  char position_quantity[96], turn_quantity[96];
+  std::snprintf(position_quantity, sizeof(position_quantity),
+                "position error after 4 s (step of %.0f mm)", 1e3 * step.norm());
+  std::snprintf(turn_quantity, sizeof(turn_quantity),
+                "orientation error after 4 s (turn of %.1f rad about %c)", turn,
+                "xyz"[turn_axis < 0 ? 2 : turn_axis - 3]);
+  return {
+      {at_most("reference step", position_quantity, 2.0,
+               1e3 * (end.position - target.position).norm(), "mm"),
+       at_most("reference step", turn_quantity, 0.01, rotation_between(target, end).norm(), "rad"),
+       // Zero for a linear critically damped system; 1 % of the step for an arm that is not
+       // linear (the task-space inertia changes along the way).
+       at_most("reference step", "overshoot along the step at damping ratio 1", 1.0,
+               1e3 * std::max(overshoot, 0.0), "mm"),
+       at_most("reference step", "overshoot of the turn at damping ratio 1", 0.003,
+               std::max(turn_overshoot, 0.0), "rad"),
+       at_most("reference step", "largest torque rate / limit", 1.0 + 1e-9,
+               rig.largest_rate_fraction(), "")},
+      rig.samples(),
+      overrides(robot, parameters)};
 }
 
 // 5. Wrench: with the vertical stiffness released, a commanded downward force presses on a table
@@ -171,6 +218,13 @@ Outcome reference_step(const RobotSetup& robot, const MomentCallback& moment) {
 Outcome wrench_on_table(const RobotSetup& robot, const MomentCallback& moment) {
   Parameters parameters = base_parameters(robot);
   Rig probe(robot, parameters);
+  const TaskDirections directions = task_directions(probe);
+  if (!directions.controlled[2]) {
+    return {{not_applicable("wrench", "contact force under a commanded 10 N",
+                            "the arm cannot move its flange along z (it moves in " +
+                                directions.describe() + ")")},
+            {}};
+  }
   const Pose flange = probe.flange();
   // A table whose top is 3 cm under the flange.
   const sim::Box table = sim::Box::table(flange.position.head<2>(), Eigen::Vector2d(0.15, 0.15),
@@ -203,14 +257,29 @@ Outcome nullspace(const RobotSetup& robot, const MomentCallback& moment) {
   parameters.nullspace.stiffness = JointVector::Constant(1, 10.0);
   parameters.filter.nullspace.time = 1.0;
   Rig rig(robot, parameters);
+  const TaskDirections directions = task_directions(rig);
+  if (directions.redundancy == 0) {
+    return {
+        {not_applicable("nullspace", "end-effector motion while the elbow moves",
+                        "no redundancy: " + std::to_string(rig.model().num_joints()) +
+                            " joints for a task of " + std::to_string(rig.model().num_joints()) +
+                            " directions, so no joint can move without moving the flange")},
+        {}};
+  }
   rig.run(0.2);
   const Pose start = rig.flange();
   const JointVector q_start = rig.sim().q();
-  JointVector target = q_start;
-  // The first joint turns the arm about the vertical, the third joint (both robots' elbow
-  // rotation) counters it: a self-motion that keeps the flange where it is.
-  target[0] += 0.3;
-  target[2] -= 0.3;
+  // A self-motion: along the Jacobian's null space (for the Panda and the iiwa mostly the first
+  // joint turning the arm about the vertical and the third, the elbow's rotation, countering
+  // it), 0.3 rad on the joint that moves most.
+  ModelWorkspace workspace(rig.model());
+  Kinematics kinematics = workspace.make_kinematics();
+  workspace.compute(q_start, rig.sim().dq(), kinematics);
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(Eigen::MatrixXd(kinematics.jacobian),
+                                              Eigen::ComputeFullV);
+  Eigen::VectorXd self_motion = svd.matrixV().rightCols(1);
+  if (self_motion[0] < 0.0) self_motion = -self_motion;
+  const JointVector target = q_start + 0.3 * self_motion / self_motion.cwiseAbs().maxCoeff();
   rig.loop().set_nullspace_target(target);
   double worst = 0.0;
   for (int k = 0; k < 400; ++k) {
@@ -223,7 +292,8 @@ Outcome nullspace(const RobotSetup& robot, const MomentCallback& moment) {
       {at_most("nullspace", "largest end-effector motion while the elbow moves", 2.0, 1e3 * worst,
                "mm"),
        at_least("nullspace", "joint motion toward the new nullspace target", 0.1, elbow, "rad")},
-      rig.samples()};
+      rig.samples(),
+      overrides(robot, parameters)};
 }
 
 // 7. Teaching: with zero stiffness a push moves the end effector, which stops soon after the
@@ -233,11 +303,17 @@ Outcome nullspace(const RobotSetup& robot, const MomentCallback& moment) {
 // takes.
 Outcome teaching(const RobotSetup& robot, const MomentCallback& moment) {
   Rig rig(robot, base_parameters(robot));
+  const int along = task_directions(rig).first_of({1, 0, 2});  // sideways if the arm can
+  if (along < 0) {
+    return {{not_applicable("teaching", "distance a push moves the flange",
+                            "the arm cannot move its flange along any axis")},
+            {}};
+  }
   rig.loop().start_teaching();
   rig.run(1.0);
   const Pose start = rig.flange();
   const double force = 10.0, duration = 0.3;  // a hand's gentle push
-  rig.push(Eigen::Vector3d(0, force, 0));
+  rig.push(force * Eigen::Vector3d::Unit(along));
   rig.run(duration);
   rig.release();
   const Pose released = rig.flange();
@@ -248,8 +324,12 @@ Outcome teaching(const RobotSetup& robot, const MomentCallback& moment) {
   workspace.compute(rig.sim().q(), rig.sim().dq(), kinematics, true);
   JointMatrix mass = kinematics.mass;
   mass.diagonal() += per_joint(parameters.dynamics.armature, rig.model().num_joints());
-  Matrix6d inertia;
-  task_space_inertia(kinematics.jacobian, mass, 0.0, inertia);
+  // Lambda = (J M^-1 J^T)^+: the pseudo-inverse also serves a chain that moves in fewer than
+  // six directions (its twist has no part in the others).
+  const Eigen::MatrixXd jacobian = kinematics.jacobian;
+  const Matrix6d inertia = Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(
+                               jacobian * mass.ldlt().solve(jacobian.transpose()))
+                               .pseudoInverse();
   const Vector6d twist = kinematics.jacobian * rig.sim().dq();
   Vector6d damping_inverse;
   damping_inverse << Eigen::Vector3d::Constant(1.0 / parameters.minimum_damping.translation),

@@ -31,10 +31,14 @@ struct RobotSetup {
   std::string tip_link;
   std::string flange;           ///< site or body of the simulation at the tip
   std::string parameters_file;  ///< "" = library defaults
+  /// Start configuration of the simulation [rad or m]; empty: the MJCF's keyframe "ready" (or
+  /// q = 0 for a URDF).
+  JointVector start_q = JointVector();
   Mutation mutation = Mutation::none;
 };
 
-/// "panda" or "iiwa14" from the project's models/ and config/ under `source_dir`.
+/// A robot the project ships ("panda", "iiwa14", "ur5e", "planar3"), from models/ and config/
+/// under `source_dir`.
 /// @throws Error for another name.
 RobotSetup builtin_robot(const std::string& name, const std::string& source_dir);
 
@@ -49,6 +53,9 @@ struct Result {
   bool bound = false;      ///< true: passes if measured <= expected + tolerance
   bool passed = false;
   std::string note;
+  /// false: the robot cannot do what this line measures (e.g. push along y on an arm that moves
+  /// in the x-z plane only); `note` says why, and the line is neither passed nor failed.
+  bool applicable = true;
 };
 
 /// Samples of a run, every 10 ms, for logs and plots.
@@ -117,6 +124,9 @@ class Rig {
 struct Outcome {
   std::vector<Result> results;
   std::vector<Sample> samples;  ///< of the scenario's main rig
+  /// Parameters the scenario sets instead of the robot's configuration, e.g.
+  /// "stiffness.translation = 500 500 500 N/m (configured: 1000 1000 1000)".
+  std::vector<std::string> overrides = {};
 };
 
 /// Names of the scenarios, in demo order.

@@ -21,9 +21,18 @@ Outcome trajectory(const RobotSetup& robot, const MomentCallback& moment) {
   Rig rig(robot, parameters);
   rig.run(0.2);
   const JointVector start = rig.sim().q();
+  // Every joint moves 0.2-0.5 rad; one that would come within 0.2 rad of a limit goes the other
+  // way, and one that has no room either way moves as far as it can.
   JointVector goal = start;
-  const JointVector offsets = (JointVector(7) << 0.4, 0.2, -0.3, 0.3, 0.3, -0.3, 0.5).finished();
-  for (int i = 0; i < goal.size() && i < offsets.size(); ++i) goal[i] += offsets[i];
+  const double offsets[] = {0.4, 0.2, -0.3, 0.3, 0.3, -0.3, 0.5};
+  const JointLimits& limits = rig.model().limits();
+  for (int i = 0; i < goal.size(); ++i) {
+    const double offset = offsets[i % 7], low = limits.position_lower[i] + 0.2,
+                 high = limits.position_upper[i] - 0.2;
+    goal[i] = start[i] + offset;
+    if (goal[i] < low || goal[i] > high) goal[i] = start[i] - offset;
+    goal[i] = std::clamp(goal[i], std::min(low, start[i]), std::max(high, start[i]));
+  }
   JointTrajectory trajectory;
   trajectory.joint_names = rig.model().joint_names();
   const int points = 30;
@@ -56,7 +65,8 @@ Outcome trajectory(const RobotSetup& robot, const MomentCallback& moment) {
                     "s"),
            at_most("trajectory", "largest Cartesian tracking error while moving", 20.0,
                    1e3 * worst_tracking, "mm")},
-          rig.samples()};
+          rig.samples(),
+          overrides(robot, parameters)};
 }
 
 // 9. Stability grid: every combination converges after a reference step, and the energy of the
@@ -75,12 +85,19 @@ Outcome stability_grid(const RobotSetup& robot, const MomentCallback&) {
       parameters.filter.pose.time = 0.0;  // a true step: the spring energy is known at once
       parameters.limits.pose_error = {1.0, 1.0};
       Rig rig(robot, parameters);
+      // 3 cm along x and 0.05 rad about y, or along and about directions the arm can move in.
+      const TaskDirections directions = task_directions(rig);
+      const int along = directions.first_of({0, 2, 1});
+      const int about = directions.first_of({4, 5, 3});
       rig.run(0.1);
       const Pose start = rig.flange();
       Pose target = start;
-      target.position.x() += 0.03;
-      target.orientation =
-          Eigen::Quaterniond(Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitY())) * start.orientation;
+      if (along >= 0) target.position[along] += 0.03;
+      if (about >= 0) {
+        target.orientation =
+            Eigen::Quaterniond(Eigen::AngleAxisd(0.05, Eigen::Vector3d::Unit(about - 3))) *
+            start.orientation;
+      }
       rig.loop().set_reference_pose(target);
       ModelWorkspace workspace(rig.model());
       Kinematics kinematics = workspace.make_kinematics();
@@ -117,6 +134,9 @@ Outcome stability_grid(const RobotSetup& robot, const MomentCallback&) {
   outcome.results.push_back(compare("stability grid",
                                     "combinations of 100..3000 N/m x 10..300 Nm/rad that converge",
                                     total, stable, "", 0.0, failures.str()));
+  outcome.overrides.push_back(
+      "stiffness: each of the grid's 16 combinations; filter.pose.time = 0 (a true step); "
+      "limits.pose_error = 1 m, 1 rad (unclipped)");
   return outcome;
 }
 
@@ -179,7 +199,8 @@ Outcome convergence(const RobotSetup& robot, const MomentCallback&) {
   return {{compare("convergence", quantity, cases, settled, "", 0.0, failures.str()),
            at_most("convergence", "largest joint speed in each run's last second", 0.01,
                    fastest_late, "rad/s")},
-          {}};
+          {},
+          overrides(robot, parameters)};
 }
 
 // 10. Two arms in one scene, each with its own controller: pushing one does not move the other.
@@ -242,6 +263,12 @@ TwoArmRun run_two_arms(bool push_left, bool step_right, Mutation mutation,
 }
 
 Outcome two_arms(const RobotSetup& robot, const MomentCallback& moment) {
+  if (robot.name != "panda" && robot.name != "iiwa14") {
+    return {{not_applicable("two arms", "one arm pushed, the other unmoved",
+                            "the two-arm scene is the Panda's and the iiwa14's MJCF "
+                            "(models/scenes/two_arms.xml); run it with --robot panda")},
+            {}};
+  }
   // The mutation of `robot` (tests of the tests) applies to both arms.
   const TwoArmRun both = run_two_arms(true, true, robot.mutation, moment);
   const TwoArmRun push_only = run_two_arms(true, false, robot.mutation, {});

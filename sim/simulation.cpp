@@ -236,6 +236,43 @@ Simulation load_simulation(const std::string& path, const mjVFS* vfs, const std:
   }
   if (!contact_possible) model->opt.disableflags |= mjDSBL_CONTACT;
 
+  // Armature: one value for all joints or one per joint, replacing the model's.
+  const JointVector& armature = options.armature;
+  if (armature.size() != 0) {
+    if (armature.size() != 1 && armature.size() != n) {
+      throw Error("SimulationOptions.armature has " + std::to_string(armature.size()) +
+                  " values; expected 1 or one per joint (" + std::to_string(n) + ")");
+    }
+    for (int i = 0; i < n; ++i) {
+      const double value = armature[armature.size() == 1 ? 0 : i];
+      if (!std::isfinite(value) || value < 0.0) {
+        throw Error("SimulationOptions.armature[" + std::to_string(i) +
+                    "] = " + format_value(value) + " for joint '" + impl->joint_names[i] +
+                    "' is not a finite value >= 0");
+      }
+      model->dof_armature[impl->dof_address[i]] = value;
+    }
+  }
+  // Start configuration: finite and inside each limited joint's range.
+  const JointVector& start = options.start_q;
+  if (start.size() != 0) {
+    if (start.size() != n) {
+      throw Error("SimulationOptions.start_q has " + std::to_string(start.size()) +
+                  " values; expected one per joint (" + std::to_string(n) + ")");
+    }
+    for (int i = 0; i < n; ++i) {
+      const int joint = joints[i];
+      const double low = model->jnt_range[2 * joint], high = model->jnt_range[2 * joint + 1];
+      if (!std::isfinite(start[i]) ||
+          (model->jnt_limited[joint] && (start[i] < low || start[i] > high))) {
+        throw Error("SimulationOptions.start_q[" + std::to_string(i) + "] = " +
+                    format_value(start[i]) + " for joint '" + impl->joint_names[i] + "' is " +
+                    (std::isfinite(start[i]) ? "outside its range [" + format_value(low) + ", " +
+                                                   format_value(high) + "]"
+                                             : std::string("not finite")));
+      }
+    }
+  }
   impl->keyframe_id =
       options.keyframe.empty() ? -1 : mj_name2id(model, mjOBJ_KEY, options.keyframe.c_str());
   impl->gravity_on = options.gravity_compensation &&
@@ -263,6 +300,9 @@ void Simulation::Impl::reset() {
     mj_resetDataKeyframe(m, d, keyframe_id);
   } else {
     mj_resetData(m, d);
+  }
+  for (std::size_t i = 0; i < qpos_address.size() && options.start_q.size() != 0; ++i) {
+    d->qpos[qpos_address[i]] = options.start_q[static_cast<Eigen::Index>(i)];
   }
   tau.setZero();
   pushes.clear();

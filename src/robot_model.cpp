@@ -1,5 +1,8 @@
 #include "cartesian_impedance/robot_model.hpp"
 
+#include <Eigen/SVD>
+#include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -342,6 +345,53 @@ bool ModelWorkspace::compute_pose(const JointVector& q, Pose& T_base_ee) noexcep
   if (!w.compute_frame()) return false;
   w.write_pose(T_base_ee);
   return true;
+}
+
+ConfigurationCheck check_configuration(const RobotModel& model, const JointVector& q,
+                                       double singular_threshold, double limit_margin) {
+  const int n = model.num_joints();
+  if (q.size() != n || !q.allFinite()) {
+    std::ostringstream text;
+    text << "check_configuration: q = [" << q.transpose() << "] must have " << n
+         << " finite values (one per joint of '" << model.robot_name() << "')";
+    throw Error(text.str());
+  }
+  ModelWorkspace workspace(model);
+  Kinematics kinematics = workspace.make_kinematics();
+  workspace.compute(q, JointVector::Zero(n), kinematics);
+  ConfigurationCheck check;
+  check.singular_values = Eigen::JacobiSVD<Eigen::MatrixXd>(kinematics.jacobian).singularValues();
+  char text[256];
+  const double smallest = check.singular_values[check.singular_values.size() - 1];
+  if (smallest < singular_threshold) {
+    std::snprintf(text, sizeof(text),
+                  "the configuration is %s: the smallest singular value of the Jacobian is %.3g "
+                  "(below %.3g); the arm cannot move, or only with large joint speeds, in one "
+                  "task direction; start elsewhere (start_q)",
+                  smallest < 1e-9 ? "singular" : "near a singularity", smallest,
+                  singular_threshold);
+    check.warnings.emplace_back(text);
+  }
+  const JointLimits& limits = model.limits();
+  for (int i = 0; i < n; ++i) {
+    const double distance =
+        std::min(q[i] - limits.position_lower[i], limits.position_upper[i] - q[i]);
+    if (std::isfinite(distance) && distance < check.limit_distance) {
+      check.limit_distance = distance;
+      check.closest_joint = i;
+    }
+  }
+  if (check.closest_joint >= 0 && check.limit_distance < limit_margin) {
+    const int i = check.closest_joint;
+    const bool lower = q[i] - limits.position_lower[i] <= limits.position_upper[i] - q[i];
+    std::snprintf(text, sizeof(text), "joint %s is at %.4g, %.3g from its %s limit %.4g%s",
+                  model.joint_names()[static_cast<std::size_t>(i)].c_str(), q[i],
+                  check.limit_distance, lower ? "lower" : "upper",
+                  lower ? limits.position_lower[i] : limits.position_upper[i],
+                  check.limit_distance < 0.0 ? " (outside its range)" : "");
+    check.warnings.emplace_back(text);
+  }
+  return check;
 }
 
 void fill_robot_state(const JointVector& q, const JointVector& dq, const Kinematics& kinematics,

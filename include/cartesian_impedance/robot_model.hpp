@@ -12,6 +12,7 @@
 /// Frames: every pose, Jacobian and gravity vector is expressed in the base frame (the frame of
 /// `base_link`). Units: SI (m, rad, kg, N, Nm); prismatic joints are in m, m/s and N.
 
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -168,6 +169,24 @@ class ModelWorkspace {
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+/// How well a configuration suits Cartesian control: how near a singularity and a joint limit.
+struct ConfigurationCheck {
+  /// Singular values of the 6 x n Jacobian, largest first: min(6, n) of them [m/rad, m/m or
+  /// rad/rad: rows are mixed]. A chain controls as many task directions as it has values well
+  /// above zero; the smallest says how near it is to losing one.
+  Eigen::VectorXd singular_values;
+  int closest_joint = -1;  ///< index of the joint nearest a position limit (-1: none limited)
+  double limit_distance = std::numeric_limits<double>::infinity();  ///< [rad or m]
+  std::vector<std::string> warnings;  ///< what a user should be told; empty: none
+};
+
+/// Checks `q` for `model`: warns when the smallest singular value of the Jacobian is below
+/// `singular_threshold` (naming it) and when a joint is within `limit_margin` of a position
+/// limit (naming the joint, the value and the limit).
+/// @throws Error if q has the wrong size or a non-finite value.
+ConfigurationCheck check_configuration(const RobotModel& model, const JointVector& q,
+                                       double singular_threshold = 0.02, double limit_margin = 0.1);
 
 /// Copies q, dq and the pose and Jacobian of `kinematics` into `state` (sizes follow q).
 void fill_robot_state(const JointVector& q, const JointVector& dq, const Kinematics& kinematics,

@@ -33,6 +33,15 @@ struct SimulationOptions {
   /// Order in which q, dq and tau are exchanged, matched to MuJoCo joints by name. Empty: the
   /// model's hinge and slide joints in model order.
   std::vector<std::string> joint_names;
+  /// Start configuration of the exchanged joints [rad or m], applied on top of the keyframe (or
+  /// the default qpos) at construction and by reset(). Empty: the keyframe's (or q = 0). Each
+  /// value must lie within its joint's range where the joint is limited.
+  JointVector start_q;
+  /// Reflected rotor inertia per exchanged joint [kg m^2 or kg] (MuJoCo's armature), replacing
+  /// the model's: one value for every joint or one per joint. Empty: the model's own (a URDF gets
+  /// 0.1 kg m^2 on each joint, as it carries none). Keep it equal to the controller's
+  /// dynamics.armature: the controller's M(q) then is the simulated one.
+  JointVector armature;
   /// MuJoCo's multi-point convex collision detection (mjENBL_MULTICCD, "experimental" in 2.2):
   /// a flat face resting on a flat face (the flange on a table) gets several contact points
   /// instead of one that jumps across the face, which makes the contact force steady (measured:
