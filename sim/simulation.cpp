@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <limits>
 #include <locale>
@@ -26,12 +27,17 @@ std::string trim(std::string text) {
   return text;
 }
 
+// The shortest of 15 or 17 significant digits that reads back as the same double: -0.0698, not
+// -0.069800000000000001, yet exact.
 std::string format_value(double value) {
-  std::ostringstream out;
-  out.imbue(std::locale::classic());
-  out.precision(17);
-  out << value;
-  return out.str();
+  for (const int digits : {15, 17}) {
+    std::ostringstream out;
+    out.imbue(std::locale::classic());
+    out.precision(digits);
+    out << value;
+    if (digits == 17 || std::strtod(out.str().c_str(), nullptr) == value) return out.str();
+  }
+  return {};
 }
 
 const char* joint_type_name(int type) {

@@ -31,12 +31,17 @@ printf 'stiffness:\n  translation: -5\n' >"$scratch/bad.yaml"
 expect_error "bad.yaml:2: stiffness.translation = -5 N/m is outside [0, 100000]" --config "$scratch/bad.yaml"
 printf 'nullspace:\n  stiffness: [10, 10, 10]\n' >"$scratch/three.yaml"
 expect_error "three.yaml' for 7 joints: nullspace.stiffness" --config "$scratch/three.yaml"
+expect_error "--start-q '1,2' has 2 values; the robot has 7 joints" --start-q 1,2
+expect_error "--start-q '0,x,0,0,0,0,0': 'x' is not a number" --start-q 0,x,0,0,0,0,0
+expect_error "the start configuration is outside the joint range (joint panda_joint4 is at 0" \
+  --urdf "$source_dir/models/panda/panda.urdf" --base-link panda_link0 --tip-link panda_link8
 expect_error "--urdf: " --urdf "$source_dir/models/panda/panda.urdf" --base-link panda_link0 --tip-link gripper
 
-# A scenario that cannot run is its own verdict (exit 3), not a FAIL. (Today a URDF-only robot
-# cannot run the table scenario.)
+# A scenario that cannot run is its own verdict (exit 3), not a FAIL: here the simulation has no
+# site or body of the flange's name.
 "$demo" --urdf "$source_dir/models/panda/panda.urdf" --base-link panda_link0 --tip-link panda_link8 \
-  --scenario wrench --no-render --no-plots --out "$scratch/not_run" >"$scratch/not_run.log" 2>&1
+  --start-q 0,-0.785,0,-2.356,0,1.571,0.785 --flange no_such_flange \
+  --scenario hold --no-render --no-plots --out "$scratch/not_run" >"$scratch/not_run.log" 2>&1
 status=$?
 if [ "$status" -ne 3 ] || ! grep -q "1 of 1 scenarios could not run" "$scratch/not_run.log" ||
   grep -q "disagree" "$scratch/not_run.log"; then

@@ -13,6 +13,7 @@
 #include <thread>
 #include <vector>
 
+#include "cartesian_impedance/error.hpp"
 #include "cartesian_impedance/robot_model.hpp"
 #include "support/model_fixtures.hpp"
 
@@ -359,4 +360,54 @@ TEST(Workspace, FillsARobotState) {
   EXPECT_EQ(state.pose.position, kinematics.pose.position);
   EXPECT_EQ(state.pose.orientation.coeffs(), kinematics.pose.orientation.coeffs());
   EXPECT_EQ(state.jacobian, kinematics.jacobian);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Start configurations: how near a singularity and a joint limit.
+
+TEST(ConfigurationCheck, NamesTheSmallestSingularValueAndTheNearestLimit) {
+  const ci::RobotModel& model = panda();
+  // q = 0: the Panda stands upright, joints 1 and 3 (and 5 and 7) on one vertical line, so the
+  // Jacobian loses a rank; joint 4 is 0.0698 rad outside its upper limit -0.0698.
+  const ci::ConfigurationCheck upright = ci::check_configuration(model, ci::JointVector::Zero(7));
+  ASSERT_EQ(upright.singular_values.size(), 6);
+  EXPECT_LT(upright.singular_values[5], 1e-9);
+  EXPECT_EQ(upright.closest_joint, 3);
+  EXPECT_NEAR(upright.limit_distance, -0.0698, 1e-12);
+  ASSERT_EQ(upright.warnings.size(), 2u);
+  EXPECT_NE(upright.warnings[0].find("singular: the smallest singular value"), std::string::npos)
+      << upright.warnings[0];
+  EXPECT_NE(upright.warnings[1].find("panda_joint4 is at 0, -0.0698 from its upper limit -0.0698 "
+                                     "(outside its range)"),
+            std::string::npos)
+      << upright.warnings[1];
+
+  // The ready pose: well conditioned, 0.72 rad from the nearest limit (joint 4 at -3 pi / 4, its
+  // lower limit -3.0718).
+  const ci::JointVector ready = vector_of({0, -kPi / 4, 0, -3 * kPi / 4, 0, kPi / 2, kPi / 4});
+  const ci::ConfigurationCheck good = ci::check_configuration(model, ready);
+  EXPECT_TRUE(good.warnings.empty());
+  EXPECT_GT(good.singular_values[5], 0.05);
+  EXPECT_EQ(good.closest_joint, 3);
+  EXPECT_NEAR(good.limit_distance, 3.0718 - 3 * kPi / 4, 1e-12);
+  // The singular values are the Jacobian's.
+  ci::ModelWorkspace workspace(model);
+  ci::Kinematics kinematics = workspace.make_kinematics();
+  ASSERT_TRUE(workspace.compute(ready, ci::JointVector::Zero(7), kinematics));
+  const Eigen::MatrixXd product = kinematics.jacobian * kinematics.jacobian.transpose();
+  Eigen::VectorXd eigen = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(product).eigenvalues();
+  EXPECT_NEAR(std::sqrt(eigen[0]), good.singular_values[5], 1e-9);
+
+  // Near, not at: 0.05 rad from joint 6's lower limit is named with the default margin 0.1.
+  ci::JointVector near = ready;
+  near[5] = -0.0175 + 0.05;
+  const ci::ConfigurationCheck close = ci::check_configuration(model, near);
+  ASSERT_EQ(close.warnings.size(), 1u);
+  EXPECT_NE(close.warnings[0].find("panda_joint6"), std::string::npos) << close.warnings[0];
+  EXPECT_NE(close.warnings[0].find("lower limit"), std::string::npos) << close.warnings[0];
+
+  EXPECT_THROW(ci::check_configuration(model, ci::JointVector::Zero(6)), ci::Error);
+  ci::JointVector bad = ready;
+  bad[2] = std::nan("");
+  EXPECT_THROW(ci::check_configuration(model, bad), ci::Error);
 }

@@ -27,6 +27,7 @@
 
 #include "cartesian_impedance/error.hpp"
 #include "cartesian_impedance/sim/simulation.hpp"
+#include "sim/simulation_impl.hpp"
 
 #ifdef CARTESIAN_IMPEDANCE_COUNT_ALLOCATIONS
 #include "support/allocation_counter.hpp"
@@ -560,7 +561,12 @@ TEST(Scene, BoxesAreValidated) {
   box.half_size.y() = 0.2;
   box.center.x() = std::nan("");
   EXPECT_ERROR([&] { sim::make_scene(kPandaXml, {box}); }, {"boxes[0].center[0]", "finite"});
-  EXPECT_ERROR([&] { sim::make_scene(kPandaUrdf, {}); }, {"not an MJCF file"});
+  // A URDF is converted (the scene then is the URDF's robot); another XML file is neither.
+  EXPECT_EQ(sim::make_scene(kPandaUrdf, {}).num_joints(), 7);
+  const std::string sdf = ::testing::TempDir() + "sim_test_robot.sdf";
+  std::ofstream(sdf) << "<sdf version=\"1.6\"><model name=\"arm\"/></sdf>\n";
+  EXPECT_ERROR([&] { sim::make_scene(sdf, {}); }, {"not an MJCF file", "<sdf>"});
+  std::remove(sdf.c_str());
   EXPECT_ERROR([&] { sim::make_scene("/nonexistent/robot.xml", {}); },
                {"/nonexistent/robot.xml", "does not exist"});
   sim::Box a = sim::Box::table({0.5, 0}, {0.2, 0.2}, 0.3, "same");
@@ -586,13 +592,21 @@ TEST(Urdf, LoadsSevenJointsAndAppliesTorqueThroughQfrcApplied) {
     EXPECT_EQ(s.q(), JointVector::Zero(7));               // URDF has no keyframe
     EXPECT_TRUE(std::isinf(s.torque_upper_limits()[0]));  // no actuator, no limit
   }
-  sim::Simulation s = sim::Simulation::from_urdf_file(kPandaUrdf);
+  // Without the import's rotor inertia the simulation is MuJoCo's plain URDF model, which the
+  // reference loads.
+  sim::SimulationOptions options;
+  options.armature = JointVector::Zero(1);
+  sim::Simulation s = sim::Simulation::from_urdf_file(kPandaUrdf, options);
   EXPECT_EQ(s.joint_names()[3], "panda_joint4");
   s.set_state(panda_ready(), JointVector::Zero(7));
   for (int k = 0; k < 500; ++k) s.step();  // gravity compensation through qfrc_applied
   EXPECT_LT((s.q() - panda_ready()).cwiseAbs().maxCoeff(), 1e-3);
 
-  Reference reference(kPandaUrdf);
+  // The reference loads the MJCF the import made (armature 0, as the options above).
+  const std::string imported = ::testing::TempDir() + "sim_test_panda_imported.xml";
+  std::ofstream(imported) << sim::detail::mjcf_from_urdf(kPandaUrdf, {0.0, 0.5});
+  Reference reference(imported);
+  std::remove(imported.c_str());
   reference.set_state(s.q(), JointVector::Zero(7));
   s.set_state(s.q(), JointVector::Zero(7));
   const JointVector tau = joints({0, 0, 0, 500, 0, 0, 0});
@@ -600,6 +614,58 @@ TEST(Urdf, LoadsSevenJointsAndAppliesTorqueThroughQfrcApplied) {
   s.step();
   expect_one_step(s.dq(), predict_one_step(reference, tau));
   EXPECT_GT(s.dq()[3], 0.0);
+}
+
+TEST(Options, StartConfigurationAndArmatureReplaceTheModels) {
+  sim::SimulationOptions options;
+  options.start_q = panda_ready();
+  sim::Simulation s = sim::Simulation::from_urdf_file(kPandaUrdf, options);
+  EXPECT_EQ(s.q(), panda_ready());
+  EXPECT_EQ(s.armature(), JointVector::Constant(7, 0.1));  // the URDF import's default
+  s.set_state(JointVector::Zero(7), JointVector::Zero(7));
+  s.reset();
+  EXPECT_EQ(s.q(), panda_ready());  // reset() returns to the start configuration too
+
+  // One torque on the wrist (joint 7, M_77 about 0.01 kg m^2) meets the rotor inertia first:
+  // with 1 kg m^2 instead of 0.1 the first step's acceleration is (M_77 + 0.1) / (M_77 + 1),
+  // about a ninth; the other joints' coupling moves that by a few per cent at most.
+  const JointVector tau = joints({0, 0, 0, 0, 0, 0, 1});
+  s.set_torque(tau);
+  s.step();
+  const double light = s.dq()[6];
+  options.armature = JointVector::Constant(1, 1.0);
+  sim::Simulation heavy = sim::Simulation::from_urdf_file(kPandaUrdf, options);
+  EXPECT_EQ(heavy.armature(), JointVector::Constant(7, 1.0));
+  heavy.set_torque(tau);
+  heavy.step();
+  EXPECT_GT(light, 0.0);
+  EXPECT_NEAR(heavy.dq()[6] / light, 0.11 / 1.01, 0.02);
+
+  // Per joint, on an MJCF: replaces the file's values.
+  options.armature = joints({0.5, 0.5, 0.5, 0.5, 0.2, 0.2, 0.2});
+  options.start_q = JointVector();
+  EXPECT_EQ(sim::Simulation::from_mjcf_file(kPandaXml, options).armature(), options.armature);
+}
+
+TEST(Errors, BadStartConfigurationOrArmatureNameTheJoint) {
+  sim::SimulationOptions options;
+  options.start_q = JointVector::Zero(7);  // joint 4's range is [-3.0718, -0.0698]
+  EXPECT_ERROR([&] { sim::Simulation::from_urdf_file(kPandaUrdf, options); },
+               {"start_q[3] = 0", "panda_joint4", "outside its range [-3.0718, -0.0698]"});
+  options.start_q = JointVector::Zero(3);
+  EXPECT_ERROR([&] { sim::Simulation::from_urdf_file(kPandaUrdf, options); },
+               {"start_q has 3 values", "one per joint (7)"});
+  options.start_q = panda_ready();
+  options.start_q[1] = std::nan("");
+  EXPECT_ERROR([&] { sim::Simulation::from_urdf_file(kPandaUrdf, options); },
+               {"start_q[1]", "panda_joint2", "not finite"});
+  options.start_q = JointVector();
+  options.armature = joints({0.1, 0.1, -0.1, 0.1, 0.1, 0.1, 0.1});
+  EXPECT_ERROR([&] { sim::Simulation::from_mjcf_file(kPandaXml, options); },
+               {"armature[2] = -0.1", "panda_joint3", ">= 0"});
+  options.armature = JointVector::Constant(2, 0.1);
+  EXPECT_ERROR([&] { sim::Simulation::from_mjcf_file(kPandaXml, options); },
+               {"armature has 2 values", "1 or one per joint (7)"});
 }
 
 // ---------------------------------------------------------------------------------------------
