@@ -35,14 +35,16 @@ RobotSetup builtin_robot(const std::string& name, const std::string& source_dir)
   if (name == "ur5e") {
     RobotSetup robot{"ur5e",  source_dir + "/models/ur5e/ur5e.urdf", "", "base_link", "tool0",
                      "tool0", source_dir + "/config/ur5e.yaml"};
-    robot.start_q = (JointVector(6) << 0.0, -1.9, 1.9, -1.57, -1.57, 0.0).finished();
+    // In front of the base (+x) at about 0.5 m height, the tool pointing down (models/README.md).
+    robot.start_q = (JointVector(6) << M_PI, -M_PI / 2, M_PI / 2, -M_PI / 2, -M_PI / 2, 0.0).finished();
     return robot;
   }
   if (name == "planar3") {
     RobotSetup robot{
         "planar3", source_dir + "/models/planar3/planar3.urdf", "", "base_link", "tool0",
         "tool0",   source_dir + "/config/planar3.yaml"};
-    robot.start_q = (JointVector(3) << 0.5, 1.0, 0.8).finished();
+    // Elbow up, the tool pointing down (models/README.md).
+    robot.start_q = (JointVector(3) << 0.5, 1.5, M_PI - 2.0).finished();
     return robot;
   }
   throw Error("robot '" + name +
