@@ -1,11 +1,13 @@
 // Robot model: forward kinematics against published figures and hand computation (the Panda,
-// the iiwa, sub-chains, a handwritten robot), the gravity vector option, and compute() on invalid
-// input, copies and threads. The properties every chain has are in model_chain_test.cpp, the
-// load-time errors in model_load_errors_test.cpp.
+// the iiwa, the UR5e against its published DH table, the planar arm in closed form, sub-chains, a
+// handwritten robot), the gravity vector option, and compute() on invalid input, copies and
+// threads. The properties every chain has are in model_chain_test.cpp, the load-time errors in
+// model_load_errors_test.cpp.
 
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -80,6 +82,229 @@ TEST(IiwaModel, FlangeAtZeroAndAtTheReadyPose) {
   const Eigen::Isometry3d T_ready = forward_kinematics(workspace, ready);
   EXPECT_LT((T_ready.translation() - Eigen::Vector3d(0.556410, 0.0, 0.397731)).norm(), 2e-6);
   EXPECT_LT((T_ready.linear().col(2) - Eigen::Vector3d(0, 0, -1)).norm(), 1e-12);
+}
+
+// ---------------------------------------------------------------------------------------------
+// UR5e and the planar arm (models/ur5e, models/planar3): the URDF against the published standard
+// DH table and against closed-form planar kinematics.
+
+namespace {
+
+std::string model_path(const std::string& relative) {
+  return std::string(CARTESIAN_IMPEDANCE_SOURCE_DIR) + "/models/" + relative;
+}
+
+const ci::RobotModel& ur5e() {
+  static const ci::RobotModel model =
+      ci::RobotModel::from_urdf_file(model_path("ur5e/ur5e.urdf"), "base_link", "tool0");
+  return model;
+}
+
+const ci::RobotModel& planar3() {
+  static const ci::RobotModel model =
+      ci::RobotModel::from_urdf_file(model_path("planar3/planar3.urdf"), "base_link", "tool0");
+  return model;
+}
+
+// Universal Robots, "DH parameters for calculations of kinematics and dynamics", UR5e: standard
+// DH, T_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i); link masses [kg] and centres of mass [m] in
+// DH frame i.
+constexpr double kUrD[6] = {0.1625, 0, 0, 0.1333, 0.0997, 0.0996};
+constexpr double kUrA[6] = {0, -0.425, -0.3922, 0, 0, 0};
+constexpr double kUrAlpha[6] = {kPi / 2, 0, 0, kPi / 2, -kPi / 2, 0};
+constexpr double kUrMass[6] = {3.761, 8.058, 2.846, 1.37, 1.3, 0.365};
+constexpr double kUrCom[6][3] = {{0, -0.02561, 0.00193}, {0.2125, 0, 0.11336}, {0.15, 0, 0.0265},
+                                 {0, -0.0018, 0.01634},  {0, 0.0018, 0.01634}, {0, 0, -0.001159}};
+
+// DH frames 0..6 at q: frames[0] is the base, frames[6] the flange.
+std::vector<Eigen::Isometry3d> ur5e_dh_frames(const ci::JointVector& q) {
+  std::vector<Eigen::Isometry3d> frames{Eigen::Isometry3d::Identity()};
+  for (int i = 0; i < 6; ++i) {
+    Eigen::Isometry3d link = Eigen::Isometry3d::Identity();
+    link.rotate(Eigen::AngleAxisd(q[i], Eigen::Vector3d::UnitZ()));
+    link.translate(Eigen::Vector3d(kUrA[i], 0, kUrD[i]));
+    link.rotate(Eigen::AngleAxisd(kUrAlpha[i], Eigen::Vector3d::UnitX()));
+    frames.push_back(frames.back() * link);
+  }
+  return frames;
+}
+
+// Uniform within the position limits (the UR5e's +-2 pi, unlike random_configuration's +-pi).
+ci::JointVector uniform_in_limits(const ci::RobotModel& model, std::mt19937& rng) {
+  ci::JointVector q(model.num_joints());
+  for (int i = 0; i < model.num_joints(); ++i) {
+    q[i] = std::uniform_real_distribution<double>(model.limits().position_lower[i],
+                                                  model.limits().position_upper[i])(rng);
+  }
+  return q;
+}
+
+double smallest_singular_value(const Eigen::MatrixXd& matrix) {
+  return Eigen::JacobiSVD<Eigen::MatrixXd>(matrix).singularValues().minCoeff();
+}
+
+// Start configurations of models/README.md.
+ci::JointVector ur5e_start() {
+  return vector_of({kPi, -kPi / 2, kPi / 2, -kPi / 2, -kPi / 2, 0});
+}
+ci::JointVector planar3_start() {
+  return vector_of({0.5, 1.5, kPi - 2.0});
+}
+
+constexpr double kPlanarLength[3] = {0.4, 0.35, 0.15};
+constexpr double kPlanarMass[3] = {3, 2, 0.5};
+constexpr double kPedestal = 0.3;
+
+}  // namespace
+
+TEST(Ur5eModel, DescribesTheArm) {
+  const ci::RobotModel& model = ur5e();
+  ASSERT_EQ(model.num_joints(), 6);
+  EXPECT_EQ(model.robot_name(), "ur5e");
+  EXPECT_EQ(model.joint_names(),
+            (std::vector<std::string>{"shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint",
+                                      "wrist_1_joint", "wrist_2_joint", "wrist_3_joint"}));
+  for (ci::JointType type : model.joint_types()) EXPECT_EQ(type, ci::JointType::revolute);
+  // UR5e data sheet: +-360 deg, 180 deg/s, 150 Nm (size 3) and 28 Nm (size 1).
+  EXPECT_EQ(model.limits().position_lower, ci::JointVector::Constant(6, -2 * kPi));
+  EXPECT_EQ(model.limits().position_upper, ci::JointVector::Constant(6, 2 * kPi));
+  EXPECT_EQ(model.limits().velocity, ci::JointVector::Constant(6, kPi));
+  EXPECT_EQ(model.limits().effort, vector_of({150, 150, 150, 28, 28, 28}));
+  // The six published link masses; the base (2.9 kg, to the data sheet's 20.6 kg) is not moved.
+  double published = 0.0;
+  for (double mass : kUrMass) published += mass;
+  EXPECT_NEAR(published, 17.7, 1e-12);
+  EXPECT_NEAR(model.moving_mass(), published, 1e-12);
+}
+
+TEST(Ur5eModel, FlangeIsThePublishedStandardDhForwardKinematics) {
+  ci::ModelWorkspace workspace(ur5e());
+  // q = 0: the arm stretched along -x, the flange 0.1333 + 0.0996 m to the side.
+  const Eigen::Isometry3d T_zero = forward_kinematics(workspace, ci::JointVector::Zero(6));
+  EXPECT_LT((T_zero.translation() - Eigen::Vector3d(-0.8172, -0.2329, 0.0628)).norm(), 1e-12);
+  std::mt19937 rng(12);
+  double worst = 0.0;
+  for (int k = 0; k < 1000; ++k) {
+    const ci::JointVector q = uniform_in_limits(ur5e(), rng);
+    const Eigen::Isometry3d expected = ur5e_dh_frames(q).back();
+    const Eigen::Isometry3d actual = forward_kinematics(workspace, q);
+    worst = std::max(worst, (actual.matrix() - expected.matrix()).cwiseAbs().maxCoeff());
+  }
+  EXPECT_LT(worst, 1e-12);
+}
+
+TEST(Ur5eModel, GravityIsThatOfThePublishedMassesAndCentresOfMass) {
+  // Holding torque tau_j = sum over links i >= j of (z_{j-1} x (c_i - o_{j-1})) . (m_i 9.81 e_z),
+  // with the centres of mass c_i taken from the published table in DH frame i: checks how the
+  // URDF wrote them in its link frames. (Inertia tensors do not enter g(q).)
+  ci::ModelWorkspace workspace(ur5e());
+  ci::Kinematics kinematics = workspace.make_kinematics();
+  std::mt19937 rng(13);
+  for (int k = 0; k < 200; ++k) {
+    const ci::JointVector q = uniform_in_limits(ur5e(), rng);
+    ASSERT_TRUE(workspace.compute(q, ci::JointVector::Zero(6), kinematics, true));
+    const std::vector<Eigen::Isometry3d> frames = ur5e_dh_frames(q);
+    ci::JointVector expected = ci::JointVector::Zero(6);
+    for (int i = 0; i < 6; ++i) {
+      const Eigen::Vector3d com =
+          frames[i + 1] * Eigen::Vector3d(kUrCom[i][0], kUrCom[i][1], kUrCom[i][2]);
+      for (int j = 0; j <= i; ++j) {
+        const Eigen::Vector3d axis = frames[j].linear().col(2);
+        expected[j] +=
+            axis.cross(com - frames[j].translation()).dot(Eigen::Vector3d(0, 0, kUrMass[i] * 9.81));
+      }
+    }
+    EXPECT_LT((kinematics.gravity - expected).cwiseAbs().maxCoeff(), 1e-11) << q.transpose();
+  }
+}
+
+TEST(Ur5eModel, StartConfigurationIsFarFromSingularities) {
+  ci::ModelWorkspace workspace(ur5e());
+  ci::Kinematics kinematics = workspace.make_kinematics();
+  ASSERT_TRUE(workspace.compute(ur5e_start(), ci::JointVector::Zero(6), kinematics));
+  // models/README.md: flange in front of the robot at (0.4919, 0.1333, 0.4879) m, pointing down;
+  // smallest singular value of the 6 x 6 Jacobian 0.2224.
+  EXPECT_LT((kinematics.pose.position - Eigen::Vector3d(0.4919, 0.1333, 0.4879)).norm(), 1e-4);
+  EXPECT_LT(
+      (kinematics.pose.orientation * Eigen::Vector3d::UnitZ() - Eigen::Vector3d(0, 0, -1)).norm(),
+      1e-12);
+  EXPECT_NEAR(smallest_singular_value(kinematics.jacobian), 0.2224, 1e-4);
+}
+
+TEST(Planar3Model, DescribesTheArm) {
+  const ci::RobotModel& model = planar3();
+  ASSERT_EQ(model.num_joints(), 3);
+  EXPECT_EQ(model.robot_name(), "planar3");
+  EXPECT_EQ(model.joint_names(), (std::vector<std::string>{"joint1", "joint2", "joint3"}));
+  EXPECT_EQ(model.limits().position_lower, ci::JointVector::Constant(3, -2.6));
+  EXPECT_EQ(model.limits().position_upper, ci::JointVector::Constant(3, 2.6));
+  EXPECT_EQ(model.limits().velocity, ci::JointVector::Constant(3, 2.0));
+  EXPECT_EQ(model.limits().effort, vector_of({60, 40, 10}));
+  EXPECT_NEAR(model.moving_mass(), kPlanarMass[0] + kPlanarMass[1] + kPlanarMass[2], 1e-12);
+}
+
+TEST(Planar3Model, KinematicsAndGravityInClosedForm) {
+  ci::ModelWorkspace workspace(planar3());
+  ci::Kinematics kinematics = workspace.make_kinematics();
+  std::mt19937 rng(14);
+  for (int k = 0; k < 1000; ++k) {
+    const ci::JointVector q = uniform_in_limits(planar3(), rng);
+    ASSERT_TRUE(workspace.compute(q, ci::JointVector::Zero(3), kinematics, true));
+    // phi_i = q_1 + ... + q_i; link i points along (sin phi_i, 0, cos phi_i).
+    double phi[3];
+    phi[0] = q[0];
+    phi[1] = phi[0] + q[1];
+    phi[2] = phi[1] + q[2];
+    Eigen::Vector3d tip(0, 0, kPedestal);
+    for (int i = 0; i < 3; ++i) {
+      tip += kPlanarLength[i] * Eigen::Vector3d(std::sin(phi[i]), 0, std::cos(phi[i]));
+    }
+    const Eigen::Isometry3d T = isometry(kinematics.pose);
+    EXPECT_LT((T.translation() - tip).norm(), 1e-12);
+    EXPECT_LT((T.linear() - Eigen::AngleAxisd(phi[2], Eigen::Vector3d::UnitY()).toRotationMatrix())
+                  .norm(),
+              1e-12);
+    // Only x, z and the rotation about y move: rows y, rot-x, rot-z are zero.
+    for (int row : {1, 3, 5}) EXPECT_EQ(kinematics.jacobian.row(row).cwiseAbs().maxCoeff(), 0.0);
+    for (int j = 0; j < 3; ++j) {
+      double dx = 0.0, dz = 0.0;
+      for (int i = j; i < 3; ++i) {
+        dx += kPlanarLength[i] * std::cos(phi[i]);
+        dz -= kPlanarLength[i] * std::sin(phi[i]);
+      }
+      EXPECT_NEAR(kinematics.jacobian(0, j), dx, 1e-12);
+      EXPECT_NEAR(kinematics.jacobian(2, j), dz, 1e-12);
+      EXPECT_NEAR(kinematics.jacobian(4, j), 1.0, 1e-12);
+    }
+    // g_j = dV/dq_j, V = 9.81 sum m_i z_i, centre of mass i at half the link.
+    ci::JointVector gravity = ci::JointVector::Zero(3);
+    for (int j = 0; j < 3; ++j) {
+      for (int i = j; i < 3; ++i) {
+        double lever = 0.5 * kPlanarLength[i] * std::sin(phi[i]);
+        for (int l = j; l < i; ++l) lever += kPlanarLength[l] * std::sin(phi[l]);
+        gravity[j] -= 9.81 * kPlanarMass[i] * lever;
+      }
+    }
+    EXPECT_LT((kinematics.gravity - gravity).cwiseAbs().maxCoeff(), 1e-12);
+  }
+}
+
+TEST(Planar3Model, StartConfigurationIsFarFromSingularities) {
+  ci::ModelWorkspace workspace(planar3());
+  ci::Kinematics kinematics = workspace.make_kinematics();
+  ASSERT_TRUE(workspace.compute(planar3_start(), ci::JointVector::Zero(3), kinematics));
+  // models/README.md: flange at (0.5100, 0, 0.3554) m pointing down (phi_3 = pi); smallest
+  // singular value of the controllable rows x, z, rot-y 0.2010 (the 3 x 3 determinant is
+  // -0.4 * 0.35 * sin(q2): singular only with the elbow stretched or folded).
+  EXPECT_LT((kinematics.pose.position - Eigen::Vector3d(0.5100, 0, 0.3554)).norm(), 1e-4);
+  EXPECT_LT(
+      (kinematics.pose.orientation * Eigen::Vector3d::UnitZ() - Eigen::Vector3d(0, 0, -1)).norm(),
+      1e-12);
+  Eigen::MatrixXd controllable(3, 3);
+  controllable << kinematics.jacobian.row(0), kinematics.jacobian.row(2),
+      kinematics.jacobian.row(4);
+  EXPECT_NEAR(controllable.determinant(), -0.4 * 0.35 * std::sin(1.5), 1e-12);
+  EXPECT_NEAR(smallest_singular_value(controllable), 0.2010, 1e-4);
 }
 
 // ---------------------------------------------------------------------------------------------
