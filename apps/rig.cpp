@@ -36,7 +36,8 @@ RobotSetup builtin_robot(const std::string& name, const std::string& source_dir)
     RobotSetup robot{"ur5e",  source_dir + "/models/ur5e/ur5e.urdf", "", "base_link", "tool0",
                      "tool0", source_dir + "/config/ur5e.yaml"};
     // In front of the base (+x) at about 0.5 m height, the tool pointing down (models/README.md).
-    robot.start_q = (JointVector(6) << M_PI, -M_PI / 2, M_PI / 2, -M_PI / 2, -M_PI / 2, 0.0).finished();
+    robot.start_q =
+        (JointVector(6) << M_PI, -M_PI / 2, M_PI / 2, -M_PI / 2, -M_PI / 2, 0.0).finished();
     return robot;
   }
   if (name == "planar3") {

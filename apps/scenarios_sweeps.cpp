@@ -101,33 +101,43 @@ Outcome stability_grid(const RobotSetup& robot, const MomentCallback&) {
       rig.loop().set_reference_pose(target);
       ModelWorkspace workspace(rig.model());
       Kinematics kinematics = workspace.make_kinematics();
+      const JointVector armature = per_joint(rig.loop().controller().parameters().dynamics.armature,
+                                             rig.model().num_joints());
       double initial = -1.0, peak = 0.0;
+      bool saturated = false;
       for (int k = 0; k < 2500; ++k) {
         rig.run(0.001);
         const LoopState& state = rig.loop().state();
         const Vector6d& e = state.controller.pose_error;
         const JointVector& dq = rig.sim().dq();
         workspace.compute(rig.sim().q(), dq, kinematics, true);
-        const double kinetic = 0.5 * dq.dot(kinematics.mass * dq);
+        // The rotors' kinetic energy too: the simulated arm has them (dynamics.armature).
+        const double kinetic =
+            0.5 * dq.dot(kinematics.mass * dq) + 0.5 * dq.dot(armature.cwiseProduct(dq));
         const double spring =
             0.5 * (kt * e.head<3>().squaredNorm() + kr * e.tail<3>().squaredNorm());
         if (initial < 0.0) initial = spring + kinetic;
         peak = std::max(peak, spring + kinetic);
+        saturated |= state.controller.limits.joint_torque_saturated ||
+                     state.controller.limits.torque_rate_limited;
       }
       const double error = 1e3 * (rig.flange().position - target.position).norm();
       const double angle = rotation_between(target, rig.flange()).norm();
       // Converged: within 2 mm and 0.01 rad plus what the joints' friction can hold against the
       // spring; and the energy never above what the step put in (+5 %): a passive, stable
-      // closed loop.
+      // closed loop. A torque clipped to its limit or held back by the torque-rate limit is no
+      // longer the spring's gradient (a lagging spring can do work: the light planar arm at
+      // 1000 N/m, 300 Nm/rad gained 8 %), so only convergence is asked of such a run.
       const FrictionBand band = friction_band(rig);
       const bool ok = error <= 2.0 + 1e3 * band.force / kt && angle <= 0.01 + band.torque / kr &&
-                      peak <= 1.05 * initial;
+                      (saturated || peak <= 1.05 * initial);
       ++total;
       if (ok) {
         ++stable;
       } else {
         failures << " K=" << kt << "/" << kr << " (error " << error << " mm, " << angle
-                 << " rad, energy x" << peak / initial << ")";
+                 << " rad, energy x" << peak / initial << (saturated ? ", torque-limited" : "")
+                 << ")";
       }
     }
   }
