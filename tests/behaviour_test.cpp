@@ -97,8 +97,10 @@ const auto kMutations =
 TEST(NotApplicable, ExactlyWhereTheArmCannot) {
   const auto not_applicable = [](const std::string& robot, const std::string& scenario) {
     std::vector<std::string> lines;
-    for (const scenarios::Result& r : scenarios::run_scenario(
-             scenario, scenarios::builtin_robot(robot, CARTESIAN_IMPEDANCE_SOURCE_DIR)).results) {
+    for (const scenarios::Result& r :
+         scenarios::run_scenario(scenario,
+                                 scenarios::builtin_robot(robot, CARTESIAN_IMPEDANCE_SOURCE_DIR))
+             .results) {
       if (!r.applicable) lines.push_back(r.quantity);
     }
     return lines;
@@ -119,8 +121,8 @@ INSTANTIATE_TEST_SUITE_P(Panda, Behaviour,
 INSTANTIATE_TEST_SUITE_P(Iiwa14, Behaviour,
                          ::testing::Combine(::testing::Values("iiwa14"), kScenarios), name);
 // Simulated from their URDF alone, with a fixed link (tool0) at the tip.
-INSTANTIATE_TEST_SUITE_P(Ur5e, Behaviour,
-                         ::testing::Combine(::testing::Values("ur5e"), kScenarios), name);
+INSTANTIATE_TEST_SUITE_P(Ur5e, Behaviour, ::testing::Combine(::testing::Values("ur5e"), kScenarios),
+                         name);
 INSTANTIATE_TEST_SUITE_P(Planar3, Behaviour,
                          ::testing::Combine(::testing::Values("planar3"), kScenarios), name);
 // The two-arm scene always holds a Panda and an iiwa14.
@@ -129,8 +131,7 @@ INSTANTIATE_TEST_SUITE_P(Scene, Behaviour,
                                             ::testing::Values("two_arms")),
                          name);
 INSTANTIATE_TEST_SUITE_P(Mutants, BrokenController,
-                         ::testing::Combine(::testing::Values("panda", "iiwa14", "ur5e",
-                                                              "planar3"),
+                         ::testing::Combine(::testing::Values("panda", "iiwa14", "ur5e", "planar3"),
                                             kScenarios, kMutations),
                          broken_name);
 INSTANTIATE_TEST_SUITE_P(SceneMutants, BrokenController,
