@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -145,14 +146,14 @@ Options parse(int argc, char** argv) {
   // The robot and its configuration are checked once, before any scenario: a URDF that does not
   // load or a per-joint value of the wrong length for this arm is a usage error, not a failure
   // of every scenario.
-  int joints = 0;
+  std::optional<ci::RobotModel> model;
   try {
-    joints = ci::RobotModel::from_urdf_file(options.robot.urdf, options.robot.base_link,
-                                            options.robot.tip_link)
-                 .num_joints();
+    model = ci::RobotModel::from_urdf_file(options.robot.urdf, options.robot.base_link,
+                                           options.robot.tip_link);
   } catch (const ci::Error& error) {
     usage_error(std::string("--urdf: ") + error.what());
   }
+  const int joints = model->num_joints();
   try {
     ci::validate(scenarios::base_parameters(options.robot), joints);
   } catch (const ci::Error& error) {
@@ -182,12 +183,10 @@ Options parse(int argc, char** argv) {
   // A start at a singularity or at a joint limit makes every scenario look broken; say so once.
   // (An MJCF starts at its keyframe, checked by whoever wrote it; a URDF alone at q = 0.)
   if (options.robot.start_q.size() == joints || options.robot.mjcf.empty()) {
-    const ci::RobotModel model = ci::RobotModel::from_urdf_file(
-        options.robot.urdf, options.robot.base_link, options.robot.tip_link);
     const ci::JointVector q = options.robot.start_q.size() == joints
                                   ? options.robot.start_q
                                   : ci::JointVector::Zero(joints);
-    const ci::ConfigurationCheck check = ci::check_configuration(model, q);
+    const ci::ConfigurationCheck check = ci::check_configuration(*model, q);
     for (const std::string& warning : check.warnings) {
       std::cout << "Warning: start configuration: " << warning << "\n";
     }

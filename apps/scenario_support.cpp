@@ -62,10 +62,7 @@ void notify(const MomentCallback& moment, const std::string& label, Rig& rig) {
 // torque tau_f (|tau_f,i| <= f_i) holds the flange wrench F = (J J^T)^-1 J tau_f; the largest
 // norms are at corners of the box of friction torques.
 FrictionBand friction_band(Rig& rig) {
-  ModelWorkspace workspace(rig.model());
-  Kinematics kinematics = workspace.make_kinematics();
-  workspace.compute(rig.sim().q(), rig.sim().dq(), kinematics);
-  const Eigen::MatrixXd jacobian = kinematics.jacobian;
+  const Eigen::MatrixXd jacobian = jacobian_now(rig);
   // The least-norm wrench with J^T F = tau: (J J^T)^-1 J for a full-rank J, and still defined
   // for a chain that controls fewer than six directions.
   const Eigen::MatrixXd map =
@@ -81,6 +78,13 @@ FrictionBand friction_band(Rig& rig) {
     band.torque = std::max(band.torque, wrench.tail<3>().norm());
   }
   return band;
+}
+
+Eigen::MatrixXd jacobian_now(Rig& rig) {
+  ModelWorkspace workspace(rig.model());
+  Kinematics kinematics = workspace.make_kinematics();
+  workspace.compute(rig.sim().q(), rig.sim().dq(), kinematics);
+  return kinematics.jacobian;
 }
 
 Result not_applicable(const std::string& scenario, const std::string& quantity,
@@ -111,11 +115,7 @@ int TaskDirections::first_of(std::initializer_list<int> preferred) const {
 }
 
 TaskDirections task_directions(Rig& rig) {
-  ModelWorkspace workspace(rig.model());
-  Kinematics kinematics = workspace.make_kinematics();
-  workspace.compute(rig.sim().q(), rig.sim().dq(), kinematics);
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(Eigen::MatrixXd(kinematics.jacobian),
-                                              Eigen::ComputeFullU);
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(jacobian_now(rig), Eigen::ComputeFullU);
   const Eigen::VectorXd& sigma = svd.singularValues();
   // Rank relative to the largest singular value: an upright arm's lost direction leaves a value
   // of about 1e-17, a well-conditioned one none below 1e-2.
@@ -133,12 +133,15 @@ TaskDirections task_directions(Rig& rig) {
 }
 
 namespace {
+// "300 0 300": Eigen's default aligns columns, which pads with spaces.
+const Eigen::IOFormat kOneLine(Eigen::StreamPrecision, Eigen::DontAlignCols, " ", " ");
+
 void compare_three(const std::string& name, const Eigen::Vector3d& configured,
                    const Eigen::Vector3d& used, const char* unit, std::vector<std::string>& out) {
   if (configured == used) return;
   std::ostringstream text;
-  text << name << " = " << used.transpose() << " " << unit
-       << " (configured: " << configured.transpose() << ")";
+  text << name << " = " << used.transpose().format(kOneLine) << " " << unit
+       << " (configured: " << configured.transpose().format(kOneLine) << ")";
   out.push_back(text.str());
 }
 }  // namespace
@@ -156,8 +159,9 @@ std::vector<std::string> overrides(const RobotSetup& robot, const Parameters& us
                 used.damping_ratio.rotation, "", out);
   if (configured.nullspace.stiffness != used.nullspace.stiffness) {
     std::ostringstream text;
-    text << "nullspace.stiffness = " << used.nullspace.stiffness.transpose()
-         << " Nm/rad (configured: " << configured.nullspace.stiffness.transpose() << ")";
+    text << "nullspace.stiffness = " << used.nullspace.stiffness.transpose().format(kOneLine)
+         << " Nm/rad (configured: " << configured.nullspace.stiffness.transpose().format(kOneLine)
+         << ")";
     out.push_back(text.str());
   }
   if (configured.filter.nullspace.time != used.filter.nullspace.time) {

@@ -30,6 +30,9 @@ Result at_most(const std::string& scenario, const std::string& quantity, double 
 Result at_least(const std::string& scenario, const std::string& quantity, double bound,
                 double measured, const std::string& unit, const std::string& note = "");
 
+/// The flange Jacobian (6 x n, base frame) at the rig's current configuration.
+Eigen::MatrixXd jacobian_now(Rig& rig);
+
 /// A line for something `robot` cannot do, with the reason.
 Result not_applicable(const std::string& scenario, const std::string& quantity,
                       const std::string& reason);

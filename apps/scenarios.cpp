@@ -286,11 +286,7 @@ Outcome nullspace(const RobotSetup& robot, const MomentCallback& moment) {
   // A self-motion: along the Jacobian's null space (for the Panda and the iiwa mostly the first
   // joint turning the arm about the vertical and the third, the elbow's rotation, countering
   // it), 0.3 rad on the joint that moves most.
-  ModelWorkspace workspace(rig.model());
-  Kinematics kinematics = workspace.make_kinematics();
-  workspace.compute(q_start, rig.sim().dq(), kinematics);
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(Eigen::MatrixXd(kinematics.jacobian),
-                                              Eigen::ComputeFullV);
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(jacobian_now(rig), Eigen::ComputeFullV);
   Eigen::VectorXd self_motion = svd.matrixV().rightCols(1);
   if (self_motion[0] < 0.0) self_motion = -self_motion;
   const JointVector target = q_start + 0.3 * self_motion / self_motion.cwiseAbs().maxCoeff();
