@@ -44,13 +44,22 @@ struct Sim {
 ci::sim::SimulationOptions simulation_options(py::handle timestep, bool gravity_compensation,
                                               const std::string& keyframe,
                                               const std::optional<std::vector<std::string>>& names,
-                                              bool multi_point_contacts) {
+                                              bool multi_point_contacts, py::handle start_q,
+                                              py::handle armature) {
   ci::sim::SimulationOptions options;
   options.timestep = read_scalar(timestep, "timestep");
   options.gravity_compensation = gravity_compensation;
   options.keyframe = keyframe;
   if (names) options.joint_names = *names;
   options.multi_point_contacts = multi_point_contacts;
+  // Their length against the model's joints is checked by the loader, which names the joint.
+  if (!start_q.is_none()) read_vector(start_q, "start_q", Length{}, options.start_q);
+  if (py::isinstance<py::float_>(armature) ||
+      (py::isinstance<py::int_>(armature) && !py::isinstance<py::bool_>(armature))) {
+    options.armature = JointVector::Constant(1, read_scalar(armature, "armature"));
+  } else if (!armature.is_none()) {
+    read_vector(armature, "armature", Length{}, options.armature, " or one number");
+  }
   return options;
 }
 
@@ -76,13 +85,18 @@ void bind_simulation(py::module_& m) {
                            py::arg("gravity_compensation") = default_options.gravity_compensation,
                            py::arg("keyframe") = default_options.keyframe,
                            py::arg("joint_names") = py::none(),
-                           py::arg("multi_point_contacts") = default_options.multi_point_contacts);
+                           py::arg("multi_point_contacts") = default_options.multi_point_contacts,
+                           py::arg("start_q") = py::none(), py::arg("armature") = py::none());
   };
   const char* options_doc =
       " Options: timestep [s] (replaces the model's); gravity_compensation: each joint receives "
       "tau + g(q), as robot firmware does; keyframe to reset to ('' or missing: the model's "
       "default qpos); joint_names: order of q, dq and tau (default: the model's hinge and slide "
-      "joints); multi_point_contacts: steadier face-on-face contact forces.";
+      "joints); multi_point_contacts: steadier face-on-face contact forces; start_q: joint "
+      "positions "
+      "(n,) [rad or m] to start from and reset() to, instead of the keyframe, each checked against "
+      "its joint's range; armature: rotor inertia per joint (n,) or one value for all [kg m^2], "
+      "replacing the model's (use the same for the controller's dynamics.armature).";
 
   py::class_<ci::sim::Box>(sim, "Box",
                            "A static box (table, wall, step) that collides with the robot.")
@@ -145,11 +159,12 @@ void bind_simulation(py::module_& m) {
         simulation.def_static(
             "from_mjcf_file",
             [](PathLike path, Real timestep, bool gravity_compensation, const std::string& keyframe,
-               std::optional<std::vector<std::string>> names, bool multi_point_contacts) {
+               std::optional<std::vector<std::string>> names, bool multi_point_contacts,
+               py::object start_q, py::object armature) {
               return std::make_unique<Sim>(ci::sim::Simulation::from_mjcf_file(
                   read_path(path, "path"),
                   simulation_options(timestep, gravity_compensation, keyframe, names,
-                                     multi_point_contacts)));
+                                     multi_point_contacts, start_q, armature)));
             },
             py::arg("path"), args...,
             (std::string("Loads an MJCF file (e.g. models/panda/panda.xml); each joint is "
@@ -159,11 +174,12 @@ void bind_simulation(py::module_& m) {
         simulation.def_static(
             "from_urdf_file",
             [](PathLike path, Real timestep, bool gravity_compensation, const std::string& keyframe,
-               std::optional<std::vector<std::string>> names, bool multi_point_contacts) {
+               std::optional<std::vector<std::string>> names, bool multi_point_contacts,
+               py::object start_q, py::object armature) {
               return std::make_unique<Sim>(ci::sim::Simulation::from_urdf_file(
                   read_path(path, "path"),
                   simulation_options(timestep, gravity_compensation, keyframe, names,
-                                     multi_point_contacts)));
+                                     multi_point_contacts, start_q, armature)));
             },
             py::arg("path"), args...,
             (std::string("Loads a URDF with MuJoCo's importer (no actuators, no floor, no "
@@ -174,11 +190,12 @@ void bind_simulation(py::module_& m) {
             "make_scene",
             [](PathLike path, const std::vector<ci::sim::Box>& boxes, Real timestep,
                bool gravity_compensation, const std::string& keyframe,
-               std::optional<std::vector<std::string>> names, bool multi_point_contacts) {
-              return std::make_unique<Sim>(
-                  ci::sim::make_scene(read_path(path, "robot_mjcf"), boxes,
-                                      simulation_options(timestep, gravity_compensation, keyframe,
-                                                         names, multi_point_contacts)));
+               std::optional<std::vector<std::string>> names, bool multi_point_contacts,
+               py::object start_q, py::object armature) {
+              return std::make_unique<Sim>(ci::sim::make_scene(
+                  read_path(path, "robot_mjcf"), boxes,
+                  simulation_options(timestep, gravity_compensation, keyframe, names,
+                                     multi_point_contacts, start_q, armature)));
             },
             py::arg("robot_mjcf"), py::arg("boxes"), args...,
             (std::string("Loads the MJCF robot file with the boxes (a list of Box) added to its "

@@ -20,15 +20,22 @@ std::string listed(const std::vector<std::string>& names) {
 ClosedLoopRunner::ClosedLoopRunner(Simulation& simulation, ControlLoop& loop)
     : ClosedLoopRunner(simulation, std::vector<ControlLoop*>{&loop}) {}
 
-ClosedLoopRunner::ClosedLoopRunner(Simulation& simulation, const std::vector<ControlLoop*>& loops)
+ClosedLoopRunner::ClosedLoopRunner(Simulation& simulation, const std::vector<ControlLoop*>& loops,
+                                   const std::vector<std::string>& prefixes)
     : simulation_(simulation) {
   if (loops.empty()) throw Error("a closed loop needs at least one control loop");
+  if (!prefixes.empty() && prefixes.size() != loops.size()) {
+    throw Error("a closed loop of " + std::to_string(loops.size()) + " control loops got " +
+                std::to_string(prefixes.size()) + " joint name prefixes; give one per loop");
+  }
   std::vector<std::string> names;
   int offset = 0;
-  for (ControlLoop* loop : loops) {
+  for (std::size_t i = 0; i < loops.size(); ++i) {
+    ControlLoop* loop = loops[i];
     if (loop == nullptr) throw Error("a closed loop's control loop is null");
-    const std::vector<std::string>& joints = loop->model().joint_names();
-    names.insert(names.end(), joints.begin(), joints.end());
+    for (const std::string& joint : loop->model().joint_names()) {
+      names.push_back(prefixes.empty() ? joint : prefixes[i] + joint);
+    }
     const int n = loop->num_joints();
     parts_.push_back({loop, offset, JointVector::Zero(n), JointVector::Zero(n)});
     offset += n;

@@ -1,4 +1,4 @@
-// WIP (branch i12-urdf-sim, issue 12 item 1): one path from a URDF to a simulated robot.
+// One path from a URDF to a simulated robot.
 // MuJoCo 2.2's URDF import merges fixed links into their parents, keeps no armature, and gives
 // no floor, light or sky. So the URDF is imported with fusestatic="false", saved back as MJCF
 // (mj_saveLastXML), and that MJCF is completed: rotor inertia (armature) and damping on every

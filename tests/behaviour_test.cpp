@@ -125,9 +125,10 @@ INSTANTIATE_TEST_SUITE_P(Ur5e, Behaviour, ::testing::Combine(::testing::Values("
                          name);
 INSTANTIATE_TEST_SUITE_P(Planar3, Behaviour,
                          ::testing::Combine(::testing::Values("planar3"), kScenarios), name);
-// The two-arm scene always holds a Panda and an iiwa14.
+// Two arms: the Panda's and the iiwa14's scene (the same for either), or two copies of a robot
+// simulated from its URDF.
 INSTANTIATE_TEST_SUITE_P(Scene, Behaviour,
-                         ::testing::Combine(::testing::Values("panda"),
+                         ::testing::Combine(::testing::Values("panda", "ur5e", "planar3"),
                                             ::testing::Values("two_arms")),
                          name);
 INSTANTIATE_TEST_SUITE_P(Mutants, BrokenController,
@@ -135,7 +136,7 @@ INSTANTIATE_TEST_SUITE_P(Mutants, BrokenController,
                                             kScenarios, kMutations),
                          broken_name);
 INSTANTIATE_TEST_SUITE_P(SceneMutants, BrokenController,
-                         ::testing::Combine(::testing::Values("panda"),
+                         ::testing::Combine(::testing::Values("panda", "planar3"),
                                             ::testing::Values("two_arms"), kMutations),
                          broken_name);
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import cartesian_impedance as ci
-from conftest import PANDA_XML, requires_sim
+from conftest import PANDA_XML, SOURCE_DIR, requires_sim
 
 pytestmark = requires_sim
 
@@ -173,3 +173,26 @@ def test_render_png(tmp_path):
     path = tmp_path / "panda.png"
     panda_sim().render_png(path, 64, 48)
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_start_configuration_and_armature_of_a_urdf_robot():
+    # The UR5e ships as a URDF only; it is singular at q = 0 and starts where it is asked to.
+    urdf = SOURCE_DIR / "models" / "ur5e" / "ur5e.urdf"
+    start = [np.pi, -np.pi / 2, np.pi / 2, -np.pi / 2, -np.pi / 2, 0.0]
+    sim = ci.sim.Simulation.from_urdf_file(urdf, start_q=start, armature=0.25)
+    np.testing.assert_array_equal(sim.q, start)
+    np.testing.assert_array_equal(sim.armature, np.full(6, 0.25))
+    sim.step(100)  # gravity compensated, no torque: the arm stays (joint damping only)
+    sim.reset()
+    np.testing.assert_array_equal(sim.q, start)
+    # Without them: q = 0 and the import's default rotor inertia.
+    plain = ci.sim.Simulation.from_urdf_file(urdf)
+    np.testing.assert_array_equal(plain.q, np.zeros(6))
+    np.testing.assert_array_equal(plain.armature, np.full(6, 0.1))
+
+
+def test_start_configuration_outside_a_joint_range_names_the_joint():
+    with pytest.raises(ci.Error, match=r"start_q\[3\] = 0 for joint 'panda_joint4' is outside"):
+        ci.sim.Simulation.from_mjcf_file(PANDA_XML, start_q=np.zeros(7))
+    with pytest.raises(ValueError, match=r"start_q must have shape"):
+        ci.sim.Simulation.from_mjcf_file(PANDA_XML, start_q=[[0.0]])

@@ -42,10 +42,14 @@ class ClosedLoopRunner final : public runtime::Cycle {
   /// Several loops on one simulation, each driving its own consecutive slice of the simulation's
   /// joints, in the order given: the first loop the first num_joints() joints, and so on (load
   /// the simulation with SimulationOptions::joint_names = the models' joint names one after the
-  /// other). The simulation and the loops must outlive the runner.
-  /// @throws Error if `loops` is empty, holds a null pointer, or the models' joint names one after
-  ///         the other are not simulation.joint_names().
-  ClosedLoopRunner(Simulation& simulation, const std::vector<ControlLoop*>& loops);
+  /// other). With `prefixes` (one per loop), the simulation names loop i's joints
+  /// prefixes[i] + the model's names, as make_robots_scene() does. The simulation and the loops
+  /// must outlive the runner.
+  /// @throws Error if `loops` is empty, holds a null pointer, `prefixes` is neither empty nor one
+  ///         per loop, or the models' joint names one after the other (prefixed) are not
+  ///         simulation.joint_names().
+  ClosedLoopRunner(Simulation& simulation, const std::vector<ControlLoop*>& loops,
+                   const std::vector<std::string>& prefixes = {});
 
   ClosedLoopRunner(const ClosedLoopRunner&) = delete;
   ClosedLoopRunner& operator=(const ClosedLoopRunner&) = delete;

@@ -184,6 +184,24 @@ struct Box {
 Simulation make_scene(const std::string& robot_mjcf, const std::vector<Box>& boxes,
                       SimulationOptions options = {});
 
+/// A robot of make_robots_scene().
+struct SceneRobot {
+  std::string urdf;    ///< URDF file, simulated as Simulation::from_urdf_file() would
+  std::string prefix;  ///< put before each of its names: body "tool0" becomes "left_tool0"
+  /// Its root link, world frame [m]. (Write Eigen::Vector3d::Zero(), not {}: an Eigen vector
+  /// made from {} is left uninitialised.)
+  Eigen::Vector3d base_position = Eigen::Vector3d::Zero();
+};
+
+/// Several URDF robots in one world (two copies of one arm side by side, or different arms), each
+/// completed as Simulation::from_urdf_file() completes one, with the first one's floor, lights
+/// and sky. Every body, joint, geom, site and mesh of a robot is named with its prefix, so
+/// options.joint_names lists prefixed names ("left_shoulder_pan_joint"); left empty, the joints
+/// are the robots' in the given order. The robots do not collide with each other.
+/// @throw Error as Simulation::from_urdf_file() for a robot's file, for no robots, a prefix used
+///        twice or not fit for XML, or a non-finite base position (each naming robots[i]).
+Simulation make_robots_scene(const std::vector<SceneRobot>& robots, SimulationOptions options = {});
+
 /// Whether offscreen rendering can work in this process (an EGL display and an OpenGL context
 /// can be created). If not and `reason` is given, it receives why.
 bool offscreen_rendering_available(std::string* reason = nullptr);
