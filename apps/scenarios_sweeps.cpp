@@ -42,6 +42,8 @@ Outcome trajectory(const RobotSetup& robot, const MomentCallback& moment) {
     trajectory.times.push_back(3.0 * s);
     trajectory.positions.emplace_back(q.data(), q.data() + q.size());
   }
+  rig.remember_pose("at the start");
+  rig.phase("joint trajectory of 3 s");
   rig.loop().execute_trajectory(trajectory);
   const double tolerance = parameters.trajectory.goal_tolerance;
   double error_when_finished = -1.0, finish_time = -1.0, worst_tracking = 0.0;
@@ -56,7 +58,10 @@ Outcome trajectory(const RobotSetup& robot, const MomentCallback& moment) {
       finish_time = state.trajectory.time;
     }
   }
-  notify(moment, "trajectory finished", rig);
+  notify(moment, "trajectory finished", rig,
+         {format("every joint moved 0.2-0.5 rad in 3 s; reported finished %.2f s after its start, "
+                 "the largest joint error then %.4f rad",
+                 finish_time, error_when_finished)});
   return {{at_least("trajectory", "reported finished (1 = yes)", 1.0,
                     error_when_finished >= 0.0 ? 1.0 : 0.0, ""),
            at_most("trajectory", "largest joint error when reported finished", tolerance,
@@ -77,6 +82,10 @@ Outcome stability_grid(const RobotSetup& robot, const MomentCallback&) {
   const double rotations[] = {10, 30, 100, 300};
   int stable = 0, total = 0;
   std::ostringstream failures;
+  Table grid{"grid",
+             {"translation_stiffness", "rotation_stiffness", "converged", "error_mm", "error_rad",
+              "energy_ratio", "torque_limited"},
+             {}};
   for (double kt : translations) {
     for (double kr : rotations) {
       Parameters parameters = base_parameters(robot);
@@ -131,6 +140,8 @@ Outcome stability_grid(const RobotSetup& robot, const MomentCallback&) {
       const FrictionBand band = friction_band(rig);
       const bool ok = error <= 2.0 + 1e3 * band.force / kt && angle <= 0.01 + band.torque / kr &&
                       (saturated || peak <= 1.05 * initial);
+      grid.rows.push_back(
+          {kt, kr, ok ? 1.0 : 0.0, error, angle, peak / initial, saturated ? 1.0 : 0.0});
       ++total;
       if (ok) {
         ++stable;
@@ -147,6 +158,7 @@ Outcome stability_grid(const RobotSetup& robot, const MomentCallback&) {
   outcome.overrides.push_back(
       "stiffness: each of the grid's 16 combinations; filter.pose.time = 0 (a true step); "
       "limits.pose_error = 1 m, 1 rad (unclipped)");
+  outcome.tables.push_back(grid);
   return outcome;
 }
 
@@ -223,6 +235,10 @@ struct TwoArmRun {
   Pose left_pushed, right_pushed;  // 3 s into the push (or the same time without it)
   Pose left_rest, right_rest;      // 3 s after the release
   Pose left_end, right_end;        // 3 s after the right arm's reference step (if any)
+  Table motion{"motion",
+               {"time", "phase", "left_dx_mm", "left_dy_mm", "left_dz_mm", "right_dx_mm",
+                "right_dy_mm", "right_dz_mm"},
+               {}};  // every 10 ms; phase 0 before the push, 1 pushed, 2 released, 3 right step
 };
 
 TwoArmRun run_two_arms(bool push_left, bool step_right, Mutation mutation,
@@ -252,21 +268,62 @@ TwoArmRun run_two_arms(bool push_left, bool step_right, Mutation mutation,
   runner.run_for(0.5);
   result.left_start = sim.site_pose(left.flange);
   result.right_start = sim.site_pose(right.flange);
+  const JointVector q_start = sim.q();
+  double phase = 0.0;
+  const auto record = [&](std::int64_t step) {
+    if (step % 10 != 0) return;  // every 10 ms
+    const Eigen::Vector3d l =
+        1e3 * (sim.site_pose(left.flange).position - result.left_start.position);
+    const Eigen::Vector3d r =
+        1e3 * (sim.site_pose(right.flange).position - result.right_start.position);
+    result.motion.rows.push_back({sim.time(), phase, l.x(), l.y(), l.z(), r.x(), r.y(), r.z()});
+  };
   if (push_left) sim.push(left.flange, six(0, 20, 0, 0, 0, 0), kForever);
-  runner.run_for(3.0);
-  if (moment) moment("left arm pushed, right arm holding", sim);
+  phase = 1.0;
+  runner.run_for(3.0, record);
+  if (moment) {
+    // From in front of the two arms, so that neither hides the other.
+    sim::RenderOverlay overlay;
+    overlay.caption =
+        "left arm pushed, right arm holding\n" +
+        format(
+            "t = %.2f s: 20 N along +y on the Panda's flange (red arrow) moved it %.1f mm "
+            "(theory 20 N / 500 N/m = 40 mm)",
+            sim.time(),
+            1e3 * (sim.site_pose(left.flange).position - result.left_start.position).y()) +
+        "\nthe iiwa14 beside it has its own controller and does not move\n"
+        "RGB axes: each arm's reference pose; blue ghost: both arms before the push";
+    overlay.arrows.push_back({sim.site_pose(left.flange).position, Eigen::Vector3d(0, 20, 0), 0.015,
+                              Eigen::Vector4f(0.9f, 0.15f, 0.1f, 1.0f), "20 N"});
+    const Pose left_base = sim.body_pose(left.base_link),
+               right_base = sim.body_pose(right.base_link);
+    for (const auto& [loop, base] :
+         {std::make_pair(&left_loop, left_base), std::make_pair(&right_loop, right_base)}) {
+      const Pose reference = loop->state().controller.filtered.pose;
+      overlay.frames.push_back({{base.position + base.orientation * reference.position,
+                                 base.orientation * reference.orientation},
+                                0.1,
+                                1.0f,
+                                ""});
+    }
+    overlay.ghost_q = q_start;
+    overlay.azimuth = 150.0;
+    moment("left arm pushed, right arm holding", sim, overlay);
+  }
   result.left_pushed = sim.site_pose(left.flange);
   result.right_pushed = sim.site_pose(right.flange);
   sim.clear_pushes();
-  runner.run_for(3.0);
+  phase = 2.0;
+  runner.run_for(3.0, record);
   result.left_rest = sim.site_pose(left.flange);
   result.right_rest = sim.site_pose(right.flange);
   if (step_right) {
     Pose right_target = right_loop.state().controller.pose;
     right_target.position.z() -= 0.05;
     right_loop.set_reference_pose(right_target);
+    phase = 3.0;
   }
-  runner.run_for(3.0);
+  runner.run_for(3.0, record);
   result.left_end = sim.site_pose(left.flange);
   result.right_end = sim.site_pose(right.flange);
   return result;
@@ -295,7 +352,9 @@ Outcome two_arms(const RobotSetup& robot, const MomentCallback& moment) {
            compare("two arms", "right arm reference step down", -50.0, 1e3 * right_step, "mm", 2.0),
            at_most("two arms", "left arm: difference to a run without the step", 1e-3,
                    1e3 * left_difference, "mm")},
-          {}};
+          {},
+          {},
+          {both.motion}};
 }
 
 }  // namespace cartesian_impedance::scenarios::detail
