@@ -191,8 +191,8 @@ void Rig::moment(const MomentCallback& moment, const std::string& label,
   std::string caption = label + "\n" + line;
   if (!push_force_.isZero()) {
     caption += "\npushed with " + describe_vector(push_force_, "N", "along") +
-               " at the flange (red arrow)";
-    overlay.arrows.push_back({tip, push_force_, kScale, Eigen::Vector4f(0.9f, 0.15f, 0.1f, 1.0f),
+               " at the flange (orange arrow)";
+    overlay.arrows.push_back({tip, push_force_, kScale, Eigen::Vector4f(1.0f, 0.5f, 0.0f, 1.0f),
                               describe_vector(push_force_, "N", "along")});
   }
   if (!push_torque_.isZero()) {

@@ -36,7 +36,7 @@ Outcome hold(const RobotSetup& robot, const MomentCallback& moment) {
   const Parameters& parameters = rig.loop().controller().parameters();
   const double stiffness = parameters.stiffness.translation.z();
   notify(moment, "holding a 1 kg payload", rig,
-         {format("the payload's weight (red arrow) sags the flange %.1f mm (theory m g / K = "
+         {format("the payload's weight (orange arrow) sags the flange %.1f mm (theory m g / K = "
                  "9.81 N / %.0f N/m = %.1f mm)",
                  1e3 * (reference.position - end.position).z(), stiffness,
                  1e3 * 9.81 * payload / stiffness)});
@@ -314,7 +314,7 @@ Outcome nullspace(const RobotSetup& robot, const MomentCallback& moment) {
   if (self_motion[0] < 0.0) self_motion = -self_motion;
   const JointVector target = q_start + 0.3 * self_motion / self_motion.cwiseAbs().maxCoeff();
   rig.remember_pose("before the nullspace target moved");
-  rig.view(180.0, -30.0);  // from the front: the elbow swings sideways, across the picture
+  rig.view(210.0, -35.0);  // from the front, above: the elbow swings sideways, across the picture
   rig.phase("nullspace target moved");
   rig.loop().set_nullspace_target(target);
   double worst = 0.0;

@@ -287,14 +287,14 @@ TwoArmRun run_two_arms(bool push_left, bool step_right, Mutation mutation,
     overlay.caption =
         "left arm pushed, right arm holding\n" +
         format(
-            "t = %.2f s: 20 N along +y on the Panda's flange (red arrow) moved it %.1f mm "
+            "t = %.2f s: 20 N along +y on the Panda's flange (orange arrow) moved it %.1f mm "
             "(theory 20 N / 500 N/m = 40 mm)",
             sim.time(),
             1e3 * (sim.site_pose(left.flange).position - result.left_start.position).y()) +
         "\nthe iiwa14 beside it has its own controller and does not move\n"
         "RGB axes: each arm's reference pose; blue ghost: both arms before the push";
     overlay.arrows.push_back({sim.site_pose(left.flange).position, Eigen::Vector3d(0, 20, 0), 0.015,
-                              Eigen::Vector4f(0.9f, 0.15f, 0.1f, 1.0f), "20 N"});
+                              Eigen::Vector4f(1.0f, 0.5f, 0.0f, 1.0f), "20 N"});
     const Pose left_base = sim.body_pose(left.base_link),
                right_base = sim.body_pose(right.base_link);
     for (const auto& [loop, base] :
