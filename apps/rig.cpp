@@ -118,7 +118,7 @@ namespace {
 std::string describe_vector(const Eigen::Vector3d& v, const char* unit, const char* preposition) {
   char text[96];
   for (int axis = 0; axis < 3; ++axis) {
-    if (std::abs(v[axis]) > 0.999 * v.norm()) {
+    if (std::abs(v[axis]) > 0.99 * v.norm()) {
       std::snprintf(text, sizeof(text), "%.3g %s %s %c%c", v.norm(), unit, preposition,
                     v[axis] > 0.0 ? '+' : '-', "xyz"[axis]);
       return text;
@@ -231,7 +231,7 @@ void Rig::moment(const MomentCallback& moment, const std::string& label,
   }
   if (ghost_q_.size() == sim_.num_joints()) {
     overlay.ghost_q = ghost_q_;
-    legend += "; blue ghost: the arm " + ghost_what_;
+    legend += "; green ghost: the arm " + ghost_what_;
   }
   overlay.caption = caption + "\n" + legend;
   overlay.azimuth = view_azimuth_;

@@ -292,7 +292,7 @@ TwoArmRun run_two_arms(bool push_left, bool step_right, Mutation mutation,
             sim.time(),
             1e3 * (sim.site_pose(left.flange).position - result.left_start.position).y()) +
         "\nthe iiwa14 beside it has its own controller and does not move\n"
-        "RGB axes: each arm's reference pose; blue ghost: both arms before the push";
+        "RGB axes: each arm's reference pose; green ghost: both arms before the push";
     overlay.arrows.push_back({sim.site_pose(left.flange).position, Eigen::Vector3d(0, 20, 0), 0.015,
                               Eigen::Vector4f(1.0f, 0.5f, 0.0f, 1.0f), "20 N"});
     const Pose left_base = sim.body_pose(left.base_link),

@@ -419,14 +419,14 @@ void Renderer::render_png(mjModel* model, mjData* data, const std::string& path,
   mjv_updateScene(model, data, &s.option, nullptr, &view, mjCAT_ALL, &s.scene);
 
   if (ghost != nullptr) {
-    // The moving parts at the ghost's joint positions, pale blue and translucent.
+    // The moving parts at the ghost's joint positions, translucent green: a colour of no robot
+    // (the shipped ones are white, orange and, imported from a URDF, blue).
     const int first = s.scene.ngeom;
     mjv_addGeoms(model, ghost, &s.option, nullptr, mjCAT_DYNAMIC, &s.scene);
     for (int i = first; i < s.scene.ngeom; ++i) {
       mjvGeom& geom = s.scene.geoms[i];
-      const float tint[3] = {0.35f, 0.6f, 1.0f};
-      for (int k = 0; k < 3; ++k) geom.rgba[k] = 0.4f * geom.rgba[k] + 0.6f * tint[k];
-      geom.rgba[3] = 0.3f;
+      const float tint[4] = {0.2f, 0.9f, 0.45f, 0.35f};
+      std::copy(tint, tint + 4, geom.rgba);
       geom.transparent = 1;
       geom.texid = -1;
       geom.segid = -1;

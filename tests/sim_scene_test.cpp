@@ -506,8 +506,17 @@ TEST(Rendering, GhostAndFrameShowAnotherPose) {
   overlay.ghost_q[0] += 1.2;
   const PngInfo turned = render(s, overlay);
   EXPECT_GT(differing_pixels(same, turned, 0, 0, 320, 240), 1500);
-  // The ghost is translucent and tinted blue: where it covers the floor or the sky, the picture
-  // turns bluer, not white like the arm.
+  // The ghost is translucent green, a colour the scene has nowhere else.
+  const auto greenish = [](const PngInfo& info) {
+    int count = 0;
+    for (std::size_t i = 0; i + 2 < info.rgb.size(); i += 3) {
+      const int r = info.rgb[i], g = info.rgb[i + 1], b = info.rgb[i + 2];
+      count += g > r + 30 && g > b + 15;
+    }
+    return count;
+  };
+  EXPECT_LT(greenish(render(s, {})), 50);
+  EXPECT_GT(greenish(same), 1000);
   EXPECT_ERROR(
       [&] {
         s.render_png("/tmp/x.png", 10, 10, sim::RenderOverlay{{}, {}, {}, JointVector::Zero(3)});
