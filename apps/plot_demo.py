@@ -149,7 +149,8 @@ def plot_targets(name, log, out):
     joints = sorted((int(k[len("nullspace_q_"):]) for k in log if k.startswith("nullspace_q_")))
     if any(changes(log[f"commanded_nullspace_q_{j}"], 1e-6) for j in joints):
         panels.append("nullspace")
-    figure, axes_list = plt.subplots(len(panels), 1, figsize=(width_for(log), 2.6 * len(panels)),
+    figure, axes_list = plt.subplots(len(panels), 1,
+                                     figsize=(width_for(log) + 2, 2.6 * len(panels)),
                                      sharex=True, squeeze=False)
     axes_list = [a[0] for a in axes_list]
     for axes, panel in zip(axes_list, panels):
@@ -198,8 +199,8 @@ def plot_targets(name, log, out):
             axes.legend(fontsize="xx-small", ncol=2, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     axes_list[-1].set_xlabel("time [s]")
     shade_phases(axes_list, log, axes_list[0])
-    axes_list[0].set_title(f"{name}: commanded targets (dashed), as filtered for the law (solid), "
-                           "and the flange (dotted)")
+    axes_list[0].set_title(f"{name}: targets as commanded (dashed) and filtered (solid); "
+                           "flange (dotted)", fontsize=10)
     save(figure, out / f"{name}_targets.png")
 
 
