@@ -130,7 +130,7 @@ def plot_torques(name, log, out):
     axes.set_xlabel("time [s]")
     axes.set_ylabel("commanded torque [Nm]")
     axes.legend(fontsize="small", ncol=4, loc="lower right")
-    axes.set_title(f"{name}: commanded joint torques (without the firmware's gravity torque)")
+    axes.set_title(f"{name}: commanded joint torques")
     save(figure, out / f"{name}_torques.png")
 
 
