@@ -17,11 +17,14 @@
 #include "cartesian_impedance/error.hpp"
 #include "cartesian_impedance/parameters.hpp"
 #include "cartesian_impedance/robot_model.hpp"
+#include "demo_output.hpp"
 #include "scenarios.hpp"
 
 namespace ci = cartesian_impedance;
 namespace scenarios = cartesian_impedance::scenarios;
 namespace fs = std::filesystem;
+using ci::demo::expectation;
+using ci::demo::measurement;
 
 namespace {
 
@@ -207,57 +210,6 @@ Options parse(int argc, char** argv) {
   return options;
 }
 
-void write_samples(const fs::path& path, const std::vector<scenarios::Sample>& samples) {
-  std::ofstream csv(path);
-  csv << "time,x,y,z,reference_x,reference_y,reference_z,commanded_x,commanded_y,commanded_z,"
-         "error_x,error_y,error_z,error_rx,error_ry,error_rz,stiffness_x,commanded_stiffness_x,"
-         "push_x,push_y,push_z,contact_x,contact_y,contact_z,wrench_x,wrench_y,wrench_z,"
-         "max_torque_rate";
-  const int joints = samples.empty() ? 0 : static_cast<int>(samples.front().tau.size());
-  for (int i = 0; i < joints; ++i) csv << ",tau_" << i + 1;
-  csv << "\n";
-  for (const scenarios::Sample& s : samples) {
-    csv << s.time;
-    for (const Eigen::Vector3d* v : {&s.position, &s.reference, &s.commanded}) {
-      csv << "," << v->x() << "," << v->y() << "," << v->z();
-    }
-    for (int i = 0; i < 6; ++i) csv << "," << s.pose_error[i];
-    csv << "," << s.stiffness_x << "," << s.commanded_stiffness_x;
-    for (const Eigen::Vector3d* v : {&s.push, &s.contact, &s.wrench}) {
-      csv << "," << v->x() << "," << v->y() << "," << v->z();
-    }
-    csv << "," << s.max_torque_rate;
-    for (int i = 0; i < s.tau.size(); ++i) csv << "," << s.tau[i];
-    csv << "\n";
-  }
-}
-
-std::string expectation(const scenarios::Result& r) {
-  char text[96];
-  if (r.bound) {
-    std::snprintf(text, sizeof(text), "<= %.4g %s", r.expected, r.unit.c_str());
-  } else if (r.tolerance > 0.0) {
-    std::snprintf(text, sizeof(text), "%.4g +- %.2g %s", r.expected, r.tolerance, r.unit.c_str());
-  } else if (r.note.rfind("at least", 0) == 0) {
-    std::snprintf(text, sizeof(text), ">= %.4g %s", r.expected, r.unit.c_str());
-  } else {
-    std::snprintf(text, sizeof(text), "%.4g %s", r.expected, r.unit.c_str());
-  }
-  return text;
-}
-
-std::string measurement(const scenarios::Result& r) {
-  char text[64];
-  std::snprintf(text, sizeof(text), "%.4g %s", r.measured, r.unit.c_str());
-  return text;
-}
-
-std::string csv_field(const std::string& text) {
-  std::string quoted = "\"";
-  for (char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
-  return quoted + "\"";
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -282,10 +234,12 @@ int main(int argc, char** argv) {
     const auto begin = std::chrono::steady_clock::now();
     scenarios::MomentCallback moment;
     if (render) {
-      moment = [&](const std::string& label, const ci::sim::Simulation& sim) {
-        std::string file = name + "_" + label + ".png";
-        for (char& c : file) c = c == ' ' || c == ',' ? '_' : c;
-        sim.render_png((options.out / file).string(), 800, 600);
+      moment = [&](const std::string& label, const ci::sim::Simulation& sim,
+                   const ci::sim::RenderOverlay& overlay) {
+        ci::sim::RenderOverlay captioned = overlay;
+        captioned.caption = name + ": " + overlay.caption;
+        sim.render_png((options.out / ci::demo::picture_file_name(name, label)).string(), 1024, 768,
+                       captioned);
       };
     }
     scenarios::Outcome outcome;
@@ -316,20 +270,15 @@ int main(int argc, char** argv) {
       }
       all.push_back(result);
     }
-    if (!outcome.samples.empty()) write_samples(options.out / (name + ".csv"), outcome.samples);
+    if (!outcome.samples.empty()) {
+      ci::demo::write_samples(options.out / (name + ".csv"), outcome.samples);
+    }
+    for (const scenarios::Table& table : outcome.tables) {
+      ci::demo::write_table(options.out / (name + "_" + table.name + ".csv"), table);
+    }
   }
 
-  std::ofstream summary(options.out / "summary.csv");
-  summary << "scenario,quantity,theory,measured,unit,tolerance,passed\n";  // passed: yes, no, n/a
-  for (const scenarios::Result& r : all) {
-    summary << csv_field(r.scenario) << "," << csv_field(r.quantity) << "," << r.expected << ","
-            << r.measured << "," << csv_field(r.unit) << "," << r.tolerance << ","
-            << (!r.applicable ? "n/a"
-                : r.passed    ? "yes"
-                              : "no")
-            << "\n";
-  }
-  summary.close();
+  ci::demo::write_summary(options.out / "summary.csv", all);
 
   std::printf("\n%-18s %-62s %-22s %-16s %s\n", "scenario", "what", "theory", "measured", "");
   for (const scenarios::Result& r : all) {

@@ -1,6 +1,8 @@
 #!/usr/bin/env python3
-"""Plots of the demo's CSV logs: pose error, torques, filtered vs commanded targets, contact
-force, and displacement against force for the compliance sweep. Usage: plot_demo.py OUTPUT_DIR
+"""Plots of the demo's CSV logs: pose error, torques, filtered vs commanded targets (every
+quantity the scenario commands), contact force, displacement against force for the compliance
+sweep, the stability grid's map and both arms of the two-arm scene. Each time plot shades the
+scenario's phases and names them. Usage: plot_demo.py OUTPUT_DIR
 """
 import csv
 import math
@@ -13,11 +15,19 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+AXES = ("x", "y", "z")
+COLOURS = ("tab:red", "tab:green", "tab:blue")
+PHASE_COLOURS = ("#fdf3d8", "#dcecf8", "#e3f4df", "#f6e1ee", "#ece6f7", "#f9e4d6")
+
 
 def read(path):
+    """Columns by name: numbers as floats, the phase column as text."""
     with open(path, newline="") as handle:
         rows = list(csv.DictReader(handle))
-    return {key: [float(row[key]) for row in rows] for key in rows[0]} if rows else {}
+    if not rows:
+        return {}
+    return {key: [row[key] if key == "phase" else float(row[key]) for row in rows]
+            for key in rows[0]}
 
 
 def save(figure, path):
@@ -26,52 +36,208 @@ def save(figure, path):
     plt.close(figure)
 
 
-def plot_log(name, log, out):
+def floor_range(axes, values, floor, centre=None):
+    """At least `floor` of y range: a quantity that varies by less (e.g. 1e-19 m of round-off on a
+    held position) is drawn as the flat line it is, not stretched into a trend."""
+    values = [v for v in values if math.isfinite(v)]
+    if not values:
+        return
+    low, high = min(values), max(values)
+    if high - low >= floor:
+        return
+    middle = 0.5 * (low + high) if centre is None else centre
+    if centre is not None:  # e.g. errors from 0: keep 0 at the bottom
+        axes.set_ylim(min(low, centre) - 0.05 * floor, max(high, centre + floor))
+    else:
+        axes.set_ylim(middle - 0.5 * floor, middle + 0.5 * floor)
+
+
+def phases(log):
+    """(start, end, label) of each run of equal phase labels."""
+    spans = []
+    t, labels = log["time"], log.get("phase", [])
+    for i, label in enumerate(labels):
+        if i == 0 or label != labels[i - 1]:
+            spans.append([t[i], t[i], label])
+        spans[-1][1] = t[i]
+    return spans
+
+
+def shade_phases(axes_list, log, label_axes=None):
+    """Shades each phase in every axes; names them in `label_axes` (the top one), rotated when
+    there are many."""
+    spans = [s for s in phases(log) if s[2]]
+    if not spans:
+        return
+    names = sorted({s[2] for s in spans})
+    colour = {name: PHASE_COLOURS[i % len(PHASE_COLOURS)] for i, name in enumerate(names)}
+    for axes in axes_list:
+        for start, end, name in spans:
+            axes.axvspan(start, end, color=colour[name], zorder=0, linewidth=0)
+    if label_axes is None:
+        return
+    duration = log["time"][-1] - log["time"][0] or 1.0
+    many = len(spans) > 6
+    transform = label_axes.get_xaxis_transform()
+    for start, end, name in spans:
+        if (end - start) / duration < (0.01 if many else 0.04):
+            continue
+        label_axes.text(start + 0.5 * (end - start), 0.98, name, transform=transform,
+                        rotation=90 if many else 0, ha="center", va="top",
+                        fontsize=6 if many else 7, color="0.2", clip_on=True,
+                        bbox={"facecolor": "white", "alpha": 0.6, "linewidth": 0, "pad": 1})
+
+
+def norm3(log, prefix, suffixes=AXES, scale=1.0):
+    return [scale * math.sqrt(sum(v * v for v in values))
+            for values in zip(*(log[prefix + s] for s in suffixes))]
+
+
+def changes(values, tolerance):
+    return bool(values) and max(values) - min(values) > tolerance
+
+
+def width_for(log):
+    """Long runs (the compliance tour is 110 s) get a wider figure."""
+    return 8 if log["time"][-1] - log["time"][0] < 30 else 14
+
+
+def plot_pose_error(name, log, out):
     t = log["time"]
-    figure, (top, bottom) = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
-    top.plot(t, [1e3 * math.sqrt(x * x + y * y + z * z)
-                 for x, y, z in zip(log["error_x"], log["error_y"], log["error_z"])])
+    figure, (top, bottom) = plt.subplots(2, 1, figsize=(width_for(log), 5), sharex=True)
+    translation = norm3(log, "error_", scale=1e3)
+    rotation = norm3(log, "error_", ("rx", "ry", "rz"))
+    top.plot(t, translation, color="k", linewidth=1)
     top.set_ylabel("translation error [mm]")
-    bottom.plot(t, [math.sqrt(x * x + y * y + z * z)
-                    for x, y, z in zip(log["error_rx"], log["error_ry"], log["error_rz"])])
+    floor_range(top, translation, 0.5, centre=0.0)
+    bottom.plot(t, rotation, color="k", linewidth=1)
     bottom.set_ylabel("rotation error [rad]")
+    floor_range(bottom, rotation, 0.005, centre=0.0)
     bottom.set_xlabel("time [s]")
-    top.set_title(f"{name}: pose error |e| (after clipping)")
+    shade_phases((top, bottom), log, top)
+    top.set_title(f"{name}: pose error |e| (after clipping); shaded: what the scenario does")
     save(figure, out / f"{name}_pose_error.png")
 
-    figure, axes = plt.subplots(figsize=(8, 4))
-    for key in sorted((k for k in log if k.startswith("tau_")), key=lambda k: int(k[4:])):
-        axes.plot(t, log[key], label=key.replace("tau_", "joint "))
+
+def plot_torques(name, log, out):
+    t = log["time"]
+    figure, axes = plt.subplots(figsize=(width_for(log), 4))
+    keys = sorted((k for k in log if k.startswith("tau_")), key=lambda k: int(k[4:]))
+    for key in keys:
+        axes.plot(t, log[key], label=key.replace("tau_", "joint "), linewidth=1)
+    floor_range(axes, [v for key in keys for v in log[key]], 0.5)
+    shade_phases((axes,), log, axes)
     axes.set_xlabel("time [s]")
     axes.set_ylabel("commanded torque [Nm]")
-    axes.legend(fontsize="small", ncol=4)
+    axes.legend(fontsize="small", ncol=4, loc="lower right")
     axes.set_title(f"{name}: commanded joint torques")
     save(figure, out / f"{name}_torques.png")
 
-    figure, (top, bottom) = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
-    for axis, colour in zip("xyz", ("tab:red", "tab:green", "tab:blue")):
-        top.plot(t, log[f"commanded_{axis}"], "--", color=colour, label=f"commanded {axis}")
-        top.plot(t, log[f"reference_{axis}"], color=colour, label=f"filtered {axis}")
-        top.plot(t, log[axis], ":", color=colour, label=f"flange {axis}")
-    top.set_ylabel("position [m]")
-    top.legend(fontsize="x-small", ncol=3)
-    bottom.plot(t, log["commanded_stiffness_x"], "--", label="commanded")
-    bottom.plot(t, log["stiffness_x"], label="filtered")
-    bottom.set_ylabel("stiffness x [N/m]")
-    bottom.set_xlabel("time [s]")
-    bottom.legend(fontsize="small")
-    top.set_title(f"{name}: filtered vs commanded targets")
+
+def plot_targets(name, log, out):
+    """Every commanded quantity the scenario changes, filtered (solid) and commanded (dashed)."""
+    t = log["time"]
+    panels = []
+    panels.append("position")
+    for panel, suffixes in (("translation stiffness", AXES),
+                            ("rotation stiffness", ("rx", "ry", "rz"))):
+        if any(changes(log[f"commanded_stiffness_{a}"], 1e-6) or
+               changes(log[f"stiffness_{a}"], 1e-6) for a in suffixes):
+            panels.append(panel)
+    if any(changes(log[f"commanded_wrench_{a}"], 1e-6) for a in AXES):
+        panels.append("wrench")
+    joints = sorted((int(k[len("nullspace_q_"):]) for k in log if k.startswith("nullspace_q_")))
+    if any(changes(log[f"commanded_nullspace_q_{j}"], 1e-6) for j in joints):
+        panels.append("nullspace")
+    figure, axes_list = plt.subplots(len(panels), 1,
+                                     figsize=(width_for(log) + 2, 2.6 * len(panels)),
+                                     sharex=True, squeeze=False)
+    axes_list = [a[0] for a in axes_list]
+    for axes, panel in zip(axes_list, panels):
+        if panel == "position":
+            # From where the reference started, in mm: a 19 mm sag or a 40 mm push is plain to
+            # see, which it is not on a scale from 0 to the arm's 0.6 m reach.
+            values = []
+            for axis, colour in zip(AXES, COLOURS):
+                start = log[f"commanded_{axis}"][0]
+                for key, style, what in ((f"commanded_{axis}", "--", "commanded"),
+                                         (f"reference_{axis}", "-", "filtered"),
+                                         (axis, ":", "flange")):
+                    shifted = [1e3 * (v - start) for v in log[key]]
+                    axes.plot(t, shifted, style, color=colour, label=f"{what} {axis}")
+                    values += shifted
+            floor_range(axes, values, 1.0)
+            axes.set_ylabel("position from the\nfirst reference [mm]")
+            axes.legend(fontsize="x-small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
+        elif panel.endswith("stiffness"):
+            rotation = panel.startswith("rotation")
+            suffixes = ("rx", "ry", "rz") if rotation else AXES
+            for suffix, colour in zip(suffixes, COLOURS):
+                axes.plot(t, log[f"commanded_stiffness_{suffix}"], "--", color=colour,
+                          label=f"commanded {suffix}")
+                axes.plot(t, log[f"stiffness_{suffix}"], color=colour, label=f"filtered {suffix}",
+                          linewidth=1)
+            axes.set_ylabel("K rotation [Nm/rad]" if rotation else "K translation [N/m]")
+            floor_range(axes, [v for s in suffixes for v in log[f"stiffness_{s}"]],
+                        10.0 if rotation else 100.0)
+            axes.legend(fontsize="x-small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
+        elif panel == "wrench":
+            for axis, colour in zip(AXES, COLOURS):
+                axes.plot(t, log[f"commanded_wrench_{axis}"], "--", color=colour,
+                          label=f"commanded {axis}")
+                axes.plot(t, log[f"wrench_{axis}"], color=colour, label=f"filtered {axis}",
+                          linewidth=1)
+            axes.set_ylabel("commanded force [N]")
+            axes.legend(fontsize="x-small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
+        else:
+            for j in joints:
+                line = axes.plot(t, log[f"commanded_nullspace_q_{j}"], "--", linewidth=1,
+                                 label=f"target {j}")
+                axes.plot(t, log[f"q_{j}"], color=line[0].get_color(), linewidth=1,
+                          label=f"q {j}")
+            axes.set_ylabel("nullspace target\n(dashed) and q [rad]")
+            axes.legend(fontsize="xx-small", ncol=2, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    axes_list[-1].set_xlabel("time [s]")
+    shade_phases(axes_list, log, axes_list[0])
+    axes_list[0].set_title(f"{name}: targets as commanded (dashed) and filtered (solid); "
+                           "flange (dotted)", fontsize=10)
     save(figure, out / f"{name}_targets.png")
 
-    if any(abs(value) > 1e-9 for value in log["contact_z"]):
-        figure, axes = plt.subplots(figsize=(8, 3.5))
-        axes.plot(t, log["contact_z"], label="contact force z (measured)")
-        axes.plot(t, [-value for value in log["wrench_z"]], "--", label="commanded force (down)")
-        axes.set_xlabel("time [s]")
-        axes.set_ylabel("[N]")
-        axes.legend()
-        axes.set_title(f"{name}: force on the table")
-        save(figure, out / f"{name}_force.png")
+
+def plot_force(name, log, out):
+    if not any(abs(value) > 1e-9 for value in log["contact_z"]):
+        return
+    t = log["time"]
+    figure, axes = plt.subplots(figsize=(8, 3.8))
+    contact = log["contact_z"]
+    axes.plot(t, contact, label="contact force on the tip, z (measured)", linewidth=1)
+    axes.plot(t, [-value for value in log["wrench_z"]], "--", label="commanded force (down)")
+    axes.set_xlabel("time [s]")
+    axes.set_ylabel("contact force [N]")
+    peak = max(range(len(contact)), key=lambda i: contact[i])
+    settled = contact[-1]
+    if contact[peak] > 1.5 * max(abs(settled), 1.0):
+        # The tip starts 3 cm above the table with no vertical spring: the commanded force
+        # accelerates it, and it lands with momentum that the table stops in a few milliseconds.
+        axes.annotate(f"peak {contact[peak]:.0f} N at t = {t[peak]:.2f} s (sampled every 10 ms):\n"
+                      "the tip lands on the "
+                      "table (impact),\nthen the force settles to the commanded one",
+                      xy=(t[peak], contact[peak]), xytext=(0.35, 0.6),
+                      textcoords="axes fraction", fontsize=8,
+                      arrowprops={"arrowstyle": "->", "color": "0.3"})
+        # The impact would flatten the rest: show the settled force with room around it.
+        axes.set_ylim(-2, max(3 * settled, settled + 10, contact[peak] * 1.05))
+    shade_phases((axes,), log)
+    axes.legend(fontsize="small", loc="lower right")
+    axes.set_title(f"{name}: force between the tip and the table")
+    save(figure, out / f"{name}_force.png")
+
+
+def plot_log(name, log, out):
+    plot_pose_error(name, log, out)
+    plot_torques(name, log, out)
+    plot_targets(name, log, out)
+    plot_force(name, log, out)
 
 
 def plot_sweep(out):
@@ -93,14 +259,75 @@ def plot_sweep(out):
     save(figure, out / "compliance_displacement_vs_force.png")
 
 
+def plot_grid(path, out):
+    """The stability grid as a map: one cell per stiffness pair, green if it converged with its
+    energy (less the work of the torque limits) never above what the step put in, red if not; the
+    text gives the numbers."""
+    grid = read(path)
+    if not grid:
+        return
+    translations = sorted(set(grid["translation_stiffness"]))
+    rotations = sorted(set(grid["rotation_stiffness"]))
+    figure, axes = plt.subplots(figsize=(7.5, 6))
+    for i in range(len(grid["converged"])):
+        column = translations.index(grid["translation_stiffness"][i])
+        row = rotations.index(grid["rotation_stiffness"][i])
+        ok = grid["converged"][i] > 0.5
+        axes.add_patch(plt.Rectangle((column - 0.5, row - 0.5), 1, 1, edgecolor="white",
+                                     linewidth=3, facecolor="#b9e4b0" if ok else "#f4b6b0"))
+        text = (f"{'stable' if ok else 'NOT stable'}\nerror {grid['error_mm'][i]:.2f} mm\n"
+                f"energy x{grid['energy_ratio'][i]:.3f}")
+        if grid["torque_limited"][i] > 0.5:
+            text += "\n(torque or rate limited:\ntheir work counted)"
+        axes.text(column, row, text, ha="center", va="center", fontsize=8)
+    axes.set_xlim(-0.5, len(translations) - 0.5)
+    axes.set_ylim(-0.5, len(rotations) - 0.5)
+    axes.set_xticks(range(len(translations)), [f"{k:g}" for k in translations])
+    axes.set_yticks(range(len(rotations)), [f"{k:g}" for k in rotations])
+    axes.set_xlabel("translational stiffness [N/m]")
+    axes.set_ylabel("rotational stiffness [Nm/rad]")
+    axes.set_title("stability grid: a 3 cm + 0.05 rad reference step at each stiffness\n"
+                   "error after 2.5 s; energy: peak of spring + kinetic - work of the torque\n"
+                   "limits, over what the step put in (<= 1.05)",
+                   fontsize=10)
+    save(figure, out / "stability_grid_map.png")
+
+
+def plot_two_arms(path, out):
+    """Each arm's flange displacement from its start: the pushed left arm moves, the right one
+    beside it does not, then the right one steps while the left one stays."""
+    motion = read(path)
+    if not motion:
+        return
+    names = {0.0: "", 1.0: "left arm pushed", 2.0: "released",
+             3.0: "right arm: reference step 5 cm"}
+    log = {"time": motion["time"], "phase": [names.get(float(p), "") for p in motion["phase"]]}
+    figure, (left, right) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    for axes, arm, title in ((left, "left", "left arm"), (right, "right", "right arm")):
+        values = []
+        for axis, colour in zip(AXES, COLOURS):
+            axes.plot(motion["time"], motion[f"{arm}_d{axis}_mm"], color=colour, label=axis)
+            values += motion[f"{arm}_d{axis}_mm"]
+        floor_range(axes, values, 1.0)
+        axes.set_ylabel(f"{title}\nflange motion [mm]")
+        axes.legend(fontsize="small", loc="lower left")
+    shade_phases((left, right), log, left)
+    right.set_xlabel("time [s]")
+    left.set_title("two arms, one scene, two controllers: each arm's flange from its start")
+    save(figure, out / "two_arms_motion.png")
+
+
 def main():
     if len(sys.argv) != 2:
         sys.exit(__doc__)
     out = pathlib.Path(sys.argv[1])
+    tables = {"stability_grid_grid.csv": plot_grid, "two_arms_motion.csv": plot_two_arms}
     for path in sorted(out.glob("*.csv")):
-        if path.name != "summary.csv":
+        if path.name in tables:
+            tables[path.name](path, out)
+        elif path.name != "summary.csv":
             log = read(path)
-            if log:
+            if log and "phase" in log:
                 plot_log(path.stem, log, out)
     plot_sweep(out)
 

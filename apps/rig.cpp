@@ -113,17 +113,130 @@ Eigen::Vector3d Rig::contact_force() const {
   return sim_.contact_wrench(robot_.tip_link).head<3>();
 }
 
+namespace {
+// "20 N along +x", or "(3, 4, 0) N" off the axes.
+std::string describe_vector(const Eigen::Vector3d& v, const char* unit, const char* preposition) {
+  char text[96];
+  for (int axis = 0; axis < 3; ++axis) {
+    if (std::abs(v[axis]) > 0.99 * v.norm()) {
+      std::snprintf(text, sizeof(text), "%.3g %s %s %c%c", v.norm(), unit, preposition,
+                    v[axis] > 0.0 ? '+' : '-', "xyz"[axis]);
+      return text;
+    }
+  }
+  std::snprintf(text, sizeof(text), "(%.3g, %.3g, %.3g) %s", v.x(), v.y(), v.z(), unit);
+  return text;
+}
+
+// "500 N/m" when the three are equal, else "x 1000, y 500, z 500 N/m".
+std::string describe_three(Eigen::Vector3d v, const char* unit) {
+  char text[96];
+  v = (v.array().abs() < 1e-9).select(0.0, v);  // "0", not "1.5e-17" from a filter's tail
+  if ((v.array() == v.x()).all()) {
+    std::snprintf(text, sizeof(text), "%.4g %s", v.x(), unit);
+  } else {
+    std::snprintf(text, sizeof(text), "x %.4g, y %.4g, z %.4g %s", v.x(), v.y(), v.z(), unit);
+  }
+  return text;
+}
+}  // namespace
+
 void Rig::push(const Eigen::Vector3d& force, const Eigen::Vector3d& torque) {
+  if (push_force_.isZero() && push_torque_.isZero()) remember_pose("before the push");
   sim_.clear_pushes();
   Vector6d wrench;
   wrench << force, torque;
   sim_.push(robot_.flange, wrench, kForever);
   push_force_ = force;
+  push_torque_ = torque;
 }
 
 void Rig::release() {
   sim_.clear_pushes();
   push_force_.setZero();
+  push_torque_.setZero();
+}
+
+void Rig::phase(const std::string& what) {
+  phase_ = what;
+}
+
+void Rig::view(double azimuth, double elevation) {
+  view_azimuth_ = azimuth;
+  view_elevation_ = elevation;
+}
+
+void Rig::remember_pose(const std::string& what) {
+  ghost_q_ = sim_.q();
+  ghost_what_ = what;
+}
+
+void Rig::moment(const MomentCallback& moment, const std::string& label,
+                 const std::vector<std::string>& details) {
+  if (!moment) return;
+  const ControllerState& state = loop_->state().controller;
+  const Pose base = sim_.body_pose(robot_.base_link);
+  const auto to_world = [&](const Pose& pose) {
+    return Pose{base.position + base.orientation * pose.position,
+                base.orientation * pose.orientation};
+  };
+  const Eigen::Vector3d tip = to_world(flange()).position;
+  sim::RenderOverlay overlay;
+  constexpr double kScale = 0.015;  // [m/N]: 20 N are drawn 0.3 m long
+  const Vector6d stiffness = state.filtered.stiffness.diagonal();
+  char line[160];
+  std::snprintf(line, sizeof(line), "t = %.2f s, stiffness %s, %s", time_,
+                describe_three(stiffness.head<3>(), "N/m").c_str(),
+                describe_three(stiffness.tail<3>(), "Nm/rad").c_str());
+  std::string caption = label + "\n" + line;
+  if (!push_force_.isZero()) {
+    caption += "\npushed with " + describe_vector(push_force_, "N", "along") +
+               " at the flange (orange arrow)";
+    overlay.arrows.push_back({tip, push_force_, kScale, Eigen::Vector4f(1.0f, 0.5f, 0.0f, 1.0f),
+                              describe_vector(push_force_, "N", "along")});
+  }
+  if (!push_torque_.isZero()) {
+    caption += "\ntwisted with " + describe_vector(push_torque_, "Nm", "about") + " at the flange";
+  }
+  if (push_force_.isZero() && push_torque_.isZero()) caption += "\nno external force";
+  // The commanded force and the contact force act where the tip touches something, so drawn
+  // there they would be inside the wrist or the table: they go beside the tip, on the camera's
+  // side (the free camera looks along +y), ending or starting at its height.
+  const Eigen::Vector3d beside(0.0, -0.1, 0.0);
+  const Eigen::Vector3d wrench = base.orientation * state.wrench_base.head<3>();
+  if (wrench.norm() > 0.5) {
+    caption += "\ncommanded force " + describe_vector(wrench, "N", "along") +
+               " (magenta arrow, beside the tip)";
+    overlay.arrows.push_back({tip + beside - Eigen::Vector3d(0.05, 0.0, 0.0) - kScale * wrench,
+                              wrench, kScale, Eigen::Vector4f(0.85f, 0.1f, 0.85f, 1.0f),
+                              "commanded"});
+  }
+  const Eigen::Vector3d contact = contact_force();
+  if (contact.norm() > 0.5) {
+    caption += "\ncontact force on the tip " + describe_vector(contact, "N", "along") +
+               " (yellow arrow, beside the tip)";
+    overlay.arrows.push_back({tip + beside + Eigen::Vector3d(0.05, 0.0, 0.0), contact, kScale,
+                              Eigen::Vector4f(1.0f, 0.85f, 0.0f, 1.0f), "contact"});
+  }
+  for (const std::string& detail : details) caption += "\n" + detail;
+  // The reference as the law uses it (filtered), and as commanded where it is still on its way.
+  const Pose reference = to_world(state.filtered.pose);
+  const Pose commanded = to_world(state.commanded.pose);
+  overlay.frames.push_back({reference, 0.1, 1.0f, ""});
+  std::string legend = "RGB axes: reference pose";
+  if ((commanded.position - reference.position).norm() > 0.005 ||
+      commanded.orientation.angularDistance(reference.orientation) > 0.02) {
+    overlay.frames.push_back({commanded, 0.1, 0.4f, "commanded"});
+    legend += " (pale: commanded)";
+  }
+  if (ghost_q_.size() == sim_.num_joints()) {
+    overlay.ghost_q = ghost_q_;
+    legend += "; green ghost: the arm " + ghost_what_;
+  }
+  overlay.caption = caption + "\n" + legend;
+  overlay.azimuth = view_azimuth_;
+  overlay.elevation = view_elevation_;
+  moment(label, sim_, overlay);
 }
 
 void Rig::run(double seconds) {
@@ -142,15 +255,29 @@ void Rig::run(double seconds) {
       const LoopState& state = loop_->state();
       Sample sample;
       sample.time = time_;
+      sample.phase = phase_;
+      if (!push_force_.isZero()) {
+        sample.phase += (sample.phase.empty() ? "" : ", ") + std::string("push ") +
+                        describe_vector(push_force_, "N", "along");
+      }
+      if (!push_torque_.isZero()) {
+        sample.phase += (sample.phase.empty() ? "" : ", ") + std::string("torque ") +
+                        describe_vector(push_torque_, "Nm", "about");
+      }
       sample.position = flange().position;
       sample.reference = state.controller.filtered.pose.position;
       sample.commanded = state.controller.commanded.pose.position;
       sample.pose_error = state.controller.pose_error;
-      sample.stiffness_x = state.controller.filtered.stiffness(0, 0);
-      sample.commanded_stiffness_x = state.controller.commanded.stiffness(0, 0);
+      sample.stiffness = state.controller.filtered.stiffness.diagonal();
+      sample.commanded_stiffness = state.controller.commanded.stiffness.diagonal();
       sample.push = push_force_;
+      sample.push_torque = push_torque_;
       sample.contact = contact_force();
       sample.wrench = state.controller.wrench_base.head<3>();
+      sample.commanded_wrench = state.controller.commanded.wrench.head<3>();
+      sample.q = sim_.q();
+      sample.nullspace_target = state.controller.filtered.nullspace_q;
+      sample.commanded_nullspace_target = state.controller.commanded.nullspace_q;
       sample.tau = tau;
       sample.max_torque_rate = rate_since_sample_;
       rate_since_sample_ = 0.0;

@@ -2,6 +2,8 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
+#include <cstdarg>
+#include <cstdio>
 #include <sstream>
 
 #include "scenario_support.hpp"
@@ -53,8 +55,18 @@ Eigen::Vector3d rotation_between(const Pose& from, const Pose& to) {
   return orientation_error(to.orientation, from.orientation);
 }
 
-void notify(const MomentCallback& moment, const std::string& label, Rig& rig) {
-  if (moment) moment(label, rig.sim());
+void notify(const MomentCallback& moment, const std::string& label, Rig& rig,
+            const std::vector<std::string>& details) {
+  rig.moment(moment, label, details);
+}
+
+std::string format(const char* format, ...) {
+  char text[256];
+  va_list arguments;
+  va_start(arguments, format);
+  std::vsnprintf(text, sizeof(text), format, arguments);
+  va_end(arguments);
+  return text;
 }
 
 // The largest force and torque at the flange that the joints' Coulomb friction can hold at q:

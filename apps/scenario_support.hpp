@@ -55,7 +55,12 @@ std::vector<std::string> overrides(const RobotSetup& robot, const Parameters& us
 
 Eigen::Vector3d rotation_between(const Pose& from, const Pose& to);
 
-void notify(const MomentCallback& moment, const std::string& label, Rig& rig);
+/// A picture of `rig` now (Rig::moment()), with `details` added to its caption.
+void notify(const MomentCallback& moment, const std::string& label, Rig& rig,
+            const std::vector<std::string>& details = {});
+
+/// printf into a std::string, for captions.
+std::string format(const char* format, ...) __attribute__((format(printf, 1, 2)));
 
 /// The largest force and torque at the flange that the joints' Coulomb friction can hold at q:
 /// a spring pulling with less may leave the arm standing short of its rest position.

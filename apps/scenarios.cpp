@@ -27,13 +27,19 @@ Outcome hold(const RobotSetup& robot, const MomentCallback& moment) {
   const Pose reference = rig.loop().state().controller.filtered.pose;
   const double payload = 1.0;  // [kg]
   rig.push(Eigen::Vector3d(0.0, 0.0, -9.81 * payload));
+  rig.remember_pose("without the payload");
+  rig.phase("1 kg payload");
   rig.run(3.0);
   const Pose loaded = rig.flange();
   rig.run(2.0);
-  notify(moment, "holding a 1 kg payload", rig);
   const Pose end = rig.flange();
   const Parameters& parameters = rig.loop().controller().parameters();
   const double stiffness = parameters.stiffness.translation.z();
+  notify(moment, "holding a 1 kg payload", rig,
+         {format("the payload's weight (orange arrow) sags the flange %.1f mm (theory m g / K = "
+                 "9.81 N / %.0f N/m = %.1f mm)",
+                 1e3 * (reference.position - end.position).z(), stiffness,
+                 1e3 * 9.81 * payload / stiffness)});
   const FrictionBand band = friction_band(rig);
   // The softest rotational spring among the directions the arm can turn in (the others hold by
   // the arm's structure, whatever their stiffness).
@@ -111,7 +117,12 @@ Outcome compliance(const RobotSetup& robot, const MomentCallback& moment) {
     const double expected = 1e3 * force / parameters.stiffness.translation[axis];
     const double measured =
         1e3 * respond(rig, force * direction, Eigen::Vector3d::Zero()).displacement.dot(direction);
-    if (axis == 0) notify(moment, "pushed 20 N along x", rig);
+    if (axis == 0) {
+      notify(moment, "pushed 20 N along x", rig,
+             {format("the flange gave way %.1f mm along x (theory F / K = 20 N / 500 N/m = "
+                     "%.0f mm)",
+                     measured, expected)});
+    }
     outcome.results.push_back(
         compare("compliance", quantity, expected, measured, "mm", 0.05 * expected));
   }
@@ -153,8 +164,12 @@ Outcome compliance(const RobotSetup& robot, const MomentCallback& moment) {
   Vector6d doubled = six(500, 500, 500, 50, 50, 50);
   doubled[along] = 1000;
   rig.loop().set_stiffness(doubled);
+  rig.phase(std::string("K ") + axes[along] + " doubled to 1000 N/m");
   const double stiff = respond(rig, force * unit, Eigen::Vector3d::Zero()).displacement.dot(unit);
-  notify(moment, "stiffness doubled", rig);
+  notify(moment, "stiffness doubled", rig,
+         {format("at 1000 N/m the same 20 N moves the flange %.1f mm, at 500 N/m it moved %.1f mm "
+                 "(theory: half)",
+                 1e3 * stiff, 1e3 * soft)});
   rig.release();
   outcome.results.push_back(
       compare("stiffness change",
@@ -185,6 +200,8 @@ Outcome reference_step(const RobotSetup& robot, const MomentCallback& moment) {
   const Eigen::Vector3d axis = Eigen::Vector3d::Unit(turn_axis < 0 ? 2 : turn_axis - 3);
   target.position += step;
   target.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(turn, axis)) * start.orientation;
+  rig.remember_pose("at the start");
+  rig.phase("step to a new reference");
   rig.loop().set_reference_pose(target);
   // Overshoot: how far the flange goes past the target along the step, and past the target
   // orientation about the turn's axis.
@@ -196,8 +213,11 @@ Outcome reference_step(const RobotSetup& robot, const MomentCallback& moment) {
     turn_overshoot =
         std::max(turn_overshoot, orientation_error(now.orientation, target.orientation).dot(axis));
   }
-  notify(moment, "reached the new reference", rig);
   const Pose end = rig.flange();
+  notify(moment, "reached the new reference", rig,
+         {format("a step of %.0f mm and %.1f rad, 4 s later %.1f mm and %.3f rad from the target",
+                 1e3 * step.norm(), turn, 1e3 * (end.position - target.position).norm(),
+                 rotation_between(target, end).norm())});
   // Joint friction can hold the arm short of the target by what it resists of the spring.
   const FrictionBand band = friction_band(rig);
   const double position_bound =
@@ -250,9 +270,12 @@ Outcome wrench_on_table(const RobotSetup& robot, const MomentCallback& moment) {
                                parameters.stiffness.rotation.x(), parameters.stiffness.rotation.y(),
                                parameters.stiffness.rotation.z()));
   const double force = 10.0;
+  rig.remember_pose("before pressing");
+  rig.phase("K z = 0, commanded 10 N down");
   rig.loop().set_wrench(six(0, 0, -force, 0, 0, 0));
   rig.run(3.0);
-  notify(moment, "pressing on the table", rig);
+  notify(moment, "pressing on the table", rig,
+         {"vertical stiffness released: the commanded 10 N presses the tip on the table"});
   double average = 0.0;
   for (int k = 0; k < 100; ++k) {
     rig.run(0.005);
@@ -290,14 +313,20 @@ Outcome nullspace(const RobotSetup& robot, const MomentCallback& moment) {
   Eigen::VectorXd self_motion = svd.matrixV().rightCols(1);
   if (self_motion[0] < 0.0) self_motion = -self_motion;
   const JointVector target = q_start + 0.3 * self_motion / self_motion.cwiseAbs().maxCoeff();
+  rig.remember_pose("before the nullspace target moved");
+  rig.view(210.0, -35.0);  // from the front, above: the elbow swings sideways, across the picture
+  rig.phase("nullspace target moved");
   rig.loop().set_nullspace_target(target);
   double worst = 0.0;
   for (int k = 0; k < 400; ++k) {
     rig.run(0.01);
     worst = std::max(worst, (rig.flange().position - start.position).norm());
   }
-  notify(moment, "elbow moved", rig);
   const double elbow = (rig.sim().q() - q_start).norm();
+  notify(moment, "elbow moved", rig,
+         {format("the joints moved %.2f rad toward the new nullspace target; the flange stayed "
+                 "within %.1f mm",
+                 elbow, 1e3 * worst)});
   return {
       {at_most("nullspace", "largest end-effector motion while the elbow moves", 2.0, 1e3 * worst,
                "mm"),
@@ -320,6 +349,7 @@ Outcome teaching(const RobotSetup& robot, const MomentCallback& moment) {
             {}};
   }
   rig.loop().start_teaching();
+  rig.phase("teaching (zero stiffness)");
   rig.run(1.0);
   const Pose start = rig.flange();
   const double force = 10.0, duration = 0.3;  // a hand's gentle push
@@ -349,8 +379,10 @@ Outcome teaching(const RobotSetup& robot, const MomentCallback& moment) {
   rig.run(3.0);
   const Pose rest = rig.flange();
   rig.run(1.0);
-  notify(moment, "left where it was pushed", rig);
   const double pushed = 1e3 * (released.position - start.position).norm();
+  notify(moment, "left where it was pushed", rig,
+         {format("a push of %.0f N for %.1f s moved the flange %.0f mm; released, it stays there",
+                 force, duration, 1e3 * (rig.flange().position - start.position).norm())});
   const double coast = 1e3 * (rest.position - released.position).norm();
   const double final_distance = 1e3 * (rest.position - start.position).norm();
   char limit[96];

@@ -4,6 +4,7 @@
 // them; the demo prints, logs, plots and renders them. One definition serves both.
 
 #include <functional>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -58,24 +59,35 @@ struct Result {
   bool applicable = true;
 };
 
-/// Samples of a run, every 10 ms, for logs and plots.
+/// Samples of a run, every 10 ms, for logs and plots: what was measured, and every quantity the
+/// scenario commands (filtered as the law used it, and as commanded).
 struct Sample {
   double time = 0.0;
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();   ///< flange, base frame [m]
-  Eigen::Vector3d reference = Eigen::Vector3d::Zero();  ///< filtered reference [m]
-  Eigen::Vector3d commanded = Eigen::Vector3d::Zero();  ///< commanded reference [m]
-  Vector6d pose_error = Vector6d::Zero();               ///< [m; rad]
-  double stiffness_x = 0.0;            ///< filtered translational stiffness along x [N/m]
-  double commanded_stiffness_x = 0.0;  ///< commanded [N/m]
-  Eigen::Vector3d push = Eigen::Vector3d::Zero();     ///< external force applied [N]
-  Eigen::Vector3d contact = Eigen::Vector3d::Zero();  ///< contact force on the tip [N]
-  Eigen::Vector3d wrench = Eigen::Vector3d::Zero();   ///< filtered commanded force [N]
-  JointVector tau;                                    ///< commanded torque [Nm]
+  /// What the scenario is doing, e.g. "push 20 N along +x" (Rig::phase() and the pushes).
+  std::string phase;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();     ///< flange, base frame [m]
+  Eigen::Vector3d reference = Eigen::Vector3d::Zero();    ///< filtered reference [m]
+  Eigen::Vector3d commanded = Eigen::Vector3d::Zero();    ///< commanded reference [m]
+  Vector6d pose_error = Vector6d::Zero();                 ///< [m; rad]
+  Vector6d stiffness = Vector6d::Zero();                  ///< filtered diagonal of K [N/m; Nm/rad]
+  Vector6d commanded_stiffness = Vector6d::Zero();        ///< commanded [N/m; Nm/rad]
+  Eigen::Vector3d push = Eigen::Vector3d::Zero();         ///< external force applied [N]
+  Eigen::Vector3d push_torque = Eigen::Vector3d::Zero();  ///< external torque applied [Nm]
+  Eigen::Vector3d contact = Eigen::Vector3d::Zero();      ///< contact force on the tip [N]
+  Eigen::Vector3d wrench = Eigen::Vector3d::Zero();       ///< filtered commanded force [N]
+  Eigen::Vector3d commanded_wrench = Eigen::Vector3d::Zero();  ///< commanded force [N]
+  JointVector q;                                               ///< measured joint positions [rad]
+  JointVector nullspace_target;                                ///< filtered nullspace target [rad]
+  JointVector commanded_nullspace_target;                      ///< commanded [rad]
+  JointVector tau;                                             ///< commanded torque [Nm]
   double max_torque_rate = 0.0;  ///< largest |dtau/dt| since the previous sample [Nm/s]
 };
 
-/// Called at moments worth a picture ("pushed", "settled", ...).
-using MomentCallback = std::function<void(const std::string& label, const sim::Simulation&)>;
+/// Called at moments worth a picture ("pushed", "settled", ...), with what to draw on it: a
+/// caption saying what is applied, the applied force as an arrow, the reference pose as a frame,
+/// and a ghost of the arm where it was before.
+using MomentCallback = std::function<void(const std::string& label, const sim::Simulation&,
+                                          const sim::RenderOverlay& overlay)>;
 
 /// The simulated robot and its control loop, stepped together at 1 kHz by a closed-loop runner.
 class Rig {
@@ -87,9 +99,24 @@ class Rig {
 
   /// Steps for `seconds`, sampling every 10 ms.
   void run(double seconds);
-  /// Applies `force` [N] (and `torque` [Nm]) at the flange, world frame, until cleared.
+  /// Applies `force` [N] (and `torque` [Nm]) at the flange, world frame, until cleared. A push
+  /// from rest remembers the arm's joint positions there (the ghost of the pictures).
   void push(const Eigen::Vector3d& force, const Eigen::Vector3d& torque = Eigen::Vector3d::Zero());
   void release();
+
+  /// What the scenario does from now on (beyond the pushes, which name themselves), for the
+  /// samples' phase column and the pictures' captions, e.g. "stiffness x doubled".
+  void phase(const std::string& what);
+  /// Remembers the current joint positions, drawn as a translucent ghost in the next pictures,
+  /// with what they are ("before the step").
+  void remember_pose(const std::string& what);
+  /// Direction of the pictures' camera [deg] (RenderOverlay::azimuth, elevation).
+  void view(double azimuth, double elevation);
+  /// Calls `moment` (if any) with a picture's overlay: the caption (`label`, the time, the
+  /// stiffness, the applied force, then `details`), the push and contact forces as arrows, the
+  /// reference pose as a frame and the remembered pose as a ghost.
+  void moment(const MomentCallback& moment, const std::string& label,
+              const std::vector<std::string>& details = {});
 
   /// Flange pose in the base frame, as the simulation has it (ground truth).
   Pose flange() const;
@@ -112,12 +139,26 @@ class Rig {
   sim::ClosedLoopRunner runner_;
   bool flange_is_site_ = true;
   Eigen::Vector3d push_force_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d push_torque_ = Eigen::Vector3d::Zero();
+  std::string phase_;    // set by phase()
+  JointVector ghost_q_;  // remember_pose(); empty: none
+  std::string ghost_what_;
+  double view_azimuth_ = std::numeric_limits<double>::quiet_NaN();
+  double view_elevation_ = std::numeric_limits<double>::quiet_NaN();
   std::vector<Sample> samples_;
   JointVector previous_tau_;
   double largest_rate_fraction_ = 0.0;
   double rate_since_sample_ = 0.0;
   double time_ = 0.0;
   long steps_ = 0;
+};
+
+/// Numbers a scenario measured beyond its samples (e.g. one row per stiffness of a grid), for a
+/// CSV file of its own and a plot.
+struct Table {
+  std::string name;  ///< file name part: <scenario>_<name>.csv
+  std::vector<std::string> columns;
+  std::vector<std::vector<double>> rows;
 };
 
 /// What a scenario produced.
@@ -127,6 +168,7 @@ struct Outcome {
   /// Parameters the scenario sets instead of the robot's configuration, e.g.
   /// "stiffness.translation = 500 500 500 N/m (configured: 1000 1000 1000)".
   std::vector<std::string> overrides = {};
+  std::vector<Table> tables = {};
 };
 
 /// Names of the scenarios, in demo order.

@@ -43,6 +43,8 @@ Outcome trajectory(const RobotSetup& robot, const MomentCallback& moment) {
     trajectory.times.push_back(3.0 * s);
     trajectory.positions.emplace_back(q.data(), q.data() + q.size());
   }
+  rig.remember_pose("at the start");
+  rig.phase("joint trajectory of 3 s");
   rig.loop().execute_trajectory(trajectory);
   const double tolerance = parameters.trajectory.goal_tolerance;
   double error_when_finished = -1.0, finish_time = -1.0, worst_tracking = 0.0;
@@ -57,7 +59,10 @@ Outcome trajectory(const RobotSetup& robot, const MomentCallback& moment) {
       finish_time = state.trajectory.time;
     }
   }
-  notify(moment, "trajectory finished", rig);
+  notify(moment, "trajectory finished", rig,
+         {format("every joint moved 0.2-0.5 rad in 3 s; reported finished %.2f s after its start, "
+                 "the largest joint error then %.4f rad",
+                 finish_time, error_when_finished)});
   return {{at_least("trajectory", "reported finished (1 = yes)", 1.0,
                     error_when_finished >= 0.0 ? 1.0 : 0.0, ""),
            at_most("trajectory", "largest joint error when reported finished", tolerance,
@@ -79,6 +84,10 @@ Outcome stability_grid(const RobotSetup& robot, const MomentCallback&) {
   int stable = 0, total = 0;
   bool saturated = false;
   std::ostringstream failures;
+  Table grid{"grid",
+             {"translation_stiffness", "rotation_stiffness", "converged", "error_mm", "error_rad",
+              "energy_ratio", "torque_limited"},
+             {}};
   for (double kt : translations) {
     for (double kr : rotations) {
       Parameters parameters = base_parameters(robot);
@@ -145,6 +154,8 @@ Outcome stability_grid(const RobotSetup& robot, const MomentCallback&) {
       saturated |= kt_used < (1.0 - 1e-9) * kt || kr_used < (1.0 - 1e-9) * kr;
       const bool ok = error <= 2.0 + 1e3 * band.force / kt_used &&
                       angle <= 0.01 + band.torque / kr_used && peak <= 1.05 * initial;
+      grid.rows.push_back(
+          {kt, kr, ok ? 1.0 : 0.0, error, angle, peak / initial, limited ? 1.0 : 0.0});
       ++total;
       if (ok) {
         ++stable;
@@ -162,6 +173,7 @@ Outcome stability_grid(const RobotSetup& robot, const MomentCallback&) {
       std::string("stiffness: each of the grid's 16 combinations") +
       (saturated ? " (saturated to the configured limits.stiffness)" : "") +
       "; filter.pose.time = 0 (a true step); limits.pose_error = 1 m, 1 rad (unclipped)");
+  outcome.tables.push_back(grid);
   return outcome;
 }
 
@@ -294,7 +306,15 @@ struct TwoArmRun {
   Pose left_pushed, right_pushed;  // 3 s into the push (or the same time without it)
   Pose left_rest, right_rest;      // 3 s after the release
   Pose left_end, right_end;        // 3 s after the right arm's reference step (if any)
+  Table motion{"motion",
+               {"time", "phase", "left_dx_mm", "left_dy_mm", "left_dz_mm", "right_dx_mm",
+                "right_dy_mm", "right_dz_mm"},
+               {}};  // every 10 ms; phase 0 before the push, 1 pushed, 2 released, 3 right step
 };
+
+std::string display_name(const RobotSetup& robot) {
+  return robot.name == "panda" ? "Panda" : robot.name;
+}
 
 TwoArmRun run_two_arms(const ArmPair& pair, bool push_left, bool step_right,
                        const MomentCallback& moment) {
@@ -356,32 +376,75 @@ TwoArmRun run_two_arms(const ArmPair& pair, bool push_left, bool step_right,
   runner.run_for(0.5);
   result.left_start = tip(pair.left_tip);
   result.right_start = tip(pair.right_tip);
+  const JointVector q_start = sim.q();
+  double phase = 0.0;
+  const auto record = [&](std::int64_t step) {
+    if (step % 10 != 0) return;  // every 10 ms
+    const Eigen::Vector3d l = 1e3 * (tip(pair.left_tip).position - result.left_start.position);
+    const Eigen::Vector3d r = 1e3 * (tip(pair.right_tip).position - result.right_start.position);
+    result.motion.rows.push_back({sim.time(), phase, l.x(), l.y(), l.z(), r.x(), r.y(), r.z()});
+  };
+  const char axis = "xyz"[pair.push_axis];
   if (push_left) {
     Vector6d push = Vector6d::Zero();
     push[pair.push_axis] = pair.push_force;
     sim.push(pair.left_tip, push, kForever);
   }
-  runner.run_for(3.0);
-  if (moment) moment("left arm pushed, right arm holding", sim);
+  phase = 1.0;
+  runner.run_for(3.0, record);
+  if (moment) {
+    // From in front of the two arms, so that neither hides the other.
+    const double stiffness = base_parameters(pair.left).stiffness.translation[pair.push_axis];
+    sim::RenderOverlay overlay;
+    overlay.caption =
+        "left arm pushed, right arm holding\n" +
+        format(
+            "t = %.2f s: %g N along +%c on the %s's flange (orange arrow) moved it %.1f mm "
+            "(theory %g N / %g N/m = %.1f mm)",
+            sim.time(), pair.push_force, axis, display_name(pair.left).c_str(),
+            1e3 * (tip(pair.left_tip).position - result.left_start.position)[pair.push_axis],
+            pair.push_force, stiffness, 1e3 * pair.push_force / stiffness) +
+        "\nthe " + display_name(pair.right) +
+        " beside it has its own controller and does not move\n"
+        "RGB axes: each arm's reference pose; green ghost: both arms before the push";
+    Eigen::Vector3d force = Eigen::Vector3d::Zero();
+    force[pair.push_axis] = pair.push_force;
+    overlay.arrows.push_back({tip(pair.left_tip).position, force, 0.015,
+                              Eigen::Vector4f(1.0f, 0.5f, 0.0f, 1.0f),
+                              format("%g N", pair.push_force)});
+    const std::string left_base = pair.sites ? pair.left.base_link : "left_" + pair.left.base_link;
+    const std::string right_base =
+        pair.sites ? pair.right.base_link : "right_" + pair.right.base_link;
+    for (const auto& [loop, base] : {std::make_pair(&left_loop, sim.body_pose(left_base)),
+                                     std::make_pair(&right_loop, sim.body_pose(right_base))}) {
+      const Pose reference = loop->state().controller.filtered.pose;
+      overlay.frames.push_back({{base.position + base.orientation * reference.position,
+                                 base.orientation * reference.orientation},
+                                0.1,
+                                1.0f,
+                                ""});
+    }
+    overlay.ghost_q = q_start;
+    overlay.azimuth = 150.0;
+    moment("left arm pushed, right arm holding", sim, overlay);
+  }
   result.left_pushed = tip(pair.left_tip);
   result.right_pushed = tip(pair.right_tip);
   sim.clear_pushes();
-  runner.run_for(3.0);
+  phase = 2.0;
+  runner.run_for(3.0, record);
   result.left_rest = tip(pair.left_tip);
   result.right_rest = tip(pair.right_tip);
   if (step_right) {
     Pose right_target = right_loop.state().controller.pose;
     right_target.position[pair.step_axis] -= 0.05;
     right_loop.set_reference_pose(right_target);
+    phase = 3.0;
   }
-  runner.run_for(3.0);
+  runner.run_for(3.0, record);
   result.left_end = tip(pair.left_tip);
   result.right_end = tip(pair.right_tip);
   return result;
-}
-
-std::string display_name(const RobotSetup& robot) {
-  return robot.name == "panda" ? "Panda" : robot.name;
 }
 
 Outcome two_arms(const RobotSetup& robot, const MomentCallback& moment) {
@@ -420,7 +483,9 @@ Outcome two_arms(const RobotSetup& robot, const MomentCallback& moment) {
        compare("two arms", stepped, -50.0, 1e3 * right_step, "mm", 2.0 + 1e3 * pair.step_tolerance),
        at_most("two arms", "left arm: difference to a run without the step", 1e-3,
                1e3 * left_difference, "mm")},
-      {}};
+      {},
+      {},
+      {both.motion}};
 }
 
 }  // namespace cartesian_impedance::scenarios::detail

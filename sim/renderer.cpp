@@ -6,7 +6,9 @@
 #include <png.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <limits>
 #include <vector>
 
 #include "simulation_impl.hpp"
@@ -228,8 +230,147 @@ Renderer::~Renderer() {
   api.destroy_context(api.display, state_->context);
 }
 
+namespace {
+
+// Room for what the overlay adds to the model's own geoms.
+constexpr int kMaxSceneGeoms = 4000;
+
+mjvGeom* add_geom(mjvScene& scene) {
+  if (scene.ngeom >= scene.maxgeom) return nullptr;  // a full scene drops the rest, as MuJoCo does
+  return &scene.geoms[scene.ngeom++];
+}
+
+void set_label(mjvGeom& geom, const std::string& label) {
+  const std::size_t n = std::min(label.size(), sizeof(geom.label) - 1);
+  std::copy(label.begin(), label.begin() + static_cast<std::ptrdiff_t>(n), geom.label);
+  geom.label[n] = '\0';
+}
+
+void add_arrow(mjvScene& scene, const Eigen::Vector3d& from, const Eigen::Vector3d& to,
+               double width, const float rgba[4], const std::string& label) {
+  if ((to - from).norm() < 1e-6) return;
+  if (mjvGeom* geom = add_geom(scene)) {
+    mjv_initGeom(geom, mjGEOM_ARROW, nullptr, nullptr, nullptr, rgba);
+    mjv_makeConnector(geom, mjGEOM_ARROW, width, from.x(), from.y(), from.z(), to.x(), to.y(),
+                      to.z());
+    // MuJoCo 2.2's renderer draws an arrow over half its size[2] (shaft to a third, head to a
+    // half; measured against a cylinder connector of the same ends).
+    geom->size[2] *= 2.0f;
+    geom->category = mjCAT_DECOR;
+    geom->transparent = rgba[3] < 1.0f;
+  }
+  // MuJoCo writes a geom's label at its origin, which for an arrow is the tail, inside the
+  // robot: the text goes on an invisible geom at the head.
+  if (label.empty()) return;
+  if (mjvGeom* text = add_geom(scene)) {
+    const mjtNum position[3] = {to.x(), to.y(), to.z()};
+    mjv_initGeom(text, mjGEOM_LABEL, nullptr, position, nullptr, rgba);
+    text->category = mjCAT_DECOR;
+    set_label(*text, label);
+  }
+}
+
+// What the free camera must keep in view: a sphere.
+struct Extent {
+  Eigen::Vector3d center;
+  double radius;
+};
+
+// Centres the free camera on everything in `extents` and backs it off until all of it is inside
+// the field of view (with a margin, and room for the caption at the top).
+void fit_camera(mjvCamera& view, const std::vector<Extent>& extents, double fovy_degrees,
+                double aspect, double caption_fraction) {
+  if (extents.empty()) return;
+  Eigen::Vector3d low = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector3d high = -low;
+  for (const Extent& e : extents) {
+    low = low.cwiseMin(e.center - Eigen::Vector3d::Constant(e.radius));
+    high = high.cwiseMax(e.center + Eigen::Vector3d::Constant(e.radius));
+  }
+  const Eigen::Vector3d center = 0.5 * (low + high);
+  const double azimuth = view.azimuth * M_PI / 180.0, elevation = view.elevation * M_PI / 180.0;
+  // mjv_updateCamera's axes of a free camera.
+  const Eigen::Vector3d forward(std::cos(elevation) * std::cos(azimuth),
+                                std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
+  const Eigen::Vector3d up(-std::sin(elevation) * std::cos(azimuth),
+                           -std::sin(elevation) * std::sin(azimuth), std::cos(elevation));
+  const Eigen::Vector3d right = forward.cross(up);
+  const double margin = 1.06;
+  const double tan_vertical =
+      std::tan(0.5 * fovy_degrees * M_PI / 180.0) * (1.0 - caption_fraction);
+  const double tan_horizontal = std::tan(0.5 * fovy_degrees * M_PI / 180.0) * aspect;
+  double distance = 0.0;
+  for (const Extent& e : extents) {
+    const Eigen::Vector3d d = e.center - center;
+    // A point at depth z (distance + d.forward) is in view if |x| <= z tan(half angle).
+    const double r = margin * e.radius;
+    distance =
+        std::max({distance, margin * (std::abs(d.dot(right)) + r) / tan_horizontal - d.dot(forward),
+                  margin * (std::abs(d.dot(up)) + r) / tan_vertical - d.dot(forward)});
+  }
+  // The caption covers the top: the scene moves down into the rest of the picture.
+  const Eigen::Vector3d lookat = center + caption_fraction * tan_vertical * distance * up;
+  for (int i = 0; i < 3; ++i) view.lookat[i] = lookat[i];
+  view.distance = distance;
+}
+
+// Fills the background (depth at the far plane) with a vertical gradient, for a model without a
+// skybox: MuJoCo clears it to black.
+void paint_sky(std::vector<unsigned char>& rgb, const std::vector<float>& depth, int width,
+               int height) {
+  for (int row = 0; row < height; ++row) {
+    // OpenGL rows start at the bottom.
+    const double t = static_cast<double>(row) / std::max(1, height - 1);
+    const unsigned char colour[3] = {static_cast<unsigned char>(240 - 100 * t),
+                                     static_cast<unsigned char>(245 - 70 * t),
+                                     static_cast<unsigned char>(250 - 35 * t)};
+    for (int column = 0; column < width; ++column) {
+      const std::size_t pixel = static_cast<std::size_t>(row) * width + column;
+      if (depth[pixel] < 1.0f) continue;
+      std::copy(colour, colour + 3, rgb.begin() + static_cast<std::ptrdiff_t>(3 * pixel));
+    }
+  }
+}
+
+// Breaks each line of `text` at spaces so that none is wider than `width` pixels in the font
+// of `widths` (a word longer than that stays whole).
+std::string wrap(const std::string& text, const int widths[127], int width) {
+  const auto width_of = [&](const std::string& s) {
+    int w = 0;
+    for (const char c : s) w += (c > 0 && c < 127) ? widths[static_cast<int>(c)] : widths['?'];
+    return w;
+  };
+  std::string wrapped, line;
+  std::size_t start = 0;
+  while (start <= text.size()) {
+    const std::size_t end = std::min(text.find('\n', start), text.size());
+    std::string rest = text.substr(start, end - start);
+    while (width_of(rest) > width) {
+      std::size_t cut = rest.size();
+      while (cut > 0 && (rest[cut - 1] != ' ' || width_of(rest.substr(0, cut - 1)) > width)) --cut;
+      if (cut == 0) break;  // no space to break at
+      wrapped += rest.substr(0, cut - 1) + "\n  ";
+      rest = rest.substr(cut);
+    }
+    wrapped += rest;
+    if (end == text.size()) break;
+    wrapped += '\n';
+    start = end + 1;
+  }
+  return wrapped;
+}
+
+bool has_skybox(const mjModel* model) {
+  for (int i = 0; i < model->ntex; ++i) {
+    if (model->tex_type[i] == mjTEXTURE_SKYBOX) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
 void Renderer::render_png(mjModel* model, mjData* data, const std::string& path, int width,
-                          int height, int camera_id) {
+                          int height, int camera_id, const RenderOverlay& overlay, mjData* ghost) {
   Egl& api = egl();
   CurrentContextGuard guard;
   if (api.make_current(api.display, EGL_NO_SURFACE, EGL_NO_SURFACE, state_->context) != EGL_TRUE) {
@@ -247,15 +388,21 @@ void Renderer::render_png(mjModel* model, mjData* data, const std::string& path,
     model->vis.global.offwidth = std::max(model->vis.global.offwidth, width);
     model->vis.global.offheight = std::max(model->vis.global.offheight, height);
     mjr_defaultContext(&s.mjr);
-    mjr_makeContext(model, &s.mjr, mjFONTSCALE_100);
+    // Captions of an 800 x 600 picture are readable at 150 %.
+    mjr_makeContext(model, &s.mjr, mjFONTSCALE_150);
     mjv_defaultScene(&s.scene);
-    mjv_makeScene(model, &s.scene, 2000);
+    mjv_makeScene(model, &s.scene, kMaxSceneGeoms);
     s.made = true;
   }
   mjr_setBuffer(mjFB_OFFSCREEN, &s.mjr);
   if (s.mjr.currentBuffer != mjFB_OFFSCREEN) {
     throw Error("the OpenGL context has no offscreen framebuffer");
   }
+  // A floor that mirrors the arm shows what looks like a second, upside-down arm.
+  s.scene.flags[mjRND_REFLECTION] = 0;
+  // MuJoCo 2.2 lets every geom cast a shadow, a ghost's too, which then reads as a second arm's
+  // shadow: pictures with a ghost have none.
+  s.scene.flags[mjRND_SHADOW] = ghost == nullptr ? 1 : 0;
 
   mjvCamera view;
   mjv_defaultFreeCamera(model, &view);
@@ -264,16 +411,110 @@ void Renderer::render_png(mjModel* model, mjData* data, const std::string& path,
     view.fixedcamid = camera_id;
   } else {
     // From the robot's right side, a little to the front (it faces +x, so tables in front of it
-    // do not hide it), slightly above, framing the model's extent (the floor plane does not
-    // count) around its centre.
-    view.azimuth = 105.0;
-    view.elevation = -20.0;
+    // do not hide it), slightly above.
+    view.azimuth = std::isnan(overlay.azimuth) ? 105.0 : overlay.azimuth;
+    view.elevation = std::isnan(overlay.elevation) ? -20.0 : overlay.elevation;
     view.distance = 1.4 * model->stat.extent;
   }
   mjv_updateScene(model, data, &s.option, nullptr, &view, mjCAT_ALL, &s.scene);
+
+  if (ghost != nullptr) {
+    // The moving parts at the ghost's joint positions, translucent green: a colour of no robot
+    // (the shipped ones are white, orange and, imported from a URDF, blue).
+    const int first = s.scene.ngeom;
+    mjv_addGeoms(model, ghost, &s.option, nullptr, mjCAT_DYNAMIC, &s.scene);
+    for (int i = first; i < s.scene.ngeom; ++i) {
+      mjvGeom& geom = s.scene.geoms[i];
+      const float tint[4] = {0.2f, 0.9f, 0.45f, 0.35f};
+      std::copy(tint, tint + 4, geom.rgba);
+      geom.transparent = 1;
+      geom.texid = -1;
+      geom.segid = -1;
+      geom.label[0] = '\0';
+    }
+  }
+  // Overlay geometry scales with the scene, so that a 0.6 m arm and a 2 m scene both show it.
+  const double width_scale = std::clamp(0.012 * model->stat.extent, 0.006, 0.02);
+  for (const RenderArrow& arrow : overlay.arrows) {
+    const float rgba[4] = {arrow.rgba[0], arrow.rgba[1], arrow.rgba[2], arrow.rgba[3]};
+    add_arrow(s.scene, arrow.from, arrow.from + arrow.scale * arrow.vector, width_scale, rgba,
+              arrow.label);
+  }
+  for (const RenderFrame& frame : overlay.frames) {
+    const Eigen::Matrix3d axes = frame.pose.orientation.normalized().toRotationMatrix();
+    for (int k = 0; k < 3; ++k) {
+      float rgba[4] = {0.1f, 0.1f, 0.1f, frame.alpha};
+      rgba[k] = 0.95f;
+      add_arrow(s.scene, frame.pose.position, frame.pose.position + frame.length * axes.col(k),
+                0.6 * width_scale, rgba, k == 0 ? frame.label : std::string());
+    }
+  }
+
+  // Caption: MuJoCo's overlay box; its height decides how much of the top the scene leaves free.
+  const std::string& caption = overlay.caption;
+  const std::size_t line_break = caption.find('\n');
+  // mjr_overlay's box adds a margin each side.
+  const int text_width = std::max(50, width - 30);
+  const std::string title = wrap(caption.substr(0, line_break), s.mjr.charWidthBig, text_width);
+  const std::string details = line_break == std::string::npos ? ""
+                                                              : wrap(caption.substr(line_break + 1),
+                                                                     s.mjr.charWidth, text_width);
+  const int title_lines = 1 + static_cast<int>(std::count(title.begin(), title.end(), '\n'));
+  const int detail_lines =
+      details.empty() ? 0 : 1 + static_cast<int>(std::count(details.begin(), details.end(), '\n'));
+  // mjr_overlay's boxes, measured: a line of the big font takes its height + 6 pixels, a line of
+  // the normal font its height + 5, a box 14 more.
+  const int caption_height =
+      caption.empty() ? 0
+                      : title_lines * (s.mjr.charHeightBig + 6) + 10 +
+                            (detail_lines > 0 ? detail_lines * (s.mjr.charHeight + 5) + 14 : 0);
+
+  if (camera_id < 0) {
+    std::vector<Extent> extents;
+    for (int i = 0; i < s.scene.ngeom; ++i) {
+      const mjvGeom& geom = s.scene.geoms[i];
+      // Model geoms (robots, tables, the ghost) by their bounding spheres; the floor plane is
+      // endless and not something to frame.
+      if (geom.objtype != mjOBJ_GEOM || geom.type == mjGEOM_PLANE || geom.modelrbound <= 0.0f) {
+        continue;
+      }
+      extents.push_back({Eigen::Vector3d(geom.pos[0], geom.pos[1], geom.pos[2]),
+                         static_cast<double>(geom.modelrbound)});
+    }
+    // A label starts at its point and runs to the right: about 0.025 m a character in a picture
+    // of a 1-2 m scene, kept in view by a sphere around the point.
+    const auto label_radius = [](const std::string& label) { return 0.025 * label.size(); };
+    for (const RenderArrow& arrow : overlay.arrows) {
+      extents.push_back({arrow.from + arrow.scale * arrow.vector,
+                         std::max(3 * width_scale, label_radius(arrow.label))});
+    }
+    for (const RenderFrame& frame : overlay.frames) {
+      extents.push_back(
+          {frame.pose.position + frame.length * (frame.pose.orientation * Eigen::Vector3d::UnitX()),
+           std::max(frame.length, label_radius(frame.label))});
+    }
+    fit_camera(view, extents, model->vis.global.fovy, static_cast<double>(width) / height,
+               std::min(0.5, static_cast<double>(caption_height) / height));
+    mjv_updateCamera(model, data, &view, &s.scene);
+  }
+
   const mjrRect viewport = {0, 0, width, height};
   mjr_render(viewport, &s.scene, &s.mjr);
   std::vector<unsigned char> rgb(static_cast<std::size_t>(width) * height * 3);
+  if (!has_skybox(model)) {
+    std::vector<float> depth(static_cast<std::size_t>(width) * height);
+    mjr_readPixels(rgb.data(), depth.data(), viewport, &s.mjr);
+    paint_sky(rgb, depth, width, height);
+    mjr_drawPixels(rgb.data(), nullptr, viewport, &s.mjr);
+  }
+  if (!caption.empty()) {
+    mjr_overlay(mjFONT_BIG, mjGRID_TOPLEFT, viewport, title.c_str(), "", &s.mjr);
+    if (!details.empty()) {
+      const mjrRect below = {0, 0, width,
+                             std::max(1, height - title_lines * s.mjr.charHeightBig - 12)};
+      mjr_overlay(mjFONT_NORMAL, mjGRID_TOPLEFT, below, details.c_str(), "", &s.mjr);
+    }
+  }
   mjr_readPixels(rgb.data(), nullptr, viewport, &s.mjr);
 
   png_image image{};

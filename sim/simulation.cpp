@@ -176,7 +176,9 @@ Simulation load_simulation(const std::string& path, const mjVFS* vfs, const std:
   impl->tau_upper = JointVector::Constant(n, std::numeric_limits<double>::infinity());
   for (int i = 0; i < n; ++i) {
     const int joint = joints[i];
-    impl->joint_names.emplace_back(mj_id2name(model, mjOBJ_JOINT, joint));
+    const char* name = mj_id2name(model, mjOBJ_JOINT, joint);  // nullptr for an unnamed joint
+    impl->joint_names.emplace_back(
+        name != nullptr ? std::string(name) : "(unnamed joint " + std::to_string(joint) + ")");
     impl->qpos_address.push_back(model->jnt_qposadr[joint]);
     impl->dof_address.push_back(model->jnt_dofadr[joint]);
   }
@@ -487,6 +489,15 @@ void check_joint_vector(const JointVector& value, int expected_size, const char*
   }
 }
 
+void check_finite(const Eigen::Ref<const Eigen::VectorXd>& value, const std::string& field) {
+  for (Eigen::Index i = 0; i < value.size(); ++i) {
+    if (!std::isfinite(value[i])) {
+      throw Error(field + "[" + std::to_string(i) + "] = " + detail::format_value(value[i]) +
+                  " is not a finite number");
+    }
+  }
+}
+
 }  // namespace
 
 void Simulation::set_state(const JointVector& q, const JointVector& dq) {
@@ -641,6 +652,11 @@ Vector6d Simulation::contact_wrench(const std::string& body) const {
 
 void Simulation::render_png(const std::string& path, int width, int height,
                             const std::string& camera) const {
+  render_png(path, width, height, RenderOverlay{}, camera);
+}
+
+void Simulation::render_png(const std::string& path, int width, int height,
+                            const RenderOverlay& overlay, const std::string& camera) const {
   const Impl& s = *impl_;
   constexpr int kMaxSize = 8192;
   if (width < 1 || width > kMaxSize || height < 1 || height > kMaxSize) {
@@ -658,9 +674,36 @@ void Simulation::render_png(const std::string& path, int width, int height,
                   " (or \"\" for the free camera)");
     }
   }
+  const int n = static_cast<int>(s.joint_ids.size());
+  if (overlay.ghost_q.size() != 0) {
+    check_joint_vector(overlay.ghost_q, n, "render_png overlay.ghost_q", s.joint_names);
+  }
+  for (std::size_t i = 0; i < overlay.arrows.size(); ++i) {
+    const std::string field = "render_png overlay.arrows[" + std::to_string(i) + "]";
+    check_finite(overlay.arrows[i].from, field + ".from");
+    check_finite(overlay.arrows[i].vector * overlay.arrows[i].scale, field + ".vector * scale");
+  }
+  for (std::size_t i = 0; i < overlay.frames.size(); ++i) {
+    const std::string field = "render_png overlay.frames[" + std::to_string(i) + "]";
+    check_finite(overlay.frames[i].pose.position, field + ".pose.position");
+    check_finite(overlay.frames[i].pose.orientation.coeffs(), field + ".pose.orientation");
+  }
   if (!s.renderer) s.renderer = std::make_unique<detail::Renderer>();
   s.update_kinematics();
-  s.renderer->render_png(s.model.get(), s.data.get(), path, width, height, camera_id);
+  // The ghost is the same model at other joint positions: its own data, with the kinematics of
+  // those positions (the other degrees of freedom as they are now).
+  mjData* ghost = nullptr;
+  if (overlay.ghost_q.size() != 0) {
+    if (!s.ghost_data) s.ghost_data.reset(mj_makeData(s.model.get()));
+    ghost = s.ghost_data.get();
+    mju_copy(ghost->qpos, s.data->qpos, s.model->nq);
+    for (int i = 0; i < n; ++i) {
+      ghost->qpos[s.qpos_address[static_cast<std::size_t>(i)]] = overlay.ghost_q[i];
+    }
+    mj_kinematics(s.model.get(), ghost);
+  }
+  s.renderer->render_png(s.model.get(), s.data.get(), path, width, height, camera_id, overlay,
+                         ghost);
 }
 
 bool offscreen_rendering_available(std::string* reason) {

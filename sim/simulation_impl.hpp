@@ -103,6 +103,7 @@ struct Simulation::Impl {
   mutable bool kinematics_current = true;  // xpos, site_xpos, ... belong to the current qpos
 
   mutable std::unique_ptr<detail::Renderer> renderer;  // created by the first render_png()
+  mutable detail::DataPtr ghost_data;  // kinematics of a render's ghost, made when first needed
 
   void reset();
   void read_state() noexcept;

@@ -11,6 +11,7 @@
 /// files the robot base sits at the world origin, so world = base frame of the controller.
 /// Wrenches are ordered `[force; torque]` [N; Nm].
 
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -48,6 +49,40 @@ struct SimulationOptions {
   /// Panda flange pressed on a table with 20 N, +-1.5 % instead of +-12 % step to step). About
   /// doubles the cost of a step while in contact; no cost without contact.
   bool multi_point_contacts = true;
+};
+
+/// An arrow drawn into a picture: a force (or any vector) acting at a point.
+struct RenderArrow {
+  Eigen::Vector3d from = Eigen::Vector3d::Zero();    ///< tail, world frame [m]
+  Eigen::Vector3d vector = Eigen::Vector3d::Zero();  ///< e.g. a force [N]; zero: not drawn
+  /// Drawn length per unit of `vector` [m per unit]: 0.01 draws 20 N as 0.2 m.
+  double scale = 0.01;
+  Eigen::Vector4f rgba = Eigen::Vector4f(0.9f, 0.1f, 0.1f, 1.0f);
+  std::string label;  ///< written at the arrow's head ("" none)
+};
+
+/// A pose drawn as an axes triad: x red, y green, z blue.
+struct RenderFrame {
+  Pose pose;             ///< world frame
+  double length = 0.12;  ///< of each axis [m]
+  float alpha = 1.0f;    ///< below 1: translucent
+  std::string label;     ///< written at the origin ("" none)
+};
+
+/// What a picture shows on top of the scene. Everything is optional; the default is the plain
+/// scene.
+struct RenderOverlay {
+  /// Text in the top-left corner; lines separated by '\n', the first one in a larger font.
+  std::string caption;
+  std::vector<RenderArrow> arrows;
+  std::vector<RenderFrame> frames;
+  /// A translucent copy of the robot with its exchanged joints at these positions (same order
+  /// as Simulation::joint_names()), e.g. where it was before a push. Empty: none.
+  JointVector ghost_q;
+  /// Free camera direction [deg] (MuJoCo's azimuth and elevation); NaN: the default view from
+  /// the robot's right side. The distance is always chosen to fit the whole scene.
+  double azimuth = std::numeric_limits<double>::quiet_NaN();
+  double elevation = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// A simulated robot. Movable, not copyable, not thread-safe (one thread drives it). Loading and
@@ -137,11 +172,18 @@ class Simulation {
 
   /// Renders the scene offscreen (EGL, no display needed) and writes an RGB PNG of
   /// width x height pixels. `camera` names an MJCF camera; "" is a free camera looking at the
-  /// scene from the robot's right side. The first call sets up an OpenGL context (about 0.5 s with
-  /// Mesa's software renderer); later calls reuse it.
+  /// scene from the robot's right side, at a distance that fits every body of the scene (every
+  /// robot's base and tip) into the picture. The first call sets up an OpenGL context (about
+  /// 0.5 s with Mesa's software renderer); later calls reuse it. Floor reflections are not drawn
+  /// (a mirrored arm reads as a second arm).
   /// @throw Error if EGL/OpenGL is unavailable (the message says why), the camera is unknown, the
   ///        size is not in [1, 8192] or the file cannot be written.
   void render_png(const std::string& path, int width, int height,
+                  const std::string& camera = "") const;
+  /// The same, with a caption, arrows, frames and a ghost of the robot drawn into the picture
+  /// (the free camera fits them in too).
+  /// @throw Error as above, or if the ghost's size is not num_joints() or a value is not finite.
+  void render_png(const std::string& path, int width, int height, const RenderOverlay& overlay,
                   const std::string& camera = "") const;
 
   /// Rotor inertia (MuJoCo's armature) per exchanged joint [kg m^2 or kg]: what the controller's

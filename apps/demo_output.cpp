@@ -1,0 +1,112 @@
+#include "demo_output.hpp"
+
+#include <cstdio>
+#include <fstream>
+
+namespace cartesian_impedance::demo {
+namespace {
+
+std::string csv_field(const std::string& text) {
+  std::string quoted = "\"";
+  for (char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return quoted + "\"";
+}
+
+void write_three(std::ostream& csv, const Eigen::Vector3d& v) {
+  csv << "," << v.x() << "," << v.y() << "," << v.z();
+}
+
+void write_joints(std::ostream& csv, const JointVector& v, int joints) {
+  for (int i = 0; i < joints; ++i) csv << "," << (i < v.size() ? v[i] : 0.0);
+}
+
+}  // namespace
+
+void write_samples(const std::filesystem::path& path,
+                   const std::vector<scenarios::Sample>& samples) {
+  std::ofstream csv(path);
+  const char* const axes[6] = {"x", "y", "z", "rx", "ry", "rz"};
+  csv << "time,phase,x,y,z,reference_x,reference_y,reference_z,commanded_x,commanded_y,"
+         "commanded_z";
+  for (const char* prefix : {"error_", "stiffness_", "commanded_stiffness_"}) {
+    for (const char* axis : axes) csv << "," << prefix << axis;
+  }
+  csv << ",push_x,push_y,push_z,push_torque_x,push_torque_y,push_torque_z,contact_x,contact_y,"
+         "contact_z,wrench_x,wrench_y,wrench_z,commanded_wrench_x,commanded_wrench_y,"
+         "commanded_wrench_z,max_torque_rate";
+  const int joints = samples.empty() ? 0 : static_cast<int>(samples.front().tau.size());
+  for (const char* prefix : {"tau_", "q_", "nullspace_q_", "commanded_nullspace_q_"}) {
+    for (int i = 0; i < joints; ++i) csv << "," << prefix << i + 1;
+  }
+  csv << "\n";
+  for (const scenarios::Sample& s : samples) {
+    csv << s.time << "," << csv_field(s.phase);
+    for (const Eigen::Vector3d* v : {&s.position, &s.reference, &s.commanded}) write_three(csv, *v);
+    for (const Vector6d* v : {&s.pose_error, &s.stiffness, &s.commanded_stiffness}) {
+      for (int i = 0; i < 6; ++i) csv << "," << (*v)[i];
+    }
+    for (const Eigen::Vector3d* v :
+         {&s.push, &s.push_torque, &s.contact, &s.wrench, &s.commanded_wrench}) {
+      write_three(csv, *v);
+    }
+    csv << "," << s.max_torque_rate;
+    for (const JointVector* v :
+         {&s.tau, &s.q, &s.nullspace_target, &s.commanded_nullspace_target}) {
+      write_joints(csv, *v, joints);
+    }
+    csv << "\n";
+  }
+}
+
+void write_table(const std::filesystem::path& path, const scenarios::Table& table) {
+  std::ofstream csv(path);
+  for (std::size_t i = 0; i < table.columns.size(); ++i) {
+    csv << (i == 0 ? "" : ",") << table.columns[i];
+  }
+  csv << "\n";
+  for (const std::vector<double>& row : table.rows) {
+    for (std::size_t i = 0; i < row.size(); ++i) csv << (i == 0 ? "" : ",") << row[i];
+    csv << "\n";
+  }
+}
+
+void write_summary(const std::filesystem::path& path, const std::vector<scenarios::Result>& all) {
+  std::ofstream summary(path);
+  summary << "scenario,quantity,theory,measured,unit,tolerance,passed\n";
+  for (const scenarios::Result& r : all) {
+    summary << csv_field(r.scenario) << "," << csv_field(r.quantity) << "," << r.expected << ","
+            << r.measured << "," << csv_field(r.unit) << "," << r.tolerance << ","
+            << (!r.applicable ? "n/a"
+                : r.passed    ? "yes"
+                              : "no")
+            << "\n";
+  }
+}
+
+std::string picture_file_name(const std::string& scenario, const std::string& label) {
+  std::string file = scenario + "_" + label + ".png";
+  for (char& c : file) c = c == ' ' || c == ',' ? '_' : c;
+  return file;
+}
+
+std::string expectation(const scenarios::Result& r) {
+  char text[96];
+  if (r.bound) {
+    std::snprintf(text, sizeof(text), "<= %.4g %s", r.expected, r.unit.c_str());
+  } else if (r.tolerance > 0.0) {
+    std::snprintf(text, sizeof(text), "%.4g +- %.2g %s", r.expected, r.tolerance, r.unit.c_str());
+  } else if (r.note.rfind("at least", 0) == 0) {
+    std::snprintf(text, sizeof(text), ">= %.4g %s", r.expected, r.unit.c_str());
+  } else {
+    std::snprintf(text, sizeof(text), "%.4g %s", r.expected, r.unit.c_str());
+  }
+  return text;
+}
+
+std::string measurement(const scenarios::Result& r) {
+  char text[64];
+  std::snprintf(text, sizeof(text), "%.4g %s", r.measured, r.unit.c_str());
+  return text;
+}
+
+}  // namespace cartesian_impedance::demo

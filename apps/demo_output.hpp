@@ -1,0 +1,31 @@
+#pragma once
+// What the demo writes besides its console report: CSV logs of the samples and of the scenarios'
+// tables, the summary, and the names of the pictures.
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "scenarios.hpp"
+
+namespace cartesian_impedance::demo {
+
+/// One row per sample: time, phase, positions, errors, every commanded quantity, torques.
+void write_samples(const std::filesystem::path& path,
+                   const std::vector<scenarios::Sample>& samples);
+
+/// A scenario's table as CSV.
+void write_table(const std::filesystem::path& path, const scenarios::Table& table);
+
+/// summary.csv: one row per result line; passed is yes, no or n/a.
+void write_summary(const std::filesystem::path& path, const std::vector<scenarios::Result>& all);
+
+/// "hold_holding_a_1_kg_payload.png": the scenario and the moment's label, without spaces.
+std::string picture_file_name(const std::string& scenario, const std::string& label);
+
+/// "20 +- 1 mm", "<= 0.5 mm", ">= 3 s": what theory says, for the report.
+std::string expectation(const scenarios::Result& result);
+/// "20.3 mm"
+std::string measurement(const scenarios::Result& result);
+
+}  // namespace cartesian_impedance::demo
