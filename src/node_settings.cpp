@@ -125,9 +125,10 @@ NodeConfiguration decode_node_configuration(const ParameterValue& tree,
           decode_number(items[i], kStartQ, "start_q[" + std::to_string(i) + "]"));
     }
     if (settings.mode == Mode::topics && !settings.start_q.empty()) {
-      reader.fail("start_q",
-                  "is set in topics mode, where the robot's joint_states are the start; remove it "
-                  "(it is for sim mode)");
+      reader.fail(
+          "start_q",
+          "start_q is set in topics mode, where the robot's joint_states are the start; remove it "
+          "(it is for sim mode)");
     }
   }
   settings.joint_states_timeout = reader.number(kJointStatesTimeout, settings.joint_states_timeout);
@@ -149,19 +150,33 @@ NodeConfiguration decode_node_configuration(const ParameterValue& tree,
   return configuration;
 }
 
-void check_start_q(const NodeConfiguration& configuration,
-                   const std::vector<std::string>& joint_names) {
+void check_start_q(const NodeConfiguration& configuration, const RobotModel& model) {
   const std::vector<double>& start_q = configuration.settings.start_q;
-  if (start_q.empty() || start_q.size() == joint_names.size()) return;
-  std::string joints;
-  for (const std::string& name : joint_names) joints += (joints.empty() ? "" : ", ") + name;
-  throw ParameterError(ParameterError::Reason::wrong_shape,
-                       with_location(configuration.start_q_location,
-                                     "start_q has " + std::to_string(start_q.size()) +
-                                         " values; expected one per joint of the chain " +
-                                         configuration.settings.base_link + " -> " +
-                                         configuration.settings.tip_link + " (" +
-                                         std::to_string(joint_names.size()) + ": " + joints + ")"));
+  if (start_q.empty()) return;
+  const std::vector<std::string>& joint_names = model.joint_names();
+  const auto fail = [&](const std::string& message) {
+    throw ParameterError(start_q.size() == joint_names.size() ? ParameterError::Reason::out_of_range
+                                                              : ParameterError::Reason::wrong_shape,
+                         with_location(configuration.start_q_location, message));
+  };
+  if (start_q.size() != joint_names.size()) {
+    std::string joints;
+    for (const std::string& name : joint_names) joints += (joints.empty() ? "" : ", ") + name;
+    fail("start_q has " + std::to_string(start_q.size()) +
+         " values; expected one per joint of the chain " + model.base_link() + " -> " +
+         model.tip_link() + " (" + std::to_string(joint_names.size()) + ": " + joints + ")");
+  }
+  const JointLimits& limits = model.limits();
+  for (std::size_t i = 0; i < start_q.size(); ++i) {
+    const Eigen::Index j = static_cast<Eigen::Index>(i);
+    if (start_q[i] < limits.position_lower[j] || start_q[i] > limits.position_upper[j]) {
+      const bool prismatic = model.joint_types()[i] == JointType::prismatic;
+      fail("start_q[" + std::to_string(i) + "] = " + format_number(start_q[i]) +
+           (prismatic ? " m" : " rad") + " for joint '" + joint_names[i] +
+           "' is outside its limits [" + format_number(limits.position_lower[j]) + ", " +
+           format_number(limits.position_upper[j]) + "] in the URDF");
+    }
+  }
 }
 
 std::string tf_frame(const NodeSettings& settings, const std::string& link) {

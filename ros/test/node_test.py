@@ -483,7 +483,7 @@ def case_bad_parameters(processes, args):
     run("start_q_count", dict(good, start_q=[0.0, -0.5, 0.0]),
         "/start_q_count/start_q: start_q has 3 values; expected one per joint of the chain")
     run("start_q_range", dict(good, start_q=[0.0, -0.7, 0.0, 0.5, 0.0, 1.5, 0.7]),
-        "panda_joint4")  # 0.5 rad is outside its [-3.07, -0.07]: the simulation names the joint
+        "start_q[3] = 0.5 rad for joint 'panda_joint4' is outside its limits [-3.0718, -0.0698]")
 
 
 # ---- dynamic_reconfigure and topics: one owner per commanded value ------------------------------

@@ -15,6 +15,7 @@
 
 #include "cartesian_impedance/parameter_tree.hpp"
 #include "cartesian_impedance/parameters.hpp"
+#include "cartesian_impedance/robot_model.hpp"
 
 namespace cartesian_impedance::runtime {
 
@@ -83,10 +84,11 @@ NodeConfiguration decode_node_configuration(const ParameterValue& tree,
                                             const std::vector<std::string>& shell_keys,
                                             std::string_view source);
 
-/// Checks the settings that depend on the loaded chain: start_q has one value per joint.
-/// @throws ParameterError naming start_q's location, its count and the chain's joints.
-void check_start_q(const NodeConfiguration& configuration,
-                   const std::vector<std::string>& joint_names);
+/// Checks the settings that depend on the loaded chain: start_q has one value per joint, each
+/// within its joint's position limits in the URDF.
+/// @throws ParameterError naming start_q's location, its count and the chain's joints, or the
+///         index, value, joint and limits.
+void check_start_q(const NodeConfiguration& configuration, const RobotModel& model);
 
 /// The tf frame of a link: tf_prefix + link.
 std::string tf_frame(const NodeSettings& settings, const std::string& link);
