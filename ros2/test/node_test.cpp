@@ -490,17 +490,10 @@ TEST(Ros2Node, PublishesTheRobotsTransformsAndDescription) {
   EXPECT_GT((moved.pose.translation() - start.position).norm(), 0.05);
 }
 
-// sim mode without mjcf_path: MuJoCo simulates the URDF, started at start_q.
+// sim mode without mjcf_path (ros2/config/sim_ur5e.yaml): MuJoCo simulates the URDF, started at
+// start_q.
 TEST(Ros2Node, SimulatesTheUrdfFromStartQ) {
-  const std::string params = params_file("urdf_ur5e.yaml", R"(
-/**:
-  ros__parameters:
-    urdf_path: )" + repository() + R"(/models/ur5e/ur5e.urdf
-    base_link: base_link
-    tip_link: tool0
-    start_q: [3.14159265, -1.57079633, 1.57079633, -1.57079633, -1.57079633, 0.0]
-    parameters_file: )" + repository() + R"(/config/ur5e.yaml
-)");
+  const std::string params = repository() + "/ros2/config/sim_ur5e.yaml";
   NodeProcess node({"--ros-args", "--params-file", params});
   Client client;
   const State start = client.running();
