@@ -454,11 +454,17 @@ def check_tf_matches_state(tf, state, root, tip, tolerance=1e-9):
     equals that state's current_pose: both come from one sample of the control loop (same q,
     same stamp), so only rounding separates them. Returns the matched state."""
     deadline = time.monotonic() + 10.0
+    missing = None
     while time.monotonic() < deadline:
         m = state.get()
         stamp = m.header.stamp.to_nsec()
         if stamp in tf.stamps():
-            p, q = compose(tf.tree(stamp), root, tip)
+            try:
+                p, q = compose(tf.tree(stamp), root, tip)
+            except AssertionError as error:  # a latched /tf_static message still on its way
+                missing = error
+                time.sleep(0.02)
+                continue
             expected_q = quaternion_of(m.current_pose)
             dot = abs(sum(a * b for a, b in zip(q, expected_q)))
             error = distance(p, position(m.current_pose))
@@ -468,5 +474,7 @@ def check_tf_matches_state(tf, state, root, tip, tolerance=1e-9):
             assert 1 - dot < tolerance, (q, expected_q)
             return m
         time.sleep(0.02)
+    if missing is not None:
+        raise missing
     raise AssertionError("no /tf message with the stamp of a controller_state (tf stamps %s, "
                          "state %s)" % (tf.stamps()[-3:], state.get().header.stamp.to_nsec()))

@@ -382,7 +382,7 @@ def case_two_arms(processes, args):
 
 def case_topics_mode(processes, args):
     """mode topics: joint_states in (in any order, with other joints), effort_command out at the
-    control rate; without joint_states the status turns invalid and the torque ramps to zero
+    control rate, tf from the measured positions; without joint_states the status turns invalid and the torque ramps to zero
     (a stale episode); the control thread reports its timing."""
     launched = time.monotonic()
     processes.launch(
@@ -418,6 +418,8 @@ def case_topics_mode(processes, args):
         state = controller_state()
         m = state.get()
         assert close(m.joint_state.position, PANDA_READY, 1e-9), m.joint_state.position
+        # tf in topics mode too, from the measured joint positions.
+        check_tf_matches_state(TfRecorder(), state, "panda_link0", "panda_link8")
         assert close(m.external_torques, [0.5 - t for t in m.commanded_torques], 1e-9)
         efforts.wait(lambda e: len(e.data) == 7, timeout=5.0, what="effort_command")
         count = efforts.count
