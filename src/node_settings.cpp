@@ -20,7 +20,7 @@ const ParameterInfo kPublishRate{"publish_rate", "Hz", 0, 10000, true, "rate of 
 const ParameterInfo kJointStatesTimeout{
     "joint_states_timeout", "s", 0, 10, true, "age at which joint states count as lost", nullptr};
 // A joint position: radians or metres, bounded like a URDF's prismatic travel (1 km), which
-// catches degrees and typos; the simulation checks each against its joint's limits.
+// catches degrees and typos; check_start_q() checks each against its joint's URDF limits.
 const ParameterInfo kStartQ{"start_q", "rad or m", -1000, 1000, false, "start configuration",
                             nullptr};
 const ParameterInfo kRealtimePriority{

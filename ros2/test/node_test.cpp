@@ -553,8 +553,7 @@ TEST(Ros2Node, TopicsModeTakesJointStatesAndCommandsTheEffortController) {
   Client client("/robot/cartesian_impedance_controller");
   const State start = client.running();
   TfRecorder tf(participant);  // tf in topics mode too, from the measured joint positions
-  check_tf_matches_state(tf, "/robot/cartesian_impedance_controller", "panda_link0",
-                         "panda_link8");
+  check_tf_matches_state(tf, "/robot/cartesian_impedance_controller", "panda_link0", "panda_link8");
   ASSERT_TRUE(commands.wait(2.0, [](const std::vector<double>& tau) { return tau.size() == 7; }));
   // Held still at the reference: (almost) no torque. Then a reference 1 cm along +x: the
   // arm cannot move (the "robot" replays one state), so the spring torque is J^T K e with

@@ -39,8 +39,9 @@ struct NodeSettings {
   /// actuators, torques unlimited, no keyframe: set start_q).
   std::string mjcf_path;
   /// sim mode: start configuration [rad or m], one value per joint of the chain (base to tip);
-  /// empty: the model's own (the MJCF's keyframe "ready", else q = 0). Rejected in topics mode,
-  /// where the robot's joint_states are the start.
+  /// empty: the model's own (the MJCF's keyframe "ready", else q = 0). Each within its joint's
+  /// URDF limits (check_start_q()). Rejected in topics mode, where the robot's joint_states are
+  /// the start.
   std::vector<double> start_q;
   double joint_states_timeout = 0.1;  ///< [s] topics mode: older joint states count as lost
   int realtime_priority = 0;          ///< SCHED_FIFO priority of the control thread; 0 = normal
