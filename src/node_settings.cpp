@@ -19,6 +19,10 @@ const ParameterInfo kPublishRate{"publish_rate", "Hz", 0, 10000, true, "rate of 
                                  nullptr};
 const ParameterInfo kJointStatesTimeout{
     "joint_states_timeout", "s", 0, 10, true, "age at which joint states count as lost", nullptr};
+// A joint position: radians or metres, bounded like a URDF's prismatic travel (1 km), which
+// catches degrees and typos; check_start_q() checks each against its joint's URDF limits.
+const ParameterInfo kStartQ{"start_q", "rad or m", -1000, 1000, false, "start configuration",
+                            nullptr};
 const ParameterInfo kRealtimePriority{
     "realtime_priority", "", 0, 99, false, "SCHED_FIFO priority; 0 = normal", nullptr};
 
@@ -56,8 +60,8 @@ const char* to_string(Mode mode) noexcept {
 
 const std::vector<std::string_view>& node_setting_names() {
   static const std::vector<std::string_view> names = {
-      "mode",     "control_rate", "publish_rate",         "base_link",
-      "tip_link", "mjcf_path",    "joint_states_timeout", "realtime_priority"};
+      "mode",    "control_rate",         "publish_rate",      "base_link",  "tip_link", "mjcf_path",
+      "start_q", "joint_states_timeout", "realtime_priority", "publish_tf", "tf_prefix"};
   return names;
 }
 
@@ -106,15 +110,77 @@ NodeConfiguration decode_node_configuration(const ParameterValue& tree,
   if (settings.base_link.empty()) reader.fail("base_link", "is not set (the chain's root link)");
   if (settings.tip_link.empty()) reader.fail("tip_link", "is not set (the end-effector link)");
   settings.mjcf_path = reader.name("mjcf_path", "a file path");
-  if (settings.mode == Mode::sim && settings.mjcf_path.empty()) {
-    reader.fail("mjcf_path", "is not set (sim mode needs the MuJoCo model of the robot)");
+  if (const ParameterValue* start_q = reader.setting("start_q")) {
+    configuration.start_q_location = location_of("start_q");
+    if (!start_q->is(ParameterValue::Kind::list)) {
+      throw ParameterError(
+          ParameterError::Reason::wrong_shape,
+          with_location(
+              start_q->location.empty() ? configuration.start_q_location : start_q->location,
+              "start_q = " + start_q->describe() + " is not a list of joint positions [rad or m]"));
+    }
+    const ParameterList& items = start_q->as_list();
+    for (std::size_t i = 0; i < items.size(); ++i) {
+      settings.start_q.push_back(
+          decode_number(items[i], kStartQ, "start_q[" + std::to_string(i) + "]"));
+    }
+    if (settings.mode == Mode::topics && !settings.start_q.empty()) {
+      reader.fail(
+          "start_q",
+          "start_q is set in topics mode, where the robot's joint_states are the start; remove it "
+          "(it is for sim mode)");
+    }
   }
   settings.joint_states_timeout = reader.number(kJointStatesTimeout, settings.joint_states_timeout);
   if (const ParameterValue* priority = reader.setting("realtime_priority")) {
     settings.realtime_priority =
         decode_integer(*priority, kRealtimePriority, kRealtimePriority.name);
   }
+  if (const ParameterValue* publish_tf = reader.setting("publish_tf")) {
+    if (!publish_tf->is(ParameterValue::Kind::boolean)) {
+      throw ParameterError(
+          ParameterError::Reason::wrong_type,
+          with_location(
+              publish_tf->location.empty() ? location_of("publish_tf") : publish_tf->location,
+              "publish_tf = " + publish_tf->describe() + " is not true or false"));
+    }
+    settings.publish_tf = publish_tf->as_boolean();
+  }
+  settings.tf_prefix = reader.name("tf_prefix", "a frame prefix");
   return configuration;
+}
+
+void check_start_q(const NodeConfiguration& configuration, const RobotModel& model) {
+  const std::vector<double>& start_q = configuration.settings.start_q;
+  if (start_q.empty()) return;
+  const std::vector<std::string>& joint_names = model.joint_names();
+  const auto fail = [&](const std::string& message) {
+    throw ParameterError(start_q.size() == joint_names.size() ? ParameterError::Reason::out_of_range
+                                                              : ParameterError::Reason::wrong_shape,
+                         with_location(configuration.start_q_location, message));
+  };
+  if (start_q.size() != joint_names.size()) {
+    std::string joints;
+    for (const std::string& name : joint_names) joints += (joints.empty() ? "" : ", ") + name;
+    fail("start_q has " + std::to_string(start_q.size()) +
+         " values; expected one per joint of the chain " + model.base_link() + " -> " +
+         model.tip_link() + " (" + std::to_string(joint_names.size()) + ": " + joints + ")");
+  }
+  const JointLimits& limits = model.limits();
+  for (std::size_t i = 0; i < start_q.size(); ++i) {
+    const Eigen::Index j = static_cast<Eigen::Index>(i);
+    if (start_q[i] < limits.position_lower[j] || start_q[i] > limits.position_upper[j]) {
+      const bool prismatic = model.joint_types()[i] == JointType::prismatic;
+      fail("start_q[" + std::to_string(i) + "] = " + format_number(start_q[i]) +
+           (prismatic ? " m" : " rad") + " for joint '" + joint_names[i] +
+           "' is outside its limits [" + format_number(limits.position_lower[j]) + ", " +
+           format_number(limits.position_upper[j]) + "] in the URDF");
+    }
+  }
+}
+
+std::string tf_frame(const NodeSettings& settings, const std::string& link) {
+  return settings.tf_prefix + link;
 }
 
 }  // namespace cartesian_impedance::runtime

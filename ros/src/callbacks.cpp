@@ -145,12 +145,15 @@ bool CartesianImpedanceNode::on_cancel_trajectory(std_srvs::Trigger::Request& /*
 
 // ---- frames ---------------------------------------------------------------------------------
 
+// A frame named with or without the node's tf_prefix.
 bool CartesianImpedanceNode::is_base(const std::string& frame_id) const {
-  return strip_slash(frame_id) == settings_.base_link;
+  const std::string_view frame = strip_slash(frame_id);
+  return frame == settings_.base_link || frame == tf_frame(settings_, settings_.base_link);
 }
 
 bool CartesianImpedanceNode::is_tip(const std::string& frame_id) const {
-  return strip_slash(frame_id) == settings_.tip_link;
+  const std::string_view frame = strip_slash(frame_id);
+  return frame == settings_.tip_link || frame == tf_frame(settings_, settings_.tip_link);
 }
 
 std::optional<ci::Frame> CartesianImpedanceNode::frame_of(const std::string& frame_id,
@@ -164,14 +167,15 @@ std::optional<ci::Frame> CartesianImpedanceNode::frame_of(const std::string& fra
 
 Eigen::Isometry3d CartesianImpedanceNode::lookup(const std::string& frame_id) const {
   const std::string frame(strip_slash(frame_id));
+  const std::string base = tf_frame(settings_, settings_.base_link);
   try {
     const geometry_msgs::TransformStamped transform = tf_buffer_->lookupTransform(
-        settings_.base_link, frame, ros::Time(0), ros::Duration(configuration_.tf_timeout));
+        base, frame, ros::Time(0), ros::Duration(configuration_.tf_timeout));
     return isometry_from_transform(transform.transform);
   } catch (const tf2::TransformException& error) {
-    throw ci::Error("no transform from frame '" + frame + "' to the base frame '" +
-                    settings_.base_link + "' within " +
-                    ci::format_number(configuration_.tf_timeout) + " s: " + error.what());
+    throw ci::Error("no transform from frame '" + frame + "' to the base frame '" + base +
+                    "' within " + ci::format_number(configuration_.tf_timeout) +
+                    " s: " + error.what());
   }
 }
 

@@ -55,6 +55,17 @@ Eigen::Isometry3d isometry_from_transform(const geometry_msgs::Transform& messag
   return T;
 }
 
+void transform_to_message(const Eigen::Isometry3d& T, geometry_msgs::Transform& message) {
+  message.translation.x = T.translation().x();
+  message.translation.y = T.translation().y();
+  message.translation.z = T.translation().z();
+  const Eigen::Quaterniond rotation(T.linear());
+  message.rotation.x = rotation.x();
+  message.rotation.y = rotation.y();
+  message.rotation.z = rotation.z();
+  message.rotation.w = rotation.w();
+}
+
 ci::Pose transform_pose(const Eigen::Isometry3d& T_base_frame, const ci::Pose& pose_frame) {
   ci::Pose pose_base;
   pose_base.position = T_base_frame * pose_frame.position;

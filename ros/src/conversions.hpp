@@ -45,6 +45,8 @@ void vector_to_wrench(const cartesian_impedance::Vector6d& vector, geometry_msgs
 
 /// T_parent_child of a tf2 transform.
 Eigen::Isometry3d isometry_from_transform(const geometry_msgs::Transform& message);
+/// A tf2 transform of T_parent_child.
+void transform_to_message(const Eigen::Isometry3d& T, geometry_msgs::Transform& message);
 
 /// T_base_frame * pose_frame: a pose given in `frame`, expressed in the base frame.
 cartesian_impedance::Pose transform_pose(const Eigen::Isometry3d& T_base_frame,

@@ -2,8 +2,13 @@
 // control thread, and (once the controller runs) the command interface.
 
 #include <std_msgs/Float64MultiArray.h>
+#include <tf2_msgs/TFMessage.h>
+#include <unistd.h>
 
+#include <cstdio>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 
 #include <cartesian_impedance/error.hpp>
 
@@ -12,6 +17,28 @@
 namespace cartesian_impedance_ros {
 
 namespace ci = cartesian_impedance;
+
+namespace {
+
+// MuJoCo's URDF import reads a file: the text of robot_description goes into a temporary one.
+ci::sim::Simulation simulate_urdf_text(const std::string& urdf,
+                                       ci::sim::SimulationOptions options) {
+  const std::filesystem::path path =
+      std::filesystem::temp_directory_path() /
+      ("cartesian_impedance_" + std::to_string(::getpid()) + ".urdf");
+  std::ofstream(path) << urdf;
+  try {
+    ci::sim::Simulation simulation = ci::sim::Simulation::from_urdf_file(path.string(), options);
+    std::filesystem::remove(path);
+    return simulation;
+  } catch (...) {
+    std::error_code ignored;
+    std::filesystem::remove(path, ignored);
+    throw;
+  }
+}
+
+}  // namespace
 
 // ---- construction ---------------------------------------------------------------------------
 
@@ -33,6 +60,7 @@ CartesianImpedanceNode::CartesianImpedanceNode(const ros::NodeHandle& node,
                     "robot_description\" textfile=\"models/panda/panda.urdf\"/>");
   }
   model_.emplace(ci::RobotModel::from_urdf_string(urdf, settings_.base_link, settings_.tip_link));
+  ci::runtime::check_start_q(configuration_, *model_);
   // Callbacks wait up to 0.1 s for room in a full inbox (the cycle drains 8 commands per step),
   // so a burst of commands is delayed rather than lost; only a loop that stopped stepping makes
   // a callback give up, with a warning naming the command.
@@ -48,7 +76,12 @@ CartesianImpedanceNode::CartesianImpedanceNode(const ros::NodeHandle& node,
     // The simulated firmware compensates gravity like the real robots, unless the controller is
     // configured to do it itself (then it would be compensated twice).
     options.gravity_compensation = !configuration_.parameters.dynamics.gravity_compensation;
-    simulation_.emplace(ci::sim::Simulation::from_mjcf_file(settings_.mjcf_path, options));
+    options.start_q = Eigen::Map<const Eigen::VectorXd>(
+        settings_.start_q.data(), static_cast<Eigen::Index>(settings_.start_q.size()));
+    // Without an MJCF, MuJoCo simulates the URDF itself (robot_description).
+    simulation_.emplace(settings_.mjcf_path.empty()
+                            ? simulate_urdf_text(urdf, options)
+                            : ci::sim::Simulation::from_mjcf_file(settings_.mjcf_path, options));
     runner_.emplace(*simulation_, *loop_);
     joint_state_publisher_ = node_.advertise<sensor_msgs::JointState>("joint_states", 10);
   } else {
@@ -66,16 +99,26 @@ CartesianImpedanceNode::CartesianImpedanceNode(const ros::NodeHandle& node,
   thread_options.realtime_priority = settings_.realtime_priority;
   control_thread_.emplace(thread_options);
 
+  if (settings_.publish_tf) {
+    links_.emplace(
+        ci::LinkTransforms::from_urdf_string(urdf, settings_.base_link, model_->joint_names()));
+    tf_publisher_ = node_.advertise<tf2_msgs::TFMessage>("/tf", 100);
+    tf_static_publisher_ = node_.advertise<tf2_msgs::TFMessage>("/tf_static", 1, true);
+    publish_static_transforms();
+  }
   state_publisher_ = private_node_.advertise<ControllerState>("controller_state", 10);
   torque_publisher_ = private_node_.advertise<std_msgs::Float64MultiArray>("commanded_torques", 10);
 
   std::string joints;
   for (const std::string& name : model_->joint_names())
     joints += (joints.empty() ? "" : " ") + name;
-  ROS_INFO("%s: %s -> %s, %d joints (%s), mode %s, %g Hz control, %g Hz state",
-           private_node_.getNamespace().c_str(), settings_.base_link.c_str(),
-           settings_.tip_link.c_str(), n, joints.c_str(), to_string(settings_.mode),
-           settings_.control_rate, settings_.publish_rate);
+  ROS_INFO(
+      "%s: %s -> %s, %d joints (%s), mode %s%s, %g Hz control, %g Hz state%s",
+      private_node_.getNamespace().c_str(), settings_.base_link.c_str(), settings_.tip_link.c_str(),
+      n, joints.c_str(), to_string(settings_.mode),
+      settings_.mode == Mode::sim && settings_.mjcf_path.empty() ? " (the URDF simulated)" : "",
+      settings_.control_rate, settings_.publish_rate,
+      links_ ? (", tf of " + std::to_string(links_->joints().size()) + " joints").c_str() : "");
 }
 
 CartesianImpedanceNode::~CartesianImpedanceNode() {

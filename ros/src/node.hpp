@@ -9,7 +9,8 @@
 ///   TorqueOutbox. In sim mode its cycle is the closed-loop runner, which steps the MuJoCo
 ///   simulation once per cycle.
 /// - the publisher thread reads the newest state at ~publish_rate, publishes controller_state,
-///   commanded_torques and (sim mode) joint_states, and logs status changes, lost joint_states
+///   commanded_torques, (sim mode) joint_states and the arm's transforms on /tf (the fixed ones
+///   go on /tf_static once, latched), and logs status changes, lost joint_states
 ///   and overruns; in topics mode an effort thread publishes each cycle's torque on
 ///   effort_command, woken by the TorqueOutbox (publishing.cpp).
 /// - ROS callbacks (an AsyncSpinner) convert and validate messages, do tf2 lookups, and hand the
@@ -37,6 +38,7 @@
 #include <vector>
 
 #include <cartesian_impedance/control_loop.hpp>
+#include <cartesian_impedance/link_transforms.hpp>
 #include <cartesian_impedance/robot_model.hpp>
 #include <cartesian_impedance/runtime/control_thread.hpp>
 #include <cartesian_impedance/runtime/joint_states.hpp>
@@ -87,6 +89,9 @@ class CartesianImpedanceNode {
   void publisher_thread();
   void effort_thread();
   void stop_threads();
+  /// /tf_static, once (latched): the joints whose transforms do not depend on the arm's joints
+  /// (fixed ones, and those outside the chain, held at position 0), stamped now.
+  void publish_static_transforms();
 
   // Set up once the controller runs (so no command is lost to start()): node.cpp and
   // reconfigure.cpp.
@@ -141,6 +146,7 @@ class CartesianImpedanceNode {
   const NodeSettings& settings_ = configuration_.settings;
 
   std::optional<cartesian_impedance::RobotModel> model_;
+  std::optional<cartesian_impedance::LinkTransforms> links_;  // set if ~publish_tf
   std::unique_ptr<cartesian_impedance::ControlLoop> loop_;
   std::optional<cartesian_impedance::sim::Simulation> simulation_;                // sim mode
   std::optional<cartesian_impedance::sim::ClosedLoopRunner> runner_;              // sim mode
@@ -159,6 +165,8 @@ class CartesianImpedanceNode {
   ros::Publisher torque_publisher_;
   ros::Publisher joint_state_publisher_;
   ros::Publisher effort_publisher_;
+  ros::Publisher tf_publisher_;         // /tf: the chain's joints, at ~publish_rate
+  ros::Publisher tf_static_publisher_;  // /tf_static (latched): every other joint, once
   ros::Subscriber joint_state_subscriber_;
   std::vector<ros::Subscriber> command_subscribers_;
   ros::ServiceServer cancel_service_;

@@ -1,10 +1,12 @@
-// What leaves the node: controller_state (with the control thread's timing), commanded_torques and
-// (sim mode) joint_states at ~publish_rate from the publisher thread, which also logs status
+// What leaves the node: controller_state (with the control thread's timing), commanded_torques,
+// (sim mode) joint_states and the chain's transforms on /tf at ~publish_rate from the publisher
+// thread (computed there from the measured q, with the model's KDL code), which also logs status
 // changes, lost joint_states and, every 5 s while there are any, a summary of the control thread's
 // overruns; effort_command each control cycle (topics mode) from the effort thread. Neither ever
 // blocks the control thread: they read its lock-free outboxes and atomic counters.
 
 #include <std_msgs/Float64MultiArray.h>
+#include <tf2_msgs/TFMessage.h>
 
 #include <cartesian_impedance/runtime/status_reports.hpp>
 
@@ -25,11 +27,57 @@ void prepare_array(std_msgs::Float64MultiArray& message, int size) {
   message.data.assign(static_cast<std::size_t>(size), 0.0);
 }
 
+// One TransformStamped per joint of `links` for which `pick(joint)` holds, frames prefixed.
+template <typename Pick>
+tf2_msgs::TFMessage transform_message(const ci::LinkTransforms& links,
+                                      const ci::runtime::NodeSettings& settings, Pick pick) {
+  tf2_msgs::TFMessage message;
+  for (const ci::LinkJoint& joint : links.joints()) {
+    if (!pick(joint)) continue;
+    geometry_msgs::TransformStamped transform;
+    transform.header.frame_id = tf_frame(settings, joint.parent);
+    transform.child_frame_id = tf_frame(settings, joint.child);
+    message.transforms.push_back(transform);
+  }
+  return message;
+}
+
+// Fills the transforms of `message` (made by transform_message with the same pick).
+template <typename Pick>
+void fill_transforms(const ci::LinkTransforms& links, const std::vector<Eigen::Isometry3d>& T,
+                     const ros::Time& stamp, Pick pick, tf2_msgs::TFMessage& message) {
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < links.joints().size(); ++i) {
+    if (!pick(links.joints()[i])) continue;
+    geometry_msgs::TransformStamped& transform = message.transforms[k++];
+    transform.header.stamp = stamp;
+    transform_to_message(T[i], transform.transform);
+  }
+}
+
+bool is_moving(const ci::LinkJoint& joint) {
+  return joint.chain_index >= 0;
+}
+bool is_static(const ci::LinkJoint& joint) {
+  return joint.chain_index < 0;
+}
+
 }  // namespace
+
+void CartesianImpedanceNode::publish_static_transforms() {
+  tf2_msgs::TFMessage message = transform_message(*links_, settings_, is_static);
+  std::vector<Eigen::Isometry3d> transforms;
+  links_->compute(ci::JointVector::Zero(model_->num_joints()), transforms);
+  fill_transforms(*links_, transforms, ros::Time::now(), is_static, message);
+  tf_static_publisher_.publish(message);
+}
 
 void CartesianImpedanceNode::publisher_thread() {
   ControllerState state_message;
-  state_message.header.frame_id = settings_.base_link;
+  state_message.header.frame_id = tf_frame(settings_, settings_.base_link);
+  tf2_msgs::TFMessage tf_message;
+  std::vector<Eigen::Isometry3d> transforms;
+  if (links_) tf_message = transform_message(*links_, settings_, is_moving);
   std_msgs::Float64MultiArray torque_message;
   prepare_array(torque_message, model_->num_joints());
   sensor_msgs::JointState joint_message;
@@ -53,6 +101,11 @@ void CartesianImpedanceNode::publisher_thread() {
           joint_message.velocity.assign(state.dq.data(), state.dq.data() + state.dq.size());
           joint_message.effort = state_message.commanded_torques;
           joint_state_publisher_.publish(joint_message);
+        }
+        if (links_) {
+          links_->compute(state.q, transforms);
+          fill_transforms(*links_, transforms, stamp, is_moving, tf_message);
+          tf_publisher_.publish(tf_message);
         }
       },
       [](const ci::runtime::ReportLine& line) {

@@ -19,6 +19,7 @@ namespace cartesian_impedance_ros {
 
 using cartesian_impedance::runtime::Mode;
 using cartesian_impedance::runtime::NodeSettings;
+using cartesian_impedance::runtime::tf_frame;
 using cartesian_impedance::runtime::to_string;
 
 /// The shells' common configuration (settings, controller parameters, unknown keys) plus what

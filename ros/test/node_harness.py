@@ -337,3 +337,144 @@ def dynparam_get(processes, server):
          "/%s/%s" % (CONTROLLER, server)], env=processes.env, capture_output=True, text=True,
         timeout=20, check=True).stdout
     return ast.literal_eval(output.strip().splitlines()[-1])
+
+
+# ---- tf ---------------------------------------------------------------------------------------------
+
+# A Franka hand on the Panda's flange (as franka_description mounts it: -45 degrees about z), with
+# its two fingers on prismatic joints: links with visuals outside the chain panda_link0 ->
+# panda_link8, for the transforms a robot display needs.
+PANDA_HAND = """
+  <link name="panda_hand">
+    <visual><geometry><box size="0.05 0.2 0.06"/></geometry></visual>
+  </link>
+  <link name="panda_leftfinger">
+    <visual><geometry><box size="0.02 0.02 0.05"/></geometry></visual>
+  </link>
+  <link name="panda_rightfinger">
+    <visual><geometry><box size="0.02 0.02 0.05"/></geometry></visual>
+  </link>
+  <joint name="panda_hand_joint" type="fixed">
+    <parent link="panda_link8"/><child link="panda_hand"/><origin xyz="0 0 0" rpy="0 0 -0.7853981633974483"/>
+  </joint>
+  <joint name="panda_finger_joint1" type="prismatic">
+    <parent link="panda_hand"/><child link="panda_leftfinger"/><origin xyz="0 0 0.0584"/>
+    <axis xyz="0 1 0"/><limit effort="20" lower="0.0" upper="0.04" velocity="0.2"/>
+  </joint>
+  <joint name="panda_finger_joint2" type="prismatic">
+    <parent link="panda_hand"/><child link="panda_rightfinger"/><origin xyz="0 0 0.0584"/>
+    <axis xyz="0 -1 0"/><limit effort="20" lower="0.0" upper="0.04" velocity="0.2"/>
+    <mimic joint="panda_finger_joint1"/>
+  </joint>
+"""
+
+
+def panda_with_hand(folder):
+    """models/panda/panda.urdf with PANDA_HAND, written into `folder`; returns the path."""
+    with open(os.path.join(REPO, "models", "panda", "panda.urdf")) as f:
+        text = f.read()
+    end = text.rindex("</robot>")
+    path = os.path.join(folder, "panda_hand.urdf")
+    with open(path, "w") as f:
+        f.write(text[:end] + PANDA_HAND + text[end:])
+    return path
+
+
+class TfRecorder:
+    """Every transform on /tf (by stamp, the newest 200 stamps) and /tf_static (latched)."""
+
+    def __init__(self):
+        import rospy
+        from tf2_msgs.msg import TFMessage
+        self.lock = threading.Lock()
+        self.moving = {}  # stamp (ns) -> {child: (parent, transform)}
+        self.fixed = {}  # child -> (parent, transform)
+        self.subscribers = [
+            rospy.Subscriber("/tf", TFMessage, self._moving, queue_size=100, tcp_nodelay=True),
+            rospy.Subscriber("/tf_static", TFMessage, self._fixed, queue_size=10)]
+
+    def _moving(self, message):
+        with self.lock:
+            for t in message.transforms:
+                stamp = t.header.stamp.to_nsec()
+                self.moving.setdefault(stamp, {})[t.child_frame_id] = (t.header.frame_id,
+                                                                       t.transform)
+            while len(self.moving) > 200:
+                del self.moving[min(self.moving)]
+
+    def _fixed(self, message):
+        with self.lock:
+            for t in message.transforms:
+                self.fixed[t.child_frame_id] = (t.header.frame_id, t.transform)
+
+    def tree(self, stamp):
+        """child -> (parent, transform): the static ones and the moving ones of `stamp`."""
+        with self.lock:
+            tree = dict(self.fixed)
+            tree.update(self.moving.get(stamp, {}))
+            return tree
+
+    def stamps(self):
+        with self.lock:
+            return sorted(self.moving)
+
+
+def compose(tree, root, frame):
+    """T_root_frame as (translation, quaternion xyzw), following parents from `frame` up."""
+    chain = []
+    while frame != root:
+        if frame not in tree:
+            raise AssertionError("no transform to frame '%s' (frames: %s)" % (frame,
+                                                                            sorted(tree)))
+        parent, transform = tree[frame]
+        chain.append(transform)
+        frame = parent
+    p, q = (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)
+    for transform in reversed(chain):  # T = T_root_1 T_1_2 ...
+        t, r = transform.translation, transform.rotation
+        p = tuple(a + b for a, b in zip(p, rotate(q, (t.x, t.y, t.z))))
+        q = multiply(q, (r.x, r.y, r.z, r.w))
+    return p, q
+
+
+def multiply(a, b):
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return (aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
+
+
+def rotate(q, v):
+    conjugate = (-q[0], -q[1], -q[2], q[3])
+    return multiply(multiply(q, (v[0], v[1], v[2], 0.0)), conjugate)[:3]
+
+
+def check_tf_matches_state(tf, state, root, tip, tolerance=1e-9):
+    """The tip's transform composed from /tf and /tf_static at the stamp of a controller_state
+    equals that state's current_pose: both come from one sample of the control loop (same q,
+    same stamp), so only rounding separates them. Returns the matched state."""
+    deadline = time.monotonic() + 10.0
+    missing = None
+    while time.monotonic() < deadline:
+        m = state.get()
+        stamp = m.header.stamp.to_nsec()
+        if stamp in tf.stamps():
+            try:
+                p, q = compose(tf.tree(stamp), root, tip)
+            except AssertionError as error:  # a latched /tf_static message still on its way
+                missing = error
+                time.sleep(0.02)
+                continue
+            expected_q = quaternion_of(m.current_pose)
+            dot = abs(sum(a * b for a, b in zip(q, expected_q)))
+            error = distance(p, position(m.current_pose))
+            print("tf %s -> %s at the state's stamp: position error %.2e m, 1 - |q.q'| = %.1e"
+                  % (root, tip, error, 1 - dot))
+            assert error < tolerance, (p, position(m.current_pose))
+            assert 1 - dot < tolerance, (q, expected_q)
+            return m
+        time.sleep(0.02)
+    if missing is not None:
+        raise missing
+    raise AssertionError("no /tf message with the stamp of a controller_state (tf stamps %s, "
+                         "state %s)" % (tf.stamps()[-3:], state.get().header.stamp.to_nsec()))

@@ -25,9 +25,10 @@ import traceback
 
 from node_harness import (  # noqa: F401
     CASE_BUDGET, CONTROLLER, CaseTimeout, Latest, PANDA_JOINTS, PANDA_READY, Processes, REPO,
-    check_timing, close, controller_state, distance, dynparam_get, friction_losses, holds,
-    init_rospy, pose_stamped, position, publisher, quaternion_of, reach_pose, reconfigure_client,
-    settle, vector6, wait_until, wrench_stamped,
+    TfRecorder, check_tf_matches_state, check_timing, close, controller_state, distance,
+    dynparam_get, friction_losses, holds, init_rospy, panda_with_hand, pose_stamped, position,
+    publisher, quaternion_of, reach_pose, reconfigure_client, settle, vector6, wait_until,
+    wrench_stamped,
 )
 
 
@@ -294,9 +295,63 @@ def case_nan_pose(processes, args):
     assert state.get().cycle > cycle
 
 
+def case_tf(processes, args):
+    """The node publishes the robot's transforms: the chain's joints on /tf with each state's
+    stamp, the other joints once on latched /tf_static (a subscriber that comes later still gets
+    them), every frame with tf_prefix in front. The tip composed from them is controller_state's
+    current_pose, before and after the arm moves; links outside the chain (a hand and its
+    fingers, at position 0) are there; a reference in the prefixed base frame is the base frame."""
+    urdf = panda_with_hand(processes.folder)
+    processes.launch(
+        "launch", "cartesian_impedance.launch", "urdf:=" + urdf,
+        "mjcf:=%s/models/panda/panda.xml" % REPO, "config:=%s/config/panda.yaml" % REPO,
+        "base_link:=panda_link0", "tip_link:=panda_link8", "tf_prefix:=arm/")
+    init_rospy()
+    state = controller_state()
+    time.sleep(0.5)  # /tf_static was latched before this subscriber existed
+    tf = TfRecorder()
+    m = check_tf_matches_state(tf, state, "arm/panda_link0", "arm/panda_link8")
+    assert m.header.frame_id == "arm/panda_link0", m.header.frame_id
+    tree = tf.tree(tf.stamps()[-1])
+    moving = {"arm/panda_link%d" % i: "arm/panda_link%d" % (i - 1) for i in range(1, 8)}
+    fixed = {"arm/panda_link8": "arm/panda_link7", "arm/panda_hand": "arm/panda_link8",
+             "arm/panda_leftfinger": "arm/panda_hand", "arm/panda_rightfinger": "arm/panda_hand"}
+    assert {child: parent for child, (parent, _) in tree.items()} == dict(moving, **fixed), tree
+    assert set(tf.fixed) == set(fixed), sorted(tf.fixed)
+    finger = tree["arm/panda_leftfinger"][1].translation
+    assert close((finger.x, finger.y, finger.z), (0.0, 0.0, 0.0584), 1e-12), finger
+    print("frames: %d on /tf, %d on /tf_static" % (len(moving), len(tf.fixed)))
+
+    p0, q0 = position(m.current_pose), quaternion_of(m.current_pose)
+    target = (p0[0] + 0.05, p0[1] - 0.04, p0[2] - 0.03)
+    reach_pose(state, "/%s/reference_pose" % CONTROLLER, "arm/panda_link0", target, q0)
+    moved = check_tf_matches_state(tf, state, "arm/panda_link0", "arm/panda_link8")
+    assert distance(position(moved.current_pose), p0) > 0.05
+
+
+def case_urdf_sim(processes, args):
+    """sim_urdf.launch: MuJoCo simulates the URDF itself (no MJCF), a UR5e started at start_q;
+    joint_states and tf follow it, and a reference is reached."""
+    start_q = [math.pi, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0.0]
+    processes.launch("launch", "sim_urdf.launch")
+    init_rospy()
+    from sensor_msgs.msg import JointState
+    joints = Latest("/joint_states", JointState)
+    state = controller_state()
+    message = joints.wait(what="joint_states from the simulation")
+    assert close(message.position, start_q, 0.02), message.position
+    wait_until(lambda: "the URDF simulated" in processes.log("launch"), 3.0, "the log line")
+    tf = TfRecorder()
+    m = check_tf_matches_state(tf, state, "base_link", "tool0")
+    p0, q0 = position(m.current_pose), quaternion_of(m.current_pose)
+    target = (p0[0], p0[1] + 0.04, p0[2] + 0.03)
+    took = reach_pose(state, "/%s/reference_pose" % CONTROLLER, "", target, q0)
+    print("UR5e from its URDF: reference reached after %.2f s" % took)
+
+
 def case_two_arms(processes, args):
     """Two namespaced arms (a Panda in /left, an iiwa 14 in /right) run at once, each reaching
-    its own reference."""
+    its own reference; their transforms share /tf with the prefixes left/ and right/."""
     processes.launch("launch", "sim_two_arms.launch")
     init_rospy()
     from sensor_msgs.msg import JointState
@@ -305,8 +360,11 @@ def case_two_arms(processes, args):
     right_joints = Latest("/right/joint_states", JointState)
     assert list(left_joints.wait().name) == PANDA_JOINTS
     assert list(right_joints.wait().name) == ["iiwa_joint_%d" % i for i in range(1, 8)]
-    assert left.get().header.frame_id == "panda_link0"
-    assert right.get().header.frame_id == "iiwa_link_0"
+    assert left.get().header.frame_id == "left/panda_link0"
+    assert right.get().header.frame_id == "right/iiwa_link_0"
+    tf = TfRecorder()
+    check_tf_matches_state(tf, left, "left/panda_link0", "left/panda_link8")
+    check_tf_matches_state(tf, right, "right/iiwa_link_0", "right/iiwa_link_ee")
 
     from geometry_msgs.msg import PoseStamped
     targets = {}
@@ -324,7 +382,7 @@ def case_two_arms(processes, args):
 
 def case_topics_mode(processes, args):
     """mode topics: joint_states in (in any order, with other joints), effort_command out at the
-    control rate; without joint_states the status turns invalid and the torque ramps to zero
+    control rate, tf from the measured positions; without joint_states the status turns invalid and the torque ramps to zero
     (a stale episode); the control thread reports its timing."""
     launched = time.monotonic()
     processes.launch(
@@ -360,6 +418,8 @@ def case_topics_mode(processes, args):
         state = controller_state()
         m = state.get()
         assert close(m.joint_state.position, PANDA_READY, 1e-9), m.joint_state.position
+        # tf in topics mode too, from the measured joint positions.
+        check_tf_matches_state(TfRecorder(), state, "panda_link0", "panda_link8")
         assert close(m.external_torques, [0.5 - t for t in m.commanded_torques], 1e-9)
         efforts.wait(lambda e: len(e.data) == 7, timeout=5.0, what="effort_command")
         count = efforts.count
@@ -422,6 +482,10 @@ def case_bad_parameters(processes, args):
     run("joint_count", dict(good, **{"limits/joint_torque": [87, 87, 87]}),
         "limits.joint_torque")
     run("bad_mjcf", dict(good, mjcf_path="/nonexistent/panda.xml"), "/nonexistent/panda.xml")
+    run("start_q_count", dict(good, start_q=[0.0, -0.5, 0.0]),
+        "/start_q_count/start_q: start_q has 3 values; expected one per joint of the chain")
+    run("start_q_range", dict(good, start_q=[0.0, -0.7, 0.0, 0.5, 0.0, 1.5, 0.7]),
+        "start_q[3] = 0.5 rad for joint 'panda_joint4' is outside its limits [-3.0718, -0.0698]")
 
 
 # ---- dynamic_reconfigure and topics: one owner per commanded value ------------------------------

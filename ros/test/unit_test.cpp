@@ -246,11 +246,50 @@ TEST(RosParameters, ErrorsNameParameterValueAndRange) {
               std::string::npos);
   }
   {
+    // Without an MJCF the sim mode simulates the URDF.
     XmlRpcValue root = required_settings();
     root["mjcf_path"] = std::string("");
-    EXPECT_NE(error_of(root).find("sim mode needs the MuJoCo model"), std::string::npos);
+    EXPECT_EQ(error_of(root), "");
     root["mode"] = std::string("topics");
     EXPECT_EQ(error_of(root), "");
+  }
+  {
+    XmlRpcValue root = required_settings();
+    root["start_q"][0] = 0.1;
+    root["start_q"][1] = std::string("up");
+    EXPECT_EQ(error_of(root), "ROS parameter " + kNamespace +
+                                  "/start_q: start_q[1] = 'up' is not a number [rad or m]");
+    root["start_q"][1] = std::nan("");
+    EXPECT_EQ(error_of(root), "ROS parameter " + kNamespace +
+                                  "/start_q: start_q[1] = nan rad or m is not finite (valid: "
+                                  "[-1000, 1000])");
+    root["start_q"] = 0.5;
+    EXPECT_EQ(error_of(root), "ROS parameter " + kNamespace +
+                                  "/start_q: start_q = 0.5 is not a list of joint positions "
+                                  "[rad or m]");
+    root["start_q"] = XmlRpcValue();
+    root["start_q"][0] = -0.2;
+    root["start_q"][1] = 0.3;
+    EXPECT_EQ(error_of(root), "");
+    const cir::NodeConfiguration configuration = cir::configuration_from_xmlrpc(root, kNamespace);
+    EXPECT_EQ(configuration.settings.start_q, (std::vector<double>{-0.2, 0.3}));
+    EXPECT_EQ(configuration.start_q_location, "ROS parameter " + kNamespace + "/start_q");
+    root["mode"] = std::string("topics");  // meaningless there: refused, not ignored
+    EXPECT_EQ(error_of(root), "ROS parameter " + kNamespace +
+                                  "/start_q: start_q is set in topics mode, where the robot's "
+                                  "joint_states are the start; remove it (it is for sim mode)");
+  }
+  {
+    XmlRpcValue root = required_settings();
+    EXPECT_TRUE(cir::configuration_from_xmlrpc(root, kNamespace).settings.publish_tf);
+    root["publish_tf"] = false;
+    root["tf_prefix"] = std::string("left/");
+    const cir::NodeConfiguration configuration = cir::configuration_from_xmlrpc(root, kNamespace);
+    EXPECT_FALSE(configuration.settings.publish_tf);
+    EXPECT_EQ(cir::tf_frame(configuration.settings, "panda_link0"), "left/panda_link0");
+    root["publish_tf"] = 1;
+    EXPECT_EQ(error_of(root),
+              "ROS parameter " + kNamespace + "/publish_tf: publish_tf = 1 is not true or false");
   }
 }
 

@@ -50,6 +50,10 @@ int main(int argc, char** argv) {
   try {
     ros2::Node node(std::move(arguments), std::move(configuration));
     return node.run(stop_requested);
+  } catch (const cartesian_impedance::ParameterError& error) {
+    // A parameter that only the loaded model shows to be wrong (start_q): as any other.
+    ros2::log(ros2::LogLevel::fatal, error.what());
+    return 2;
   } catch (const std::exception& error) {
     ros2::log(ros2::LogLevel::fatal, error.what());
     return 1;

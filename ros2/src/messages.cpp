@@ -24,14 +24,30 @@ std::string_view text(const char* value) {
 std::optional<ci::Frame> frame_of(const char* frame_id, const Frames& frames, const char* topic) {
   const std::string_view frame = text(frame_id);
   if (frame.empty()) return std::nullopt;
-  if (frame == frames.base_link) return ci::Frame::base;
-  if (frame == frames.tip_link) return ci::Frame::end_effector;
+  if (frames.is_base(frame)) return ci::Frame::base;
+  if (frames.is_tip(frame)) return ci::Frame::end_effector;
   throw ci::Error(std::string(topic) + ": header.frame_id = '" + std::string(frame) +
                   "' is not a frame of this controller (valid: '', '" + frames.base_link + "', '" +
                   frames.tip_link + "'; the ROS 2 node does not look up other frames)");
 }
 
+void set_text(char*& field, std::string& storage) {
+  field = storage.data();
+}
+
 }  // namespace
+
+bool Frames::is_base(std::string_view frame) const {
+  return frame == base_link || (frame.size() == tf_prefix.size() + base_link.size() &&
+                                frame.substr(0, tf_prefix.size()) == tf_prefix &&
+                                frame.substr(tf_prefix.size()) == base_link);
+}
+
+bool Frames::is_tip(std::string_view frame) const {
+  return frame == tip_link || (frame.size() == tf_prefix.size() + tip_link.size() &&
+                               frame.substr(0, tf_prefix.size()) == tf_prefix &&
+                               frame.substr(tf_prefix.size()) == tip_link);
+}
 
 ci::Pose pose_from_message(const geometry_msgs_msg_dds__Pose_& message) {
   ci::Pose pose;
@@ -50,7 +66,7 @@ ci::Vector6d vector_from_wrench(const WrenchMessage& message) {
 
 ci::Command reference_from_message(const PoseStamped& message, const Frames& frames) {
   const std::string_view frame = text(message.header.frame_id);
-  if (!frame.empty() && frame != frames.base_link) {
+  if (!frame.empty() && !frames.is_base(frame)) {
     throw ci::Error("reference_pose: header.frame_id = '" + std::string(frame) +
                     "' is not the base frame (valid: '' or '" + frames.base_link +
                     "'; the ROS 2 node does not look up other frames)");
@@ -178,6 +194,7 @@ struct OutgoingMessages::Storage {
 OutgoingMessages::OutgoingMessages(const ci::RobotModel& model, const Frames& frames)
     : joint_names_(model.joint_names()),
       frames_(frames),
+      base_frame_(frames.base_frame()),
       workspace_(model),
       kinematics_(workspace_.make_kinematics()),
       storage_(std::make_unique<Storage>()),
@@ -196,7 +213,7 @@ void OutgoingMessages::fill(const ci::LoopState& state,
 
   // This project's full state.
   full_.header.stamp = stamp;
-  out.text(full_.header.frame_id, frames_.base_link);
+  out.text(full_.header.frame_id, base_frame_);
   ci::runtime::fill_state_message(state, joint_names_, measured, full_, out);
   ci::runtime::fill_timing(timing, full_);
   full_.joint_state.header.stamp = stamp;
@@ -239,6 +256,39 @@ void OutgoingMessages::fill(const ci::LoopState& state,
   torques_.set(controller.tau);
 
   joint_state_ = full_.joint_state;
+}
+
+TransformArray::TransformArray(const ci::LinkTransforms& links, const std::string& tf_prefix,
+                               bool moving) {
+  const std::vector<ci::LinkJoint>& joints = links.joints();
+  for (std::size_t i = 0; i < joints.size(); ++i) {
+    if ((joints[i].chain_index >= 0) != moving) continue;
+    indices_.push_back(i);
+    frames_.push_back(tf_prefix + joints[i].parent);
+    frames_.push_back(tf_prefix + joints[i].child);
+  }
+  items_.resize(indices_.size());
+  for (std::size_t k = 0; k < items_.size(); ++k) {
+    set_text(items_[k].header.frame_id, frames_[2 * k]);
+    set_text(items_[k].child_frame_id, frames_[2 * k + 1]);
+  }
+  message_.transforms._buffer = items_.data();
+  message_.transforms._length = message_.transforms._maximum =
+      static_cast<std::uint32_t>(items_.size());
+  message_.transforms._release = false;
+}
+
+const TFMessage& TransformArray::set(const std::vector<Eigen::Isometry3d>& transforms,
+                                     const builtin_interfaces_msg_dds__Time_& stamp) {
+  for (std::size_t k = 0; k < items_.size(); ++k) {
+    const Eigen::Isometry3d& T = transforms[indices_[k]];
+    geometry_msgs_msg_dds__TransformStamped_& item = items_[k];
+    item.header.stamp = stamp;
+    item.transform.translation = {T.translation().x(), T.translation().y(), T.translation().z()};
+    const Eigen::Quaterniond rotation(T.linear());
+    item.transform.rotation = {rotation.x(), rotation.y(), rotation.z(), rotation.w()};
+  }
+  return message_;
 }
 
 TorqueArray::TorqueArray(int num_joints) : data_(static_cast<std::size_t>(num_joints)) {

@@ -9,10 +9,12 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <cartesian_impedance/command.hpp>
 #include <cartesian_impedance/control_loop.hpp>
+#include <cartesian_impedance/link_transforms.hpp>
 #include <cartesian_impedance/robot_model.hpp>
 #include <cartesian_impedance/runtime/control_thread.hpp>
 #include <cartesian_impedance/runtime/joint_states.hpp>
@@ -33,11 +35,19 @@ using ControllerConfig = cartesian_impedance_controller_msg_dds__ControllerConfi
 using PublishedState = cartesian_impedance_controller_msg_dds__ControllerState_;
 /// This project's full state message (topic full_state).
 using FullState = cartesian_impedance_msgs_msg_dds__ControllerState_;
+using TFMessage = tf2_msgs_msg_dds__TFMessage_;
+using StringMessage = std_msgs_msg_dds__String_;
 
-/// The chain's two frames, as messages name them in header.frame_id.
+/// The chain's two frames, as messages name them in header.frame_id: the link names, or the link
+/// names with tf_prefix in front (the tf frames, which outgoing messages use).
 struct Frames {
   std::string base_link;
   std::string tip_link;
+  std::string tf_prefix;
+
+  bool is_base(std::string_view frame) const;
+  bool is_tip(std::string_view frame) const;
+  std::string base_frame() const { return tf_prefix + base_link; }
 };
 
 /// Position and quaternion (x, y, z, w), not normalised: the library checks the unit norm.
@@ -91,6 +101,28 @@ class TorqueArray {
   Float64MultiArray message_{};
 };
 
+/// A tf2_msgs/TFMessage of some joints of a LinkTransforms (parent and child links as frames,
+/// with the prefix), with storage of its own: set() allocates nothing.
+class TransformArray {
+ public:
+  /// The joints whose transforms change with the chain's q (`moving`), or all the others.
+  TransformArray(const cartesian_impedance::LinkTransforms& links, const std::string& tf_prefix,
+                 bool moving);
+  TransformArray(const TransformArray&) = delete;
+  TransformArray& operator=(const TransformArray&) = delete;
+
+  /// The message with `transforms` (LinkTransforms::compute()'s, all joints) stamped `stamp`.
+  const TFMessage& set(const std::vector<Eigen::Isometry3d>& transforms,
+                       const builtin_interfaces_msg_dds__Time_& stamp);
+  std::size_t size() const noexcept { return indices_.size(); }
+
+ private:
+  std::vector<std::size_t> indices_;  // into the joints of the LinkTransforms
+  std::vector<std::string> frames_;   // parent, child, parent, child, ...
+  std::vector<geometry_msgs_msg_dds__TransformStamped_> items_;
+  TFMessage message_{};
+};
+
 /// The node's outgoing messages. Their strings and sequences point into this object's storage,
 /// which is sized at construction and reused: filling allocates nothing once the strings have
 /// reached their length. One thread fills and writes them.
@@ -111,12 +143,15 @@ class OutgoingMessages {
   const FullState& full_state() const noexcept { return full_; }
   const Float64MultiArray& commanded_torques() const noexcept { return torques_.message(); }
   const JointStateMessage& joint_state() const noexcept { return joint_state_; }
+  /// The stamp of the last fill() (every message of it carries this one).
+  const builtin_interfaces_msg_dds__Time_& stamp() const noexcept { return full_.header.stamp; }
 
   struct Storage;  // how strings and arrays are kept (messages.cpp)
 
  private:
   std::vector<std::string> joint_names_;
   Frames frames_;
+  std::string base_frame_;                         // frames_.base_frame()
   cartesian_impedance::ModelWorkspace workspace_;  // the published state's cartesian_velocity
   cartesian_impedance::Kinematics kinematics_;
   std::unique_ptr<Storage> storage_;

@@ -2,8 +2,12 @@
 
 #include "node.hpp"
 
+#include <unistd.h>
+
 #include <chrono>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <map>
 #include <vector>
 
@@ -25,6 +29,28 @@ void log_line(const ci::runtime::ReportLine& line) {
       line.text);
 }
 
+// MuJoCo's URDF import reads a file: urdf_path itself, or robot_description's text in a
+// temporary one.
+ci::sim::Simulation simulate_urdf(const Ros2Configuration& configuration,
+                                  ci::sim::SimulationOptions options) {
+  if (configuration.urdf_source != "robot_description") {
+    return ci::sim::Simulation::from_urdf_file(configuration.urdf_source, options);
+  }
+  const std::filesystem::path path =
+      std::filesystem::temp_directory_path() /
+      ("cartesian_impedance_" + std::to_string(::getpid()) + ".urdf");
+  std::ofstream(path) << configuration.urdf;
+  try {
+    ci::sim::Simulation simulation = ci::sim::Simulation::from_urdf_file(path.string(), options);
+    std::filesystem::remove(path);
+    return simulation;
+  } catch (...) {
+    std::error_code ignored;
+    std::filesystem::remove(path, ignored);
+    throw;
+  }
+}
+
 }  // namespace
 
 Node::Node(RosArguments arguments, Ros2Configuration configuration)
@@ -32,9 +58,10 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
   for (const std::string& key : configuration_.common.unknown_keys) {
     log(LogLevel::warn, "ignoring parameter " + key + ": not a setting or parameter of this node");
   }
-  frames_ = {settings_.base_link, settings_.tip_link};
+  frames_ = {settings_.base_link, settings_.tip_link, settings_.tf_prefix};
   model_.emplace(ci::RobotModel::from_urdf_string(configuration_.urdf, settings_.base_link,
                                                   settings_.tip_link));
+  ci::runtime::check_start_q(configuration_.common, *model_);
   // The command thread waits up to 0.1 s for room in a full inbox (the cycle drains 8 commands
   // per step), so a burst is delayed rather than lost.
   ci::LoopCapacity capacity;
@@ -66,7 +93,12 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
     // The simulated firmware compensates gravity like the real robots, unless the controller is
     // configured to do it itself (then it would be compensated twice).
     options.gravity_compensation = !configuration_.common.parameters.dynamics.gravity_compensation;
-    simulation_.emplace(ci::sim::Simulation::from_mjcf_file(settings_.mjcf_path, options));
+    options.start_q = Eigen::Map<const Eigen::VectorXd>(
+        settings_.start_q.data(), static_cast<Eigen::Index>(settings_.start_q.size()));
+    // Without an MJCF, MuJoCo simulates the URDF itself.
+    simulation_.emplace(settings_.mjcf_path.empty()
+                            ? simulate_urdf(configuration_, options)
+                            : ci::sim::Simulation::from_mjcf_file(settings_.mjcf_path, options));
     runner_.emplace(*simulation_, *loop_);
     writer(joint_state_writer_, "joint_states");
   } else {
@@ -82,6 +114,33 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
   thread_options.realtime_priority = settings_.realtime_priority;
   control_thread_.emplace(thread_options);
 
+  if (settings_.publish_tf) {
+    // As robot_state_publisher and tf2_ros's broadcasters: /tf reliable, volatile, depth 100;
+    // /tf_static and robot_description reliable, transient local, depth 1 (unless overridden).
+    const auto latched = [&](auto& w, const std::string& name) {
+      const std::string topic = arguments_.resolve(name);
+      const TopicQos qos = configuration_.publisher_qos.count(topic)
+                               ? configuration_.publisher(topic)
+                               : TopicQos{true, true, 1};
+      w = std::decay_t<decltype(w)>(participant_, "rt" + topic, qos);
+    };
+    links_.emplace(ci::LinkTransforms::from_urdf_string(configuration_.urdf, settings_.base_link,
+                                                        model_->joint_names()));
+    const std::string tf_topic = arguments_.resolve("/tf");
+    tf_writer_ = Writer<TFMessage>(participant_, "rt" + tf_topic,
+                                   configuration_.publisher_qos.count(tf_topic)
+                                       ? configuration_.publisher(tf_topic)
+                                       : TopicQos{true, false, 100});
+    latched(tf_static_writer_, "/tf_static");
+    latched(description_writer_, "robot_description");
+    std::vector<Eigen::Isometry3d> transforms;
+    links_->compute(ci::JointVector::Zero(n), transforms);
+    TransformArray fixed(*links_, settings_.tf_prefix, false);
+    tf_static_writer_.write(fixed.set(transforms, stamp_now()));
+    StringMessage description{};
+    description.data = configuration_.urdf.data();
+    description_writer_.write(description);
+  }
   writer(state_writer_, "~/controller_state");
   writer(full_state_writer_, "~/full_state");
   writer(torque_writer_, "~/commanded_torques");
@@ -97,12 +156,15 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
   std::string joints;
   for (const std::string& name : model_->joint_names())
     joints += (joints.empty() ? "" : " ") + name;
-  log(LogLevel::info, arguments_.fully_qualified_name() + ": " + settings_.base_link + " -> " +
-                          settings_.tip_link + ", " + std::to_string(n) + " joints (" + joints +
-                          "), mode " + to_string(settings_.mode) + ", " +
-                          ci::format_number(settings_.control_rate) + " Hz control, " +
-                          ci::format_number(settings_.publish_rate) + " Hz state, DDS domain " +
-                          std::to_string(participant_.domain()));
+  log(LogLevel::info,
+      arguments_.fully_qualified_name() + ": " + settings_.base_link + " -> " + settings_.tip_link +
+          ", " + std::to_string(n) + " joints (" + joints + "), mode " + to_string(settings_.mode) +
+          ", " + ci::format_number(settings_.control_rate) + " Hz control, " +
+          ci::format_number(settings_.publish_rate) + " Hz state" +
+          (settings_.mode == Mode::sim && settings_.mjcf_path.empty() ? " (the URDF simulated)"
+                                                                      : "") +
+          (links_ ? ", tf of " + std::to_string(links_->joints().size()) + " joints" : "") +
+          ", DDS domain " + std::to_string(participant_.domain()));
 }
 
 Node::~Node() {
@@ -267,6 +329,9 @@ void Node::joint_state_thread() {
 
 void Node::publisher_thread() {
   OutgoingMessages messages(*model_, frames_);
+  std::optional<TransformArray> moving;
+  std::vector<Eigen::Isometry3d> transforms;
+  if (links_) moving.emplace(*links_, settings_.tf_prefix, true);
   ci::runtime::run_publisher(
       ci::runtime::publisher_options(settings_), stop_, *control_thread_, *loop_,
       joint_samples_ ? &*joint_samples_ : nullptr,
@@ -276,6 +341,10 @@ void Node::publisher_thread() {
         full_state_writer_.write(messages.full_state());
         torque_writer_.write(messages.commanded_torques());
         if (joint_state_writer_.valid()) joint_state_writer_.write(messages.joint_state());
+        if (moving) {
+          links_->compute(sample.state.q, transforms);
+          tf_writer_.write(moving->set(transforms, messages.stamp()));
+        }
       },
       log_line);
 }

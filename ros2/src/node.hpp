@@ -12,8 +12,10 @@
 ///   field and value and changes nothing.
 /// - the joint-state thread (topics mode) maps joint_states into the MeasurementBuffer, apart
 ///   from commands so that a flood of commands cannot delay a measurement.
-/// - the publisher thread writes the state topics at publish_rate and logs status changes; the
-///   effort thread (topics mode) writes each cycle's torque to the effort controller.
+/// - the publisher thread writes the state topics and the chain's transforms (tf) at
+///   publish_rate and logs status changes; the effort thread (topics mode) writes each cycle's
+///   torque to the effort controller. The transforms that do not depend on the arm's q
+///   (tf_static) and robot_description are written once, transient local, at construction.
 
 #include <atomic>
 #include <memory>
@@ -68,6 +70,7 @@ class Node {
   Frames frames_;
 
   std::optional<cartesian_impedance::RobotModel> model_;
+  std::optional<cartesian_impedance::LinkTransforms> links_;  // set if publish_tf
   std::unique_ptr<cartesian_impedance::ControlLoop> loop_;
   std::optional<cartesian_impedance::sim::Simulation> simulation_;              // sim mode
   std::optional<cartesian_impedance::sim::ClosedLoopRunner> runner_;            // sim mode
@@ -83,6 +86,9 @@ class Node {
   Writer<Float64MultiArray> torque_writer_;
   Writer<JointStateMessage> joint_state_writer_;  // sim mode
   Writer<Float64MultiArray> effort_writer_;       // topics mode
+  Writer<TFMessage> tf_writer_;                   // publish_tf: /tf
+  Writer<TFMessage> tf_static_writer_;            // publish_tf: /tf_static, transient local
+  Writer<StringMessage> description_writer_;      // publish_tf: robot_description, same
   Reader<PoseStamped> reference_reader_;
   Reader<WrenchStamped> stiffness_reader_;
   Reader<WrenchStamped> wrench_reader_;

@@ -134,8 +134,9 @@ inline bool eventually(double seconds, const std::function<bool()>& condition) {
 template <typename Message, typename Copy>
 class Latest {
  public:
-  Latest(const Participant& participant, const std::string& topic, Copy copy)
-      : reader_(participant, topic, TopicQos{}), copy_(std::move(copy)) {}
+  Latest(const Participant& participant, const std::string& topic, Copy copy,
+         const TopicQos& qos = TopicQos{})
+      : reader_(participant, topic, qos), copy_(std::move(copy)) {}
   /// Takes what arrived; true if anything did.
   bool poll() {
     return reader_.take([&](const Message& message) {

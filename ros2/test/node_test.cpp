@@ -9,6 +9,7 @@
 #include <cmath>
 #include <fstream>
 #include <map>
+#include <sstream>
 
 #include "harness.hpp"
 
@@ -302,6 +303,213 @@ TEST(Ros2Node, TwoNamespacedArmsAreIndependent) {
   EXPECT_LT((right_end.position - right_start.position).norm(), 1e-3) << "the other arm moved";
 }
 
+// ---- tf ----------------------------------------------------------------------------------------
+
+// A Franka hand on the flange with two fingers (prismatic, outside the chain): links with visuals
+// that a robot display needs transforms for.
+std::string panda_with_hand() {
+  std::ifstream file(repository() + "/models/panda/panda.urdf");
+  std::stringstream text;
+  text << file.rdbuf();
+  std::string urdf = text.str();
+  urdf.insert(urdf.rfind("</robot>"), R"(
+  <link name="panda_hand"><visual><geometry><box size="0.05 0.2 0.06"/></geometry></visual></link>
+  <link name="panda_leftfinger"><visual><geometry><box size="0.02 0.02 0.05"/></geometry></visual></link>
+  <link name="panda_rightfinger"><visual><geometry><box size="0.02 0.02 0.05"/></geometry></visual></link>
+  <joint name="panda_hand_joint" type="fixed">
+    <parent link="panda_link8"/><child link="panda_hand"/><origin rpy="0 0 -0.7853981633974483"/>
+  </joint>
+  <joint name="panda_finger_joint1" type="prismatic">
+    <parent link="panda_hand"/><child link="panda_leftfinger"/><origin xyz="0 0 0.0584"/>
+    <axis xyz="0 1 0"/><limit effort="20" lower="0" upper="0.04" velocity="0.2"/>
+  </joint>
+  <joint name="panda_finger_joint2" type="prismatic">
+    <parent link="panda_hand"/><child link="panda_rightfinger"/><origin xyz="0 0 0.0584"/>
+    <axis xyz="0 -1 0"/><limit effort="20" lower="0" upper="0.04" velocity="0.2"/>
+    <mimic joint="panda_finger_joint1"/>
+  </joint>
+)");
+  const std::string path = std::string(CARTESIAN_IMPEDANCE_BINARY_DIR) + "/panda_hand.urdf";
+  std::ofstream(path) << urdf;
+  return path;
+}
+
+std::int64_t nanoseconds(const builtin_interfaces_msg_dds__Time_& t) {
+  return std::int64_t{t.sec} * 1000000000 + t.nanosec;
+}
+
+// Every transform of /tf by stamp, and of /tf_static (transient local: also what was written
+// before this reader existed), as tf2's buffer would hold them: child -> (parent, T).
+class TfRecorder {
+ public:
+  using Tree = std::map<std::string, std::pair<std::string, Eigen::Isometry3d>>;
+  explicit TfRecorder(const Participant& participant)
+      : moving_(participant, "rt/tf", TopicQos{true, false, 100}),
+        fixed_(participant, "rt/tf_static", TopicQos{true, true, 10}) {}
+
+  void poll() {
+    moving_.take([&](const TFMessage& m) { add(m, by_stamp_); });
+    fixed_.take([&](const TFMessage& m) { add(m, by_stamp_, &fixed_tree_); });
+  }
+  const Tree& fixed() const { return fixed_tree_; }
+  // The static transforms and the moving ones of `stamp`; empty if no /tf message has it.
+  Tree tree(std::int64_t stamp) const {
+    const auto found = by_stamp_.find(stamp);
+    if (found == by_stamp_.end()) return {};
+    Tree tree = fixed_tree_;
+    for (const auto& [child, entry] : found->second) tree[child] = entry;
+    return tree;
+  }
+
+ private:
+  static void add(const TFMessage& m, std::map<std::int64_t, Tree>& by_stamp,
+                  Tree* fixed = nullptr) {
+    for (std::uint32_t i = 0; i < m.transforms._length; ++i) {
+      const geometry_msgs_msg_dds__TransformStamped_& t = m.transforms._buffer[i];
+      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+      T.translation() = Eigen::Vector3d(t.transform.translation.x, t.transform.translation.y,
+                                        t.transform.translation.z);
+      T.linear() = Eigen::Quaterniond(t.transform.rotation.w, t.transform.rotation.x,
+                                      t.transform.rotation.y, t.transform.rotation.z)
+                       .toRotationMatrix();
+      Tree& tree = fixed ? *fixed : by_stamp[nanoseconds(t.header.stamp)];
+      tree[t.child_frame_id] = {t.header.frame_id, T};
+    }
+  }
+  Reader<TFMessage> moving_;
+  Reader<TFMessage> fixed_;
+  std::map<std::int64_t, Tree> by_stamp_;
+  Tree fixed_tree_;
+};
+
+// T_root_frame composed from the tree; nullopt if a transform on the way is missing.
+std::optional<Eigen::Isometry3d> compose(const TfRecorder::Tree& tree, const std::string& root,
+                                         std::string frame) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  while (frame != root) {
+    const auto found = tree.find(frame);
+    if (found == tree.end()) return std::nullopt;
+    T = found->second.second * T;
+    frame = found->second.first;
+  }
+  return T;
+}
+
+struct Stamped {
+  std::int64_t stamp = 0;
+  std::string frame_id;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+};
+
+// The tip composed from tf at the stamp of a full_state equals its current_pose: one sample of
+// the loop gives both (same q, same stamp), so only rounding separates them. Returns the state.
+Stamped check_tf_matches_state(TfRecorder& tf, const std::string& node, const std::string& root,
+                               const std::string& tip) {
+  Latest<FullState, Stamped (*)(const FullState&)> states(
+      Client::participant(), "rt" + node + "/full_state", +[](const FullState& m) {
+        Stamped s;
+        s.stamp = nanoseconds(m.header.stamp);
+        s.frame_id = m.header.frame_id;
+        s.pose.translation() = Eigen::Vector3d(m.current_pose.position.x, m.current_pose.position.y,
+                                               m.current_pose.position.z);
+        s.pose.linear() =
+            Eigen::Quaterniond(m.current_pose.orientation.w, m.current_pose.orientation.x,
+                               m.current_pose.orientation.y, m.current_pose.orientation.z)
+                .toRotationMatrix();
+        return s;
+      });
+  std::optional<Eigen::Isometry3d> composed;
+  const bool matched = states.wait(10.0, [&](const Stamped& s) {
+    tf.poll();
+    composed = compose(tf.tree(s.stamp), root, tip);
+    return composed.has_value();
+  });
+  EXPECT_TRUE(matched) << "no /tf at the stamp of a full_state from " << node << " composing "
+                       << root << " -> " << tip;
+  if (!matched) return {};
+  const Stamped state = states.value();
+  EXPECT_LT((composed->translation() - state.pose.translation()).norm(), 1e-9);
+  EXPECT_LT((composed->linear() - state.pose.linear()).norm(), 1e-9);
+  return state;
+}
+
+// The node as robot_state_publisher: /tf at publish_rate with the state's stamp, /tf_static and
+// robot_description transient local, every frame prefixed.
+TEST(Ros2Node, PublishesTheRobotsTransformsAndDescription) {
+  const std::string urdf = panda_with_hand();
+  const std::string params = params_file("tf_panda.yaml", R"(
+/**:
+  ros__parameters:
+    urdf_path: )" + urdf + R"(
+    mjcf_path: )" + repository() + R"(/models/panda/panda.xml
+    base_link: panda_link0
+    tip_link: panda_link8
+    tf_prefix: arm/
+    parameters_file: )" + repository() + R"(/config/panda.yaml
+)");
+  NodeProcess node({"--ros-args", "--params-file", params});
+  Client client;
+  const State start = client.running();
+  // Readers created after the node wrote /tf_static and robot_description: transient local.
+  TfRecorder tf(Client::participant());
+  Latest<StringMessage, std::string (*)(const StringMessage&)> description(
+      Client::participant(), "rt/robot_description",
+      +[](const StringMessage& m) { return std::string(m.data); }, TopicQos{true, true, 1});
+  ASSERT_TRUE(description.wait(5.0, [](const std::string&) { return true; }));
+  std::ifstream file(urdf);
+  std::stringstream text;
+  text << file.rdbuf();
+  EXPECT_EQ(description.value(), text.str());
+
+  const Stamped state = check_tf_matches_state(tf, "/cartesian_impedance_controller",
+                                               "arm/panda_link0", "arm/panda_link8");
+  EXPECT_EQ(state.frame_id, "arm/panda_link0");
+  std::map<std::string, std::string> parents;
+  for (const auto& [child, entry] : tf.tree(state.stamp)) parents[child] = entry.first;
+  std::map<std::string, std::string> expected = {{"arm/panda_link8", "arm/panda_link7"},
+                                                 {"arm/panda_hand", "arm/panda_link8"},
+                                                 {"arm/panda_leftfinger", "arm/panda_hand"},
+                                                 {"arm/panda_rightfinger", "arm/panda_hand"}};
+  EXPECT_EQ(tf.fixed().size(), expected.size());
+  for (int i = 1; i <= 7; ++i) {
+    expected["arm/panda_link" + std::to_string(i)] = "arm/panda_link" + std::to_string(i - 1);
+  }
+  EXPECT_EQ(parents, expected);
+  EXPECT_LT(
+      (tf.fixed().at("arm/panda_leftfinger").second.translation() - Eigen::Vector3d(0, 0, 0.0584))
+          .norm(),
+      1e-12);
+
+  // After a move (a reference in the prefixed base frame), tf follows.
+  client.pose(start.position + kStep, start.orientation, "arm/panda_link0");
+  ASSERT_TRUE(client.wait(4.0, [&](const State& s) {
+    return (s.position - (start.position + kStep)).norm() < 1.5e-3;
+  }));
+  const Stamped moved = check_tf_matches_state(tf, "/cartesian_impedance_controller",
+                                               "arm/panda_link0", "arm/panda_link8");
+  EXPECT_GT((moved.pose.translation() - start.position).norm(), 0.05);
+}
+
+// sim mode without mjcf_path (ros2/config/sim_ur5e.yaml): MuJoCo simulates the URDF, started at
+// start_q.
+TEST(Ros2Node, SimulatesTheUrdfFromStartQ) {
+  const std::string params = repository() + "/ros2/config/sim_ur5e.yaml";
+  NodeProcess node({"--ros-args", "--params-file", params});
+  Client client;
+  const State start = client.running();
+  const std::vector<double> start_q = {M_PI, -M_PI / 2, M_PI / 2, -M_PI / 2, -M_PI / 2, 0.0};
+  ASSERT_EQ(start.q.size(), 6u);
+  for (int i = 0; i < 6; ++i) EXPECT_NEAR(start.q[i], start_q[i], 0.02) << i;
+  EXPECT_NE(node.log().find("(the URDF simulated)"), std::string::npos) << node.log();
+  TfRecorder tf(Client::participant());
+  check_tf_matches_state(tf, "/cartesian_impedance_controller", "base_link", "tool0");
+  const Eigen::Vector3d step(0.0, 0.04, 0.03);
+  client.pose(start.position + step, start.orientation);
+  EXPECT_TRUE(client.wait(4.0, [&](const State& s) {
+    return (s.position - (start.position + step)).norm() < 3e-3;
+  })) << client.settle(0).position.transpose();
+}
+
 // Topics mode: joint_states in (as a robot's ros2_control would publish them), torques out to the
 // effort controller, failing closed when joint_states stop.
 TEST(Ros2Node, TopicsModeTakesJointStatesAndCommandsTheEffortController) {
@@ -344,6 +552,8 @@ TEST(Ros2Node, TopicsModeTakesJointStatesAndCommandsTheEffortController) {
   });
   Client client("/robot/cartesian_impedance_controller");
   const State start = client.running();
+  TfRecorder tf(participant);  // tf in topics mode too, from the measured joint positions
+  check_tf_matches_state(tf, "/robot/cartesian_impedance_controller", "panda_link0", "panda_link8");
   ASSERT_TRUE(commands.wait(2.0, [](const std::vector<double>& tau) { return tau.size() == 7; }));
   // Held still at the reference: (almost) no torque. Then a reference 1 cm along +x: the
   // arm cannot move (the "robot" replays one state), so the spring torque is J^T K e with
@@ -371,6 +581,9 @@ TEST(Ros2Node, BadParametersExitWithCode2NamingTheParameter) {
       {"mode = 'fly'", {"-p", "mode:=fly"}},
       {"cannot open URDF file", {"-p", "urdf_path:=/nonexistent.urdf"}},
       {"stiffness.tranlation", {"-p", "stiffness.tranlation:=5"}},
+      {"start_q has 3 values; expected one per joint", {"-p", "start_q:=[0.0, -0.5, 0.0]"}},
+      {"start_q[3] = 0.5 rad for joint 'panda_joint4' is outside its limits",
+       {"-p", "start_q:=[0, -0.7, 0, 0.5, 0, 1.5, 0.7]"}},
       {"qos policy 'lifespan'", {"-p", "qos_overrides./x.publisher.lifespan:=1"}},
   };
   for (const auto& [expected, extra] : cases) {

@@ -1,12 +1,15 @@
 // The ROS 2 shell without DDS traffic: command line, names, params files.
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <fstream>
 
 #include <cartesian_impedance/error.hpp>
+#include <cartesian_impedance/parameter_tree.hpp>
 
 #include "arguments.hpp"
+#include "messages.hpp"
 #include "parameters.hpp"
 
 namespace cartesian_impedance_ros2 {
@@ -141,6 +144,95 @@ TEST(Ros2Parameters, ErrorsNameFileLineParameterAndValue) {
   EXPECT_NE(message(head + "    robot_description: '<robot/>'\n").find("both are set"),
             std::string::npos);
   EXPECT_NE(message("- a list\n").find("map of node names"), std::string::npos);
+}
+
+// start_q, tf_prefix, publish_tf and a sim mode without mjcf_path, through the shared decoder.
+TEST(Ros2Parameters, StartConfigurationAndTransformSettings) {
+  const std::string sim = "/**:\n  ros__parameters:\n    urdf_path: " CARTESIAN_IMPEDANCE_SOURCE_DIR
+                          "/models/ur5e/ur5e.urdf\n    base_link: base_link\n"
+                          "    tip_link: tool0\n";
+  const std::string file = write("start.yaml", sim +
+                                                   "    start_q: [3.1416, -1.5708, 1.5708, "
+                                                   "-1.5708, -1.5708, 0]\n"
+                                                   "    tf_prefix: arm/\n    publish_tf: false\n");
+  const Ros2Configuration c = read_configuration(parse({"--ros-args", "--params-file", file}));
+  EXPECT_EQ(c.common.settings.mode, ci::runtime::Mode::sim);
+  EXPECT_TRUE(c.common.settings.mjcf_path.empty());  // the URDF is simulated
+  EXPECT_EQ(c.common.settings.start_q,
+            (std::vector<double>{3.1416, -1.5708, 1.5708, -1.5708, -1.5708, 0}));
+  EXPECT_EQ(c.common.settings.tf_prefix, "arm/");
+  EXPECT_FALSE(c.common.settings.publish_tf);
+  EXPECT_EQ(ci::runtime::tf_frame(c.common.settings, "tool0"), "arm/tool0");
+  EXPECT_NE(c.common.start_q_location.find("start.yaml:6"), std::string::npos)
+      << c.common.start_q_location;
+  const Ros2Configuration defaults =
+      read_configuration(parse({"--ros-args", "--params-file", write("defaults.yaml", sim)}));
+  EXPECT_TRUE(defaults.common.settings.start_q.empty());
+  EXPECT_TRUE(defaults.common.settings.publish_tf);
+  EXPECT_EQ(defaults.common.settings.tf_prefix, "");
+  // One value per joint of the chain, each within its limits, checked once the model is loaded.
+  const ci::RobotModel ur5e = ci::RobotModel::from_urdf_string(c.urdf, "base_link", "tool0");
+  EXPECT_NO_THROW(ci::runtime::check_start_q(c.common, ur5e));
+  const auto check = [](const ci::runtime::NodeConfiguration& configuration,
+                        const ci::RobotModel& model) {
+    try {
+      ci::runtime::check_start_q(configuration, model);
+    } catch (const ci::ParameterError& error) {
+      return std::string(error.what());
+    }
+    return std::string("accepted");
+  };
+  const ci::RobotModel shorter =
+      ci::RobotModel::from_urdf_string(c.urdf, "base_link", "wrist_2_link");
+  EXPECT_THAT(check(c.common, shorter),
+              testing::EndsWith("start.yaml:6: start_q has 6 values; expected one per joint of the "
+                                "chain base_link -> wrist_2_link (5: shoulder_pan_joint, "
+                                "shoulder_lift_joint, elbow_joint, wrist_1_joint, wrist_2_joint)"));
+  ci::runtime::NodeConfiguration outside = c.common;
+  outside.settings.start_q[2] = 7.0;
+  EXPECT_THAT(check(outside, ur5e),
+              testing::EndsWith("start.yaml:6: start_q[2] = 7 rad for joint 'elbow_joint' is "
+                                "outside its limits [-6.283185307, 6.283185307] in the URDF"));
+
+  const auto message = [&](const std::vector<std::string>& extra) {
+    std::vector<std::string> args = {"--ros-args", "--params-file", write("defaults.yaml", sim)};
+    args.insert(args.end(), extra.begin(), extra.end());
+    try {
+      read_configuration(parse(args));
+    } catch (const ci::Error& error) {
+      return std::string(error.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_EQ(message({"-p", "start_q:=[0.0, .nan, 1.0]"}),
+            "-p start_q:1: start_q[1] = nan rad or m is not finite (valid: [-1000, 1000])");
+  EXPECT_EQ(message({"-p", "start_q:=[0.0, 1e6]"}),
+            "-p start_q:1: start_q[1] = 1000000 rad or m is outside [-1000, 1000]");
+  EXPECT_EQ(message({"-p", "start_q:=[0.0, fast]"}),
+            "-p start_q:1: start_q[1] = 'fast' is not a number [rad or m]");
+  EXPECT_EQ(message({"-p", "start_q:=0.5"}),
+            "-p start_q: start_q = 0.5 is not a list of joint positions [rad or m]");
+  EXPECT_NE(message({"-p", "mode:=topics", "-p", "start_q:=[0, 0, 0, 0, 0, 0]"})
+                .find("start_q is set in topics mode"),
+            std::string::npos);
+  EXPECT_EQ(message({"-p", "mode:=topics", "-p", "start_q:=[]"}), "accepted");
+  EXPECT_EQ(message({"-p", "publish_tf:=1"}), "-p publish_tf: publish_tf = 1 is not true or false");
+}
+
+TEST(Ros2Messages, FramesAreNamedWithOrWithoutTheTfPrefix) {
+  const Frames frames{"panda_link0", "panda_link8", "left/"};
+  EXPECT_TRUE(frames.is_base("panda_link0"));
+  EXPECT_TRUE(frames.is_base("left/panda_link0"));
+  EXPECT_FALSE(frames.is_base("right/panda_link0"));
+  EXPECT_FALSE(frames.is_base("left/panda_link8"));
+  EXPECT_TRUE(frames.is_tip("left/panda_link8"));
+  EXPECT_EQ(frames.base_frame(), "left/panda_link0");
+  PoseStamped pose{};
+  pose.header.frame_id = const_cast<char*>("left/panda_link0");
+  pose.pose.orientation.w = 1.0;
+  EXPECT_NO_THROW(reference_from_message(pose, frames));
+  pose.header.frame_id = const_cast<char*>("right/panda_link0");
+  EXPECT_THROW(reference_from_message(pose, frames), ci::Error);
 }
 
 }  // namespace

@@ -2,10 +2,11 @@
 /// @file
 /// What every ROS shell (the ROS 1 node, the ROS 2 node) reads from its parameters, decoded once
 /// here: the controller parameters (the table's groups, nested or dotted) and the node's own
-/// settings (mode, rates, links, the simulation model, the joint-state timeout, the thread
-/// priority). A shell turns its parameter source (the ROS 1 parameter server, a ROS 2 params
-/// file) into a ParameterValue map and calls decode_node_configuration(); messages read like
-/// every other parameter's, placed by the source's locations.
+/// settings (mode, rates, links, the simulation model and start configuration, the joint-state
+/// timeout, the thread priority, the transforms for tf). A shell turns its parameter source (the
+/// ROS 1 parameter server, a ROS 2 params file) into a ParameterValue map and calls
+/// decode_node_configuration(); messages read like every other parameter's, placed by the source's
+/// locations.
 
 #include <functional>
 #include <string>
@@ -14,6 +15,7 @@
 
 #include "cartesian_impedance/parameter_tree.hpp"
 #include "cartesian_impedance/parameters.hpp"
+#include "cartesian_impedance/robot_model.hpp"
 
 namespace cartesian_impedance::runtime {
 
@@ -29,13 +31,27 @@ const char* to_string(Mode mode) noexcept;
 /// A node's own settings (not controller parameters). Units in brackets.
 struct NodeSettings {
   Mode mode = Mode::sim;
-  double control_rate = 1000.0;       ///< [Hz] control cycle rate
-  double publish_rate = 100.0;        ///< [Hz] state topics
-  std::string base_link;              ///< root of the controlled chain; frame of every pose
-  std::string tip_link;               ///< end-effector link
-  std::string mjcf_path;              ///< sim mode: MuJoCo model of the same robot
+  double control_rate = 1000.0;  ///< [Hz] control cycle rate
+  double publish_rate = 100.0;   ///< [Hz] state topics
+  std::string base_link;         ///< root of the controlled chain; frame of every pose
+  std::string tip_link;          ///< end-effector link
+  /// sim mode: MuJoCo model of the same robot; empty: MuJoCo simulates the URDF itself (no
+  /// actuators, torques unlimited, no keyframe: set start_q).
+  std::string mjcf_path;
+  /// sim mode: start configuration [rad or m], one value per joint of the chain (base to tip);
+  /// empty: the model's own (the MJCF's keyframe "ready", else q = 0). Each within its joint's
+  /// URDF limits (check_start_q()). Rejected in topics mode, where the robot's joint_states are
+  /// the start.
+  std::vector<double> start_q;
   double joint_states_timeout = 0.1;  ///< [s] topics mode: older joint states count as lost
   int realtime_priority = 0;          ///< SCHED_FIFO priority of the control thread; 0 = normal
+  /// Publish the transforms of the URDF's links below base_link (tf), as robot_state_publisher
+  /// would; false if another node does.
+  bool publish_tf = true;
+  /// Put in front of every link name in the transforms and in the frame ids the node writes
+  /// ("left/" makes "left/panda_link0"), so that two robots share one tf tree. Incoming messages
+  /// may name a frame with or without it.
+  std::string tf_prefix;
 };
 
 struct NodeConfiguration {
@@ -44,6 +60,8 @@ struct NodeConfiguration {
   /// Keys of the map that are neither settings, parameter groups nor the shell's own keys, as
   /// the shell names them (reported as warnings, e.g. a misspelt group).
   std::vector<std::string> unknown_keys;
+  /// Where start_q was given, for check_start_q()'s message (empty if not given).
+  std::string start_q_location;
 };
 
 /// Names of the settings decode_node_configuration() reads.
@@ -59,10 +77,21 @@ using KeyLocation = std::function<std::string(std::string_view key)>;
 /// @throws ParameterError naming the key's location, the value and what is expected: a value of
 ///         the wrong type or shape or out of range, an unknown parameter inside a group, a
 ///         parameter given twice, a set that fails validate(), a missing base_link or tip_link, a
-///         sim mode without mjcf_path, a publish_rate above the control_rate.
+///         publish_rate above the control_rate, a start_q that is not a list of finite numbers
+///         (the message names the index and the value) or that is given in topics mode. A sim
+///         mode without mjcf_path is valid: the URDF is simulated.
 NodeConfiguration decode_node_configuration(const ParameterValue& tree,
                                             const KeyLocation& location_of,
                                             const std::vector<std::string>& shell_keys,
                                             std::string_view source);
+
+/// Checks the settings that depend on the loaded chain: start_q has one value per joint, each
+/// within its joint's position limits in the URDF.
+/// @throws ParameterError naming start_q's location, its count and the chain's joints, or the
+///         index, value, joint and limits.
+void check_start_q(const NodeConfiguration& configuration, const RobotModel& model);
+
+/// The tf frame of a link: tf_prefix + link.
+std::string tf_frame(const NodeSettings& settings, const std::string& link);
 
 }  // namespace cartesian_impedance::runtime

@@ -110,6 +110,34 @@ void visit(V& v, geometry_msgs_msg_dds__WrenchStamped_& m) {
   v.nested(m.wrench);
 }
 
+// geometry_msgs/msg/Transform.msg: Vector3 translation, Quaternion rotation
+template <class V>
+void visit(V& v, geometry_msgs_msg_dds__Transform_& m) {
+  v.nested(m.translation);
+  v.nested(m.rotation);
+}
+
+// geometry_msgs/msg/TransformStamped.msg: std_msgs/Header header, string child_frame_id,
+// Transform transform
+template <class V>
+void visit(V& v, geometry_msgs_msg_dds__TransformStamped_& m) {
+  v.nested(m.header);
+  v.string(m.child_frame_id);
+  v.nested(m.transform);
+}
+
+// tf2_msgs/msg/TFMessage.msg: geometry_msgs/TransformStamped[] transforms
+template <class V>
+void visit(V& v, tf2_msgs_msg_dds__TFMessage_& m) {
+  v.nested_seq(m.transforms);
+}
+
+// std_msgs/msg/String.msg: string data
+template <class V>
+void visit(V& v, std_msgs_msg_dds__String_& m) {
+  v.string(m.data);
+}
+
 // sensor_msgs/msg/JointState.msg: std_msgs/Header header, string[] name, float64[] position,
 // float64[] velocity, float64[] effort
 template <class V>
