@@ -40,22 +40,6 @@ Eigen::Isometry3d to_eigen(const KDL::Frame& frame) {
   return transform;
 }
 
-// urdfdom's links own their children; clear them so that the model is released (as
-// urdf_to_kdl.cpp does).
-struct ModelOwner {
-  explicit ModelOwner(urdf::ModelInterfaceSharedPtr parsed) : model(std::move(parsed)) {}
-  ModelOwner(const ModelOwner&) = delete;
-  ModelOwner& operator=(const ModelOwner&) = delete;
-  ~ModelOwner() {
-    for (const auto& entry : model->links_) {
-      if (!entry.second) continue;
-      entry.second->child_links.clear();
-      entry.second->child_joints.clear();
-    }
-  }
-  urdf::ModelInterfaceSharedPtr model;
-};
-
 }  // namespace
 
 LinkTransforms LinkTransforms::from_urdf_string(const std::string& xml,
@@ -64,7 +48,7 @@ LinkTransforms LinkTransforms::from_urdf_string(const std::string& xml,
   const std::string source = "the URDF text";
   try {
     detail::check_tree(detail::prescan_urdf(xml, source), source);
-    const ModelOwner owner(detail::parse_urdf(xml, source));
+    const detail::ModelOwner owner(detail::parse_urdf(xml, source));
     const urdf::ModelInterface& model = *owner.model;
     const auto base = model.links_.find(base_link);
     if (base == model.links_.end() || !base->second) {

@@ -7,6 +7,7 @@
 #include <urdf_parser/urdf_parser.h>
 
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace cartesian_impedance::detail {
@@ -33,5 +34,21 @@ std::vector<TreeJoint> prescan_urdf(const std::string& xml, const std::string& s
 
 /// urdfdom's model of `xml`. @throw Error with urdfdom's messages if it fails or logs an error.
 urdf::ModelInterfaceSharedPtr parse_urdf(const std::string& xml, const std::string& source);
+
+/// urdfdom's model, released without leaks: its links own their children, so a loop of links
+/// (which check_tree() rejects after urdfdom built it) would keep itself alive.
+struct ModelOwner {
+  explicit ModelOwner(urdf::ModelInterfaceSharedPtr parsed) : model(std::move(parsed)) {}
+  ModelOwner(const ModelOwner&) = delete;
+  ModelOwner& operator=(const ModelOwner&) = delete;
+  ~ModelOwner() {
+    for (const auto& entry : model->links_) {
+      if (!entry.second) continue;
+      entry.second->child_links.clear();
+      entry.second->child_joints.clear();
+    }
+  }
+  urdf::ModelInterfaceSharedPtr model;
+};
 
 }  // namespace cartesian_impedance::detail

@@ -318,22 +318,6 @@ void read_limits(const urdf::Joint& joint, JointType type, int index, JointLimit
   limits.effort[index] = effort;
 }
 
-// urdfdom's model, released without leaks: its links own their children, so a loop of links
-// (which check_tree() rejects after urdfdom built it) would keep itself alive.
-struct ModelOwner {
-  explicit ModelOwner(urdf::ModelInterfaceSharedPtr parsed) : model(std::move(parsed)) {}
-  ModelOwner(const ModelOwner&) = delete;
-  ModelOwner& operator=(const ModelOwner&) = delete;
-  ~ModelOwner() {
-    for (const auto& entry : model->links_) {
-      if (!entry.second) continue;
-      entry.second->child_links.clear();
-      entry.second->child_joints.clear();
-    }
-  }
-  urdf::ModelInterfaceSharedPtr model;
-};
-
 }  // namespace
 
 KDL::Frame to_kdl_frame(const Eigen::Isometry3d& transform) {

@@ -27,6 +27,16 @@ JointVector ur5e_start() {
   return (JointVector(6) << M_PI, -M_PI / 2, M_PI / 2, -M_PI / 2, -M_PI / 2, 0.0).finished();
 }
 
+// Two UR5e 1.6 m apart along y, both at their start configuration.
+Simulation two_ur5e() {
+  SimulationOptions options;
+  options.start_q.resize(12);
+  options.start_q << ur5e_start(), ur5e_start();
+  return make_robots_scene({{kUr5e, "left_", Eigen::Vector3d(0, 0.8, 0)},
+                            {kUr5e, "right_", Eigen::Vector3d(0, -0.8, 0)}},
+                           options);
+}
+
 TEST(RobotsScene, TwoCopiesOfOneUrdfStandWhereTheyArePlacedWithTheirOwnNames) {
   const Eigen::Vector3d left(0.0, 0.8, 0.0), right(0.2, -0.8, 0.1);
   SimulationOptions options;
@@ -52,12 +62,7 @@ TEST(RobotsScene, TwoCopiesOfOneUrdfStandWhereTheyArePlacedWithTheirOwnNames) {
 }
 
 TEST(RobotsScene, PushingOneArmLeavesTheOtherWhereItWas) {
-  SimulationOptions options;
-  options.start_q.resize(12);
-  options.start_q << ur5e_start(), ur5e_start();
-  Simulation scene = make_robots_scene({{kUr5e, "left_", Eigen::Vector3d(0, 0.8, 0)},
-                                        {kUr5e, "right_", Eigen::Vector3d(0, -0.8, 0)}},
-                                       options);
+  Simulation scene = two_ur5e();
   const JointVector start = scene.q();
   Vector6d push = Vector6d::Zero();
   push[1] = 20.0;
@@ -70,12 +75,7 @@ TEST(RobotsScene, PushingOneArmLeavesTheOtherWhereItWas) {
 }
 
 TEST(RobotsScene, EachCopyHasItsOwnControllerThroughThePrefixes) {
-  SimulationOptions options;
-  options.start_q.resize(12);
-  options.start_q << ur5e_start(), ur5e_start();
-  Simulation scene = make_robots_scene({{kUr5e, "left_", Eigen::Vector3d(0, 0.8, 0)},
-                                        {kUr5e, "right_", Eigen::Vector3d(0, -0.8, 0)}},
-                                       options);
+  Simulation scene = two_ur5e();
   const auto model = cartesian_impedance::RobotModel::from_urdf_file(kUr5e, "base_link", "tool0");
   cartesian_impedance::ControlLoop left(model), right(model);
   EXPECT_THROW(ClosedLoopRunner(scene, {&left, &right}), Error);  // the scene's names are prefixed
