@@ -150,9 +150,10 @@ Simulation make_robots_scene(const std::vector<SceneRobot>& robots, SimulationOp
   const fs::path first = fs::absolute(robots[0].urdf);
   const std::string name = first.stem().string() + "_cartesian_impedance_robots.xml";
   const detail::VirtualFile file(name, printer.CStr());
+  const detail::UrdfScene urdf_scene{robots, {}};
   return detail::load_simulation((first.parent_path() / name).string(), file.vfs(),
                                  "scene of " + std::to_string(robots.size()) + " robots",
-                                 std::move(options));
+                                 std::move(options), &urdf_scene);
 }
 
 }  // namespace cartesian_impedance::sim

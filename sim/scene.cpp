@@ -4,6 +4,7 @@
 #include <fstream>
 #include <locale>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include "cartesian_impedance/sim/simulation.hpp"
@@ -112,8 +113,10 @@ Simulation make_scene(const std::string& robot_mjcf, const std::vector<Box>& box
   // A second <worldbody> section is merged with the first by MuJoCo's parser, so the boxes can
   // go right before the closing tag without parsing the robot file.
   // A URDF becomes the same complete model Simulation::from_urdf_file() simulates.
+  std::optional<detail::UrdfScene> urdf_scene;
   if (root_element(document) == "robot") {
     document = detail::mjcf_from_urdf(robot_mjcf, detail::UrdfImportOptions{});
+    urdf_scene = detail::UrdfScene{{SceneRobot{robot_mjcf, "", Eigen::Vector3d::Zero()}}, boxes};
   }
   const std::string root = root_element(document);
   const std::size_t end = document.rfind("</mujoco>");
@@ -140,7 +143,7 @@ Simulation make_scene(const std::string& robot_mjcf, const std::vector<Box>& box
   const int index = mj_findFileVFS(vfs.get(), scene_name.c_str());
   std::copy(document.begin(), document.end(), static_cast<char*>(vfs->filedata[index]));
   return detail::load_simulation(scene_path, vfs.get(), "scene (" + robot_mjcf + " with boxes)",
-                                 std::move(options));
+                                 std::move(options), urdf_scene ? &*urdf_scene : nullptr);
 }
 
 }  // namespace cartesian_impedance::sim

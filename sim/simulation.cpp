@@ -102,7 +102,16 @@ std::string list_names(const mjModel* model, int type) {
 }
 
 Simulation load_simulation(const std::string& path, const mjVFS* vfs, const std::string& kind,
-                           SimulationOptions options) {
+                           SimulationOptions options, const UrdfScene* urdf_scene) {
+  if (options.engine == Engine::dart && urdf_scene == nullptr) {
+    throw Error("engine 'dart' cannot simulate " + kind + " file '" + path +
+                "': DART loads URDF files (Simulation::from_urdf_file, make_scene with a URDF "
+                "robot, make_robots_scene); give the robot's URDF");
+  }
+  if (options.engine != Engine::mujoco && options.engine != Engine::dart) {
+    throw Error("SimulationOptions.engine = " + std::to_string(static_cast<int>(options.engine)) +
+                " is not an engine (mujoco, dart)");
+  }
   if (!std::isfinite(options.timestep) || options.timestep <= 0.0) {
     throw Error("SimulationOptions.timestep = " + format_value(options.timestep) +
                 " s is not a positive finite number");
@@ -293,6 +302,7 @@ Simulation load_simulation(const std::string& path, const mjVFS* vfs, const std:
   impl->dq = JointVector::Zero(n);
   impl->tau = JointVector::Zero(n);
   impl->reset();
+  if (impl->options.engine == Engine::dart) impl->physics = make_dart_physics(*urdf_scene, *impl);
   return Simulation(std::move(impl));
 }
 
@@ -316,6 +326,7 @@ void Simulation::Impl::reset() {
   pushes.clear();
   mj_forward(m, d);
   kinematics_current = true;
+  if (physics) physics->set_state(*this);
   read_state();
 }
 
@@ -375,10 +386,7 @@ void Simulation::Impl::apply_inputs() noexcept {
 
   // Pushes: xfrc_applied acts at the body's centre of mass (xipos), so a wrench given at a point
   // p is moved there: torque_com = torque + (p - xipos) x force.
-  const double expiry = d->time + 0.5 * m->opt.timestep;
-  pushes.erase(std::remove_if(pushes.begin(), pushes.end(),
-                              [expiry](const Push& push) { return push.end_time < expiry; }),
-               pushes.end());
+  expire_pushes();
   for (const Push& push : pushes) {
     const mjtNum* point = push.site >= 0 ? d->site_xpos + 3 * push.site : d->xpos + 3 * push.body;
     mjtNum offset[3];
@@ -392,6 +400,13 @@ void Simulation::Impl::apply_inputs() noexcept {
       target[3 + j] += push.wrench_world[3 + j] + shift[j];
     }
   }
+}
+
+void Simulation::Impl::expire_pushes() noexcept {
+  const double expiry = data->time + 0.5 * model->opt.timestep;
+  pushes.erase(std::remove_if(pushes.begin(), pushes.end(),
+                              [expiry](const Push& push) { return push.end_time < expiry; }),
+               pushes.end());
 }
 
 int Simulation::Impl::find_body(const std::string& name) const {
@@ -424,8 +439,9 @@ Simulation Simulation::from_urdf_file(const std::string& path, SimulationOptions
   const std::filesystem::path absolute = std::filesystem::absolute(path);
   const std::string name = absolute.stem().string() + "_cartesian_impedance.xml";
   const detail::VirtualFile file(name, mjcf);
+  const detail::UrdfScene scene{{SceneRobot{path, "", Eigen::Vector3d::Zero()}}, {}};
   return detail::load_simulation((absolute.parent_path() / name).string(), file.vfs(), "URDF",
-                                 std::move(options));
+                                 std::move(options), &scene);
 }
 
 int Simulation::num_joints() const noexcept {
@@ -472,6 +488,19 @@ JointVector Simulation::friction_loss() const {
 const std::string& Simulation::model_name() const noexcept {
   return impl_->model_name;
 }
+Engine Simulation::engine() const noexcept {
+  return impl_->physics ? impl_->physics->engine() : Engine::mujoco;
+}
+
+const char* engine_name(Engine engine) noexcept {
+  return engine == Engine::dart ? "dart" : "mujoco";
+}
+
+Engine engine_from_name(const std::string& name) {
+  if (name == "mujoco") return Engine::mujoco;
+  if (name == "dart") return Engine::dart;
+  throw Error("engine '" + name + "' is not known; the engines are: mujoco, dart");
+}
 
 namespace {
 
@@ -511,6 +540,7 @@ void Simulation::set_state(const JointVector& q, const JointVector& dq) {
   }
   mj_forward(s.model.get(), d);
   s.kinematics_current = true;
+  if (s.physics) s.physics->set_state(s);
   s.read_state();
 }
 
@@ -529,7 +559,9 @@ void Simulation::step() noexcept {
   Impl& s = *impl_;
   const mjModel* m = s.model.get();
   mjData* d = s.data.get();
-  if (m->opt.integrator == mjINT_RK4) {
+  if (s.physics) {
+    s.physics->step(s);
+  } else if (m->opt.integrator == mjINT_RK4) {
     // mj_step2 would fall back to Euler; evaluate the inputs on fresh kinematics instead and let
     // mj_step recompute them (one extra kinematics pass).
     mj_kinematics(m, d);
@@ -607,6 +639,7 @@ Pose Simulation::site_pose(const std::string& site) const {
 Pose Simulation::body_pose(const std::string& body) const {
   const Impl& s = *impl_;
   const int id = s.find_body(body);
+  if (s.physics) return s.physics->body_pose(id);
   s.update_kinematics();
   const mjData* d = s.data.get();
   Pose pose;
@@ -622,6 +655,7 @@ Vector6d Simulation::contact_wrench(const std::string& body) const {
   const mjData* d = s.data.get();
   const int id = s.find_body(body);
   const int weld = m->body_weldid[id];
+  if (s.physics) return s.physics->contact_wrench(weld, s.physics->body_pose(id).position);
   s.update_kinematics();
   const Eigen::Vector3d origin = Eigen::Map<const Eigen::Vector3d>(d->xpos + 3 * id);
 

@@ -38,10 +38,18 @@ class MujocoErrorTrap {
   void (*previous_)(const char*);
 };
 
+/// What a scene is made of, for an engine that loads URDF files itself (DART): the robots with
+/// their prefixes and bases, and the boxes. Names match the MuJoCo scene built from the same.
+struct UrdfScene {
+  std::vector<SceneRobot> robots;
+  std::vector<Box> boxes;
+};
+
 /// Compiles `path` (looked up in `vfs` first when given) and builds the simulation.
-/// `kind` ("MJCF", "URDF", "scene") only shapes error messages.
+/// `kind` ("MJCF", "URDF", "scene") only shapes error messages. `urdf_scene` describes the same
+/// scene from its URDF files (nullptr for an MJCF model, which only MuJoCo can simulate).
 Simulation load_simulation(const std::string& path, const mjVFS* vfs, const std::string& kind,
-                           SimulationOptions options);
+                           SimulationOptions options, const UrdfScene* urdf_scene = nullptr);
 
 /// A MuJoCo virtual file system holding one document (about 2 MB: kept off the stack).
 class VirtualFile {
@@ -68,6 +76,28 @@ std::string mjcf_from_urdf(const std::string& urdf_path, const UrdfImportOptions
 
 /// "a, b, c" of every named object of `type` (mjtObj), "(none)" if there is none.
 std::string list_names(const mjModel* model, int type);
+
+/// A physics engine other than MuJoCo's own. The MuJoCo model and data of Simulation::Impl
+/// still hold the scene: the engine writes its state into `data` (qpos, qvel, time) after each
+/// step, so names, kinematics and rendering work unchanged.
+class Physics {
+ public:
+  virtual ~Physics() = default;
+  virtual Engine engine() const noexcept = 0;
+  /// Takes over qpos and qvel of every joint from `impl.data`; no contacts until the next step.
+  virtual void set_state(const Simulation::Impl& impl) = 0;
+  /// Applies the commanded torque, gravity compensation and pushes of `impl`, advances by one
+  /// timestep and writes the new state into impl.data (qpos, qvel, time).
+  virtual void step(Simulation::Impl& impl) noexcept = 0;
+  /// Pose of MuJoCo body `body` (an id) in the world.
+  virtual Pose body_pose(int body) const = 0;
+  /// Contact wrench on the bodies whose MuJoCo weld id is `weld`, torque about `origin`.
+  virtual Vector6d contact_wrench(int weld, const Eigen::Vector3d& origin) const = 0;
+};
+
+/// DART behind the scene of `impl` (whose joints, armature, damping and friction it copies).
+/// @throw Error naming the engine if DART is not built in or cannot load or build the scene.
+std::unique_ptr<Physics> make_dart_physics(const UrdfScene& scene, const Simulation::Impl& impl);
 
 }  // namespace detail
 
@@ -102,12 +132,15 @@ struct Simulation::Impl {
   bool gravity_on = false;  // compensation requested and gravity enabled in the model
   mutable bool kinematics_current = true;  // xpos, site_xpos, ... belong to the current qpos
 
+  std::unique_ptr<detail::Physics> physics;  // null: MuJoCo integrates
+
   mutable std::unique_ptr<detail::Renderer> renderer;  // created by the first render_png()
   mutable detail::DataPtr ghost_data;  // kinematics of a render's ghost, made when first needed
 
   void reset();
   void read_state() noexcept;
-  void apply_inputs() noexcept;  // needs kinematics and subtree_com of the current qpos
+  void apply_inputs() noexcept;   // needs kinematics and subtree_com of the current qpos
+  void expire_pushes() noexcept;  // drops the pushes that end before the next step
   void update_kinematics() const noexcept;
   int find_body(const std::string& name) const;  // throws Error naming the body
 };

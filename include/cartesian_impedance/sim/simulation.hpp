@@ -1,10 +1,14 @@
 #pragma once
 /// @file
-/// MuJoCo simulation of a torque-controlled arm: joint torques in, joint positions and velocities
-/// out, with gravity compensation done the way Panda and iiwa firmware do it, external pushes,
-/// static boxes (tables, walls) to touch, contact wrenches and offscreen rendering.
+/// Simulation of a torque-controlled arm: joint torques in, joint positions and velocities out,
+/// with gravity compensation done the way Panda and iiwa firmware do it, external pushes, static
+/// boxes (tables, walls) to touch, contact wrenches and offscreen rendering.
 ///
-/// This header does not include MuJoCo; users need only Eigen. Loaders and setters validate and
+/// Two physics engines: MuJoCo and DART (SimulationOptions::engine). MuJoCo always holds the
+/// scene (names, joint parameters, rendering); with DART, DART loads the same URDF files itself
+/// and integrates the motion and the contacts, and MuJoCo draws DART's state.
+///
+/// This header includes neither engine; users need only Eigen. Loaders and setters validate and
 /// throw `cartesian_impedance::Error`; `step()` is noexcept and allocates nothing.
 ///
 /// Frames: every pose, force and wrench here is in MuJoCo's world frame. For the project's robot
@@ -19,6 +23,25 @@
 #include "cartesian_impedance/types.hpp"
 
 namespace cartesian_impedance::sim {
+
+/// The physics engine that integrates a Simulation.
+enum class Engine {
+  /// MuJoCo 2.2: soft contacts, implicit joint damping; MJCF and URDF files.
+  mujoco,
+  /// DART 6.12 (Lee et al. 2018, the simulator of the published controller): articulated-body
+  /// dynamics, hard contacts and joint friction solved as a complementarity problem; URDF files
+  /// only. The DART build option must be on (engine_available()).
+  dart,
+};
+
+/// "mujoco" or "dart".
+const char* engine_name(Engine engine) noexcept;
+/// The engine of that name ("mujoco", "dart").
+/// @throw Error naming the value and the known engines for any other name.
+Engine engine_from_name(const std::string& name);
+/// Whether this build can simulate with `engine` (MuJoCo always; DART if it was built with
+/// CARTESIAN_IMPEDANCE_BUILD_DART). If not and `reason` is given, it receives why.
+bool engine_available(Engine engine, std::string* reason = nullptr);
 
 /// How a model is turned into a simulation. Fixed at construction.
 struct SimulationOptions {
@@ -49,6 +72,13 @@ struct SimulationOptions {
   /// Panda flange pressed on a table with 20 N, +-1.5 % instead of +-12 % step to step). About
   /// doubles the cost of a step while in contact; no cost without contact.
   bool multi_point_contacts = true;
+  /// The physics engine. With Engine::dart the robot must come from URDF (from_urdf_file(),
+  /// make_scene() with a URDF robot, make_robots_scene()); DART then parses it with its own
+  /// loader, and takes from the MuJoCo scene only each joint's armature, damping and friction
+  /// (DART 6.12 has no armature: it is added to each joint's articulated inertia, which is where
+  /// a rotor's reflected inertia acts). Contacts and joint friction are DART's hard
+  /// complementarity constraints instead of MuJoCo's soft ones.
+  Engine engine = Engine::mujoco;
 };
 
 /// An arrow drawn into a picture: a force (or any vector) acting at a point.
@@ -145,7 +175,8 @@ class Simulation {
   const JointVector& torque_upper_limits() const noexcept;
 
   /// Advances by one timestep: gravity compensation and pushes are evaluated at the current state,
-  /// then MuJoCo integrates. No allocation, no exception.
+  /// then the engine integrates. No exception; with MuJoCo no allocation (DART's collision
+  /// detection and constraint solver allocate while the robot touches something).
   void step() noexcept;
 
   /// Applies `wrench_world` = [force; torque] [N; Nm] (world frame) at the origin of the named
@@ -165,8 +196,9 @@ class Simulation {
   /// Total contact wrench [N; Nm] that everything else exerts on `body` and on the bodies welded
   /// to it (bodies without joints move with their parent, so the massless flange body
   /// `panda_link8` reports the contacts of `panda_link7`'s geoms). World frame, torque about the
-  /// origin of `body`. Computed with mj_contactForce from the contacts of the last step()
-  /// or set_state().
+  /// origin of `body`. MuJoCo: computed with mj_contactForce from the contacts of the last step()
+  /// or set_state(). DART: the contact impulses of the last step() divided by the timestep (zero
+  /// right after set_state() or reset(), as DART solves contacts only while stepping).
   /// @throw Error if the body is unknown.
   Vector6d contact_wrench(const std::string& body) const;
 
@@ -195,6 +227,9 @@ class Simulation {
 
   /// MuJoCo's model name (the `model` attribute of `<mujoco>` or the URDF robot name).
   const std::string& model_name() const noexcept;
+
+  /// The physics engine integrating this simulation.
+  Engine engine() const noexcept;
 
   /// Internal: MuJoCo model, data and bookkeeping (defined in the sim sources; users cannot
   /// create one, so they use the factories above).
