@@ -1,5 +1,6 @@
-// cartesian_impedance_demo: a scripted tour of the controller on a simulated robot (MuJoCo),
-// with what theory predicts next to what was measured, CSV logs, plots and pictures.
+// cartesian_impedance_demo: a scripted tour of the controller on a simulated robot (MuJoCo or
+// DART, or both side by side), with what theory predicts next to what was measured, CSV logs,
+// plots and pictures.
 
 #include <chrono>
 #include <cmath>
@@ -46,10 +47,14 @@ Options:
   --config FILE            controller parameters (YAML; default: config/<robot>.yaml)
   --start-q Q1,Q2,...      start configuration [rad or m], one value per joint (default: the
                            MJCF's keyframe 'ready', the shipped robot's, or q = 0)
+  --engine NAME            physics engine: mujoco, dart (simulates the URDF) or both (every
+                           scenario on each, then a table theory / MuJoCo / DART; the output
+                           folder gets a subfolder per engine) (default: mujoco)
   --scenario NAME          run only this scenario (repeatable); names: )";
 
 struct Options {
   scenarios::RobotSetup robot;
+  std::vector<ci::sim::Engine> engines{ci::sim::Engine::mujoco};
   std::vector<std::string> scenarios;
   fs::path out = "demo_output";
   bool render = true;
@@ -83,7 +88,7 @@ void require_file(const std::string& option, const std::string& path) {
 
 Options parse(int argc, char** argv) {
   Options options;
-  std::string robot = "panda", urdf, mjcf, base, tip, flange, config, start_q;
+  std::string robot = "panda", urdf, mjcf, base, tip, flange, config, start_q, engine;
   for (int i = 1; i < argc; ++i) {
     const std::string argument = argv[i];
     auto value = [&]() -> std::string {
@@ -109,6 +114,8 @@ Options parse(int argc, char** argv) {
       config = value();
     } else if (argument == "--start-q") {
       start_q = value();
+    } else if (argument == "--engine") {
+      engine = value();
     } else if (argument == "--scenario") {
       options.scenarios.push_back(value());
     } else if (argument == "--out") {
@@ -120,7 +127,7 @@ Options parse(int argc, char** argv) {
     } else {
       usage_error("unknown argument '" + argument +
                   "' (valid: --robot, --urdf, --mjcf, --base-link, --tip-link, --flange, --config, "
-                  "--start-q, --scenario, --out, --no-render, --no-plots, --help)");
+                  "--start-q, --engine, --scenario, --out, --no-render, --no-plots, --help)");
     }
   }
   if (!urdf.empty()) {
@@ -198,6 +205,22 @@ Options parse(int argc, char** argv) {
                   "); give one inside it with --start-q");
     }
   }
+  if (engine == "both") {
+    options.engines = {ci::sim::Engine::mujoco, ci::sim::Engine::dart};
+  } else if (!engine.empty()) {
+    try {
+      options.engines = {ci::sim::engine_from_name(engine)};
+    } catch (const ci::Error& error) {
+      usage_error(std::string("--engine: ") + error.what() + " (or both)");
+    }
+  }
+  for (const ci::sim::Engine e : options.engines) {
+    try {
+      scenarios::with_engine(options.robot, e);  // available, and the MJCF's start readable
+    } catch (const ci::Error& error) {
+      usage_error(std::string("--engine: ") + error.what());
+    }
+  }
   const std::vector<std::string>& known = scenarios::scenario_names();
   for (const std::string& name : options.scenarios) {
     if (std::find(known.begin(), known.end(), name) == known.end()) {
@@ -210,24 +233,17 @@ Options parse(int argc, char** argv) {
   return options;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  const Options options = parse(argc, argv);
-  std::error_code error;
-  fs::create_directories(options.out, error);
-  if (error) usage_error("--out '" + options.out.string() + "': " + error.message());
-
-  std::string why_not;
-  const bool render = options.render && ci::sim::offscreen_rendering_available(&why_not);
-  std::cout << "Cartesian impedance demo: " << options.robot.name << " in MuJoCo at 1 kHz, "
-            << options.scenarios.size() << " scenarios, output in " << options.out.string() << "\n";
-  if (options.render && !render) std::cout << "(no pictures: " << why_not << ")\n";
-
-  std::vector<scenarios::Result> all;
+// What one engine's tour produced.
+struct Tour {
+  std::vector<scenarios::Result> results;
   std::vector<std::string> not_run;  // "scenario: why"
-  int index = 0;
   bool every_check_passed = true;
+};
+
+Tour run_tour(const Options& options, const scenarios::RobotSetup& robot, const fs::path& out,
+              bool render) {
+  Tour tour;
+  int index = 0;
   for (const std::string& name : options.scenarios) {
     std::cout << "\n[" << ++index << "/" << options.scenarios.size() << "] " << name << " ... "
               << std::flush;
@@ -238,16 +254,16 @@ int main(int argc, char** argv) {
                    const ci::sim::RenderOverlay& overlay) {
         ci::sim::RenderOverlay captioned = overlay;
         captioned.caption = name + ": " + overlay.caption;
-        sim.render_png((options.out / ci::demo::picture_file_name(name, label)).string(), 1024, 768,
+        sim.render_png((out / ci::demo::picture_file_name(name, label)).string(), 1024, 768,
                        captioned);
       };
     }
     scenarios::Outcome outcome;
     try {
-      outcome = scenarios::run_scenario(name, options.robot, moment);
+      outcome = scenarios::run_scenario(name, robot, moment);
     } catch (const ci::Error& failure) {
       std::cout << "could not run: " << failure.what() << "\n";
-      not_run.push_back(name + ": " + failure.what());
+      tour.not_run.push_back(name + ": " + failure.what());
       continue;
     }
     const double seconds =
@@ -266,22 +282,24 @@ int main(int argc, char** argv) {
         if (!result.passed && !result.note.empty()) {
           std::printf("         %s\n", result.note.c_str());
         }
-        every_check_passed &= result.passed;
+        tour.every_check_passed &= result.passed;
       }
-      all.push_back(result);
+      tour.results.push_back(result);
     }
     if (!outcome.samples.empty()) {
-      ci::demo::write_samples(options.out / (name + ".csv"), outcome.samples);
+      ci::demo::write_samples(out / (name + ".csv"), outcome.samples);
     }
     for (const scenarios::Table& table : outcome.tables) {
-      ci::demo::write_table(options.out / (name + "_" + table.name + ".csv"), table);
+      ci::demo::write_table(out / (name + "_" + table.name + ".csv"), table);
     }
   }
+  ci::demo::write_summary(out / "summary.csv", tour.results);
+  return tour;
+}
 
-  ci::demo::write_summary(options.out / "summary.csv", all);
-
+void print_summary(const std::vector<scenarios::Result>& results) {
   std::printf("\n%-18s %-62s %-22s %-16s %s\n", "scenario", "what", "theory", "measured", "");
-  for (const scenarios::Result& r : all) {
+  for (const scenarios::Result& r : results) {
     if (!r.applicable) {
       std::printf("%-18s %-62s %-22s %-16s %s\n", r.scenario.c_str(), r.quantity.c_str(), "-", "-",
                   "n/a");
@@ -290,29 +308,71 @@ int main(int argc, char** argv) {
     std::printf("%-18s %-62s %-22s %-16s %s\n", r.scenario.c_str(), r.quantity.c_str(),
                 expectation(r).c_str(), measurement(r).c_str(), r.passed ? "ok" : "FAIL");
   }
+}
 
-  if (options.plots) {
-    const std::string command = "/usr/bin/python3 '" + std::string(CARTESIAN_IMPEDANCE_SOURCE_DIR) +
-                                "/apps/plot_demo.py' '" + options.out.string() + "'";
-    if (std::system(command.c_str()) != 0) {
-      std::cout << "(plots were not made: " << command << " failed)\n";
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Options options = parse(argc, argv);
+  std::error_code error;
+  fs::create_directories(options.out, error);
+  if (error) usage_error("--out '" + options.out.string() + "': " + error.message());
+
+  std::string why_not;
+  const bool render = options.render && ci::sim::offscreen_rendering_available(&why_not);
+  const bool both = options.engines.size() > 1;
+  std::vector<Tour> tours;
+  for (const ci::sim::Engine engine : options.engines) {
+    const fs::path out = both ? options.out / ci::sim::engine_name(engine) : options.out;
+    fs::create_directories(out, error);
+    std::cout << (tours.empty() ? "" : "\n") << "Cartesian impedance demo: " << options.robot.name
+              << " in " << ci::demo::engine_title(engine) << " at 1 kHz, "
+              << options.scenarios.size() << " scenarios, output in " << out.string() << "\n";
+    if (options.render && !render) std::cout << "(no pictures: " << why_not << ")\n";
+    tours.push_back(run_tour(options, scenarios::with_engine(options.robot, engine), out, render));
+    print_summary(tours.back().results);
+    if (options.plots) {
+      const std::string command = "/usr/bin/python3 '" +
+                                  std::string(CARTESIAN_IMPEDANCE_SOURCE_DIR) +
+                                  "/apps/plot_demo.py' '" + out.string() + "'";
+      if (std::system(command.c_str()) != 0) {
+        std::cout << "(plots were not made: " << command << " failed)\n";
+      }
     }
   }
+  if (both) {
+    std::cout << "\nTheory, MuJoCo and DART side by side (also in "
+              << (options.out / "engines.csv").string() << "):\n";
+    ci::demo::print_engine_table(tours[0].results, tours[1].results, std::cout);
+    ci::demo::write_engine_table(options.out / "engines.csv", tours[0].results, tours[1].results);
+  }
+
   // Three verdicts, three exit codes: a measurement that disagrees with theory (1) is a finding
   // about the controller; a scenario that could not run (3) is not, and says nothing either way.
   std::cout << "\nLogs, plots and pictures: " << fs::absolute(options.out).string() << "\n";
-  for (const std::string& why : not_run) std::cout << "Could not run " << why << "\n";
+  bool every_check_passed = true;
+  std::size_t not_run = 0, not_applicable = 0;
+  for (std::size_t t = 0; t < tours.size(); ++t) {
+    for (const std::string& why : tours[t].not_run) {
+      std::cout << "Could not run " << (both ? ci::sim::engine_name(options.engines[t]) : "")
+                << (both ? " " : "") << why << "\n";
+    }
+    every_check_passed &= tours[t].every_check_passed;
+    not_run += tours[t].not_run.size();
+    not_applicable += static_cast<std::size_t>(
+        std::count_if(tours[t].results.begin(), tours[t].results.end(),
+                      [](const scenarios::Result& r) { return !r.applicable; }));
+  }
   if (!every_check_passed) {
     std::cout << "Some measurements disagree with theory (FAIL above).\n";
     return 1;
   }
-  if (!not_run.empty()) {
-    std::cout << not_run.size() << " of " << options.scenarios.size()
-              << " scenarios could not run; every measurement that was made agrees with theory.\n";
+  if (not_run > 0) {
+    std::cout << not_run << " of " << options.scenarios.size() * tours.size()
+              << " scenario runs could not run; every measurement that was made agrees with "
+                 "theory.\n";
     return 3;
   }
-  const auto not_applicable = std::count_if(
-      all.begin(), all.end(), [](const scenarios::Result& r) { return !r.applicable; });
   if (not_applicable > 0) {
     std::cout << not_applicable << " checks do not apply to this robot (n/a above, with why).\n";
   }

@@ -109,4 +109,93 @@ std::string measurement(const scenarios::Result& r) {
   return text;
 }
 
+const char* engine_title(sim::Engine engine) {
+  return engine == sim::Engine::dart ? "DART" : "MuJoCo";
+}
+
+namespace {
+
+struct EngineRow {
+  const scenarios::Result* mujoco = nullptr;
+  const scenarios::Result* dart = nullptr;
+};
+
+std::vector<EngineRow> engine_rows(const std::vector<scenarios::Result>& mujoco,
+                                   const std::vector<scenarios::Result>& dart) {
+  std::vector<EngineRow> rows;
+  std::vector<bool> used(dart.size(), false);
+  const auto same = [](const scenarios::Result& a, const scenarios::Result& b) {
+    return a.scenario == b.scenario && a.quantity == b.quantity;
+  };
+  for (const scenarios::Result& m : mujoco) {
+    EngineRow row{&m, nullptr};
+    for (std::size_t i = 0; i < dart.size() && row.dart == nullptr; ++i) {
+      if (!used[i] && same(m, dart[i])) {
+        used[i] = true;
+        row.dart = &dart[i];
+      }
+    }
+    rows.push_back(row);
+  }
+  for (std::size_t i = 0; i < dart.size(); ++i) {
+    if (!used[i]) rows.push_back({nullptr, &dart[i]});
+  }
+  return rows;
+}
+
+std::string verdict(const scenarios::Result* r) {
+  if (r == nullptr) return "-";
+  if (!r->applicable) return "n/a";
+  return measurement(*r) + (r->passed ? " ok" : " FAIL");
+}
+
+std::string theory(const EngineRow& row) {
+  const scenarios::Result* first = row.mujoco != nullptr ? row.mujoco : row.dart;
+  if (!first->applicable) return "-";
+  std::string text = expectation(*first);
+  if (row.mujoco != nullptr && row.dart != nullptr && row.dart->applicable &&
+      expectation(*row.dart) != text) {
+    text += " / " + expectation(*row.dart);
+  }
+  return text;
+}
+
+}  // namespace
+
+void print_engine_table(const std::vector<scenarios::Result>& mujoco,
+                        const std::vector<scenarios::Result>& dart, std::ostream& out) {
+  char line[512];
+  std::snprintf(line, sizeof(line), "%-18s %-62s %-26s %-20s %s\n", "scenario", "what", "theory",
+                "MuJoCo", "DART");
+  out << line;
+  for (const EngineRow& row : engine_rows(mujoco, dart)) {
+    const scenarios::Result& any = row.mujoco != nullptr ? *row.mujoco : *row.dart;
+    std::snprintf(line, sizeof(line), "%-18s %-62s %-26s %-20s %s\n", any.scenario.c_str(),
+                  any.quantity.c_str(), theory(row).c_str(), verdict(row.mujoco).c_str(),
+                  verdict(row.dart).c_str());
+    out << line;
+  }
+}
+
+void write_engine_table(const std::filesystem::path& path,
+                        const std::vector<scenarios::Result>& mujoco,
+                        const std::vector<scenarios::Result>& dart) {
+  std::ofstream csv(path);
+  csv << "scenario,quantity,unit,theory,mujoco,mujoco_passed,dart,dart_passed\n";
+  const auto value = [](const scenarios::Result* r) {
+    return r == nullptr || !r->applicable ? std::string() : std::to_string(r->measured);
+  };
+  const auto passed = [](const scenarios::Result* r) {
+    return r == nullptr     ? std::string()
+           : !r->applicable ? std::string("n/a")
+                            : std::string(r->passed ? "yes" : "no");
+  };
+  for (const EngineRow& row : engine_rows(mujoco, dart)) {
+    const scenarios::Result& any = row.mujoco != nullptr ? *row.mujoco : *row.dart;
+    csv << csv_field(any.scenario) << "," << csv_field(any.quantity) << "," << csv_field(any.unit)
+        << "," << csv_field(theory(row)) << "," << value(row.mujoco) << "," << passed(row.mujoco)
+        << "," << value(row.dart) << "," << passed(row.dart) << "\n";
+  }
+}
+
 }  // namespace cartesian_impedance::demo

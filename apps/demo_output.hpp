@@ -3,6 +3,7 @@
 // tables, the summary, and the names of the pictures.
 
 #include <filesystem>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -27,5 +28,18 @@ std::string picture_file_name(const std::string& scenario, const std::string& la
 std::string expectation(const scenarios::Result& result);
 /// "20.3 mm"
 std::string measurement(const scenarios::Result& result);
+
+/// "MuJoCo", "DART".
+const char* engine_title(sim::Engine engine);
+
+/// Per result line: theory, MuJoCo's measurement and DART's, each with its verdict. Lines are
+/// matched by scenario and quantity; theory is MuJoCo's, followed by DART's where it differs
+/// (a tolerance derived from the simulated friction, say).
+void print_engine_table(const std::vector<scenarios::Result>& mujoco,
+                        const std::vector<scenarios::Result>& dart, std::ostream& out);
+/// The same as CSV: scenario, quantity, unit, theory, mujoco, mujoco_passed, dart, dart_passed.
+void write_engine_table(const std::filesystem::path& path,
+                        const std::vector<scenarios::Result>& mujoco,
+                        const std::vector<scenarios::Result>& dart);
 
 }  // namespace cartesian_impedance::demo

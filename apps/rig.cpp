@@ -52,6 +52,26 @@ RobotSetup builtin_robot(const std::string& name, const std::string& source_dir)
               "' is not built in (panda, iiwa14, ur5e, planar3); give --urdf for your own");
 }
 
+RobotSetup with_engine(RobotSetup robot, sim::Engine engine) {
+  std::string reason;
+  if (!sim::engine_available(engine, &reason)) {
+    throw Error(std::string("engine '") + sim::engine_name(engine) +
+                "' is not available: " + reason);
+  }
+  robot.engine = engine;
+  if (engine == sim::Engine::mujoco || robot.mjcf.empty()) return robot;
+  if (robot.start_q.size() == 0) {
+    const RobotModel model =
+        RobotModel::from_urdf_file(robot.urdf, robot.base_link, robot.tip_link);
+    sim::SimulationOptions options;
+    options.joint_names = model.joint_names();
+    robot.start_q = sim::Simulation::from_mjcf_file(robot.mjcf, options).q();
+  }
+  robot.mjcf.clear();
+  robot.flange = robot.tip_link;
+  return robot;
+}
+
 Parameters base_parameters(const RobotSetup& robot) {
   return robot.parameters_file.empty() ? Parameters{} : load_parameters(robot.parameters_file);
 }
@@ -69,6 +89,7 @@ sim::Simulation make_simulation(const RobotSetup& robot, const RobotModel& model
   sim::SimulationOptions options;
   options.joint_names = model.joint_names();
   options.start_q = robot.start_q;
+  options.engine = robot.engine;
   if (configures_armature(parameters)) options.armature = parameters.dynamics.armature;
   if (boxes.empty()) {
     return robot.mjcf.empty() ? sim::Simulation::from_urdf_file(robot.urdf, options)

@@ -87,6 +87,7 @@ FrictionBand friction_band(Rig& rig) {
     for (int i = 0; i < n; ++i) tau[i] = (corner >> i & 1) ? friction[i] : -friction[i];
     const Vector6d wrench = map * tau;
     band.force = std::max(band.force, wrench.head<3>().norm());
+    band.force_along = band.force_along.cwiseMax(wrench.head<3>().cwiseAbs());
     band.torque = std::max(band.torque, wrench.tail<3>().norm());
   }
   return band;

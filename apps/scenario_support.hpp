@@ -65,8 +65,9 @@ std::string format(const char* format, ...) __attribute__((format(printf, 1, 2))
 /// The largest force and torque at the flange that the joints' Coulomb friction can hold at q:
 /// a spring pulling with less may leave the arm standing short of its rest position.
 struct FrictionBand {
-  double force = 0.0;   ///< [N]
-  double torque = 0.0;  ///< [Nm]
+  double force = 0.0;                                     ///< [N]
+  double torque = 0.0;                                    ///< [Nm]
+  Eigen::Vector3d force_along = Eigen::Vector3d::Zero();  ///< [N] largest |force| per base axis
 };
 FrictionBand friction_band(Rig& rig);
 

@@ -296,8 +296,13 @@ Outcome wrench_on_table(const RobotSetup& robot, const MomentCallback& moment) {
     rig.run(0.005);
     average += rig.contact_force().z() / 100.0;
   }
+  // At rest J^T (F_commanded + F_contact) = tau_friction: the joints' Coulomb friction may hold
+  // up to its band along z (it stopped the arm where the table did), plus 5 % for the contact
+  // solver's step-to-step ripple. DART's hard contact stops the arm at once, so there the band
+  // shows (UR5e: 0.72 N of its 0.8 N band); MuJoCo's soft contact lets it settle.
+  const double band = friction_band(rig).force_along.z();
   return {{compare("wrench", "contact force under a commanded 10 N", force, average, "N",
-                   0.05 * force)},
+                   0.05 * force + band)},
           rig.samples()};
 }
 

@@ -36,7 +36,15 @@ struct RobotSetup {
   /// q = 0 for a URDF).
   JointVector start_q = JointVector();
   Mutation mutation = Mutation::none;
+  /// The physics engine of the simulation (with_engine() sets it and what it needs).
+  sim::Engine engine = sim::Engine::mujoco;
 };
+
+/// `robot` simulated by `engine`. DART simulates URDF files only: a robot with an MJCF is then
+/// simulated from its URDF, starting where the MJCF's keyframe "ready" starts (unless start_q
+/// says otherwise), with its tip link as the flange (the MJCF's flange site sits at its origin).
+/// @throws Error if the engine is not available in this build (the message says why).
+RobotSetup with_engine(RobotSetup robot, sim::Engine engine);
 
 /// A robot the project ships ("panda", "iiwa14", "ur5e", "planar3"), from models/ and config/
 /// under `source_dir`.

@@ -242,7 +242,8 @@ Outcome convergence(const RobotSetup& robot, const MomentCallback&) {
 
 // 10. Two arms in one scene, each with its own controller: pushing one does not move the other.
 // The Panda and the iiwa14 share the project's MJCF scene (models/scenes/two_arms.xml); any other
-// robot stands beside a copy of itself, both simulated from its URDF. The arms share nothing but
+// robot, and every robot on DART (which simulates URDF only), stands beside a copy of itself,
+// both simulated from its URDF. The arms share nothing but
 // the simulation, so "does not move" is checked exactly: against a twin run of the same scene
 // without the push (or without the step), the other arm's path must be the same to a micrometre
 // (MuJoCo solves the joints' friction of both arms together, which may round differently).
@@ -260,7 +261,7 @@ struct ArmPair {
 ArmPair arm_pair(const RobotSetup& robot) {
   ArmPair pair;
   const std::string source = CARTESIAN_IMPEDANCE_SOURCE_DIR;
-  if (robot.name == "panda" || robot.name == "iiwa14") {
+  if ((robot.name == "panda" || robot.name == "iiwa14") && !robot.mjcf.empty()) {
     pair.left = builtin_robot("panda", source);
     pair.right = builtin_robot("iiwa14", source);
     pair.left_tip = "panda_flange";
@@ -324,6 +325,7 @@ TwoArmRun run_two_arms(const ArmPair& pair, bool push_left, bool step_right,
       RobotModel::from_urdf_file(pair.right.urdf, pair.right.base_link, pair.right.tip_link);
   const int n_left = left_model.num_joints(), n_right = right_model.num_joints();
   sim::SimulationOptions options;
+  options.engine = pair.left.engine;
   std::optional<sim::Simulation> scene;
   if (pair.sites) {
     options.joint_names = left_model.joint_names();

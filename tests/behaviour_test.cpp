@@ -1,7 +1,7 @@
-// Closed-loop behaviour in the MuJoCo simulation, on the Panda, the iiwa14, the UR5e and the
-// planar 3-joint arm (the last two from their URDF alone): every line a
-// scenario reports (theory next to measurement, with a tolerance derived from physics in the
-// scenario) must hold. And the checks themselves can fail: each scenario, run with a dead
+// Closed-loop behaviour in simulation, on the Panda, the iiwa14, the UR5e and the planar 3-joint
+// arm (the last two from their URDF alone), on MuJoCo and on DART: every line a scenario reports
+// (theory next to measurement, with a tolerance derived from physics in the scenario) must hold
+// on both engines. And the checks themselves can fail: each scenario, run with a dead
 // controller (zero torque) or with the law's sign flipped, must report at least one failure.
 
 #include <gtest/gtest.h>
@@ -52,12 +52,30 @@ std::string name(const ::testing::TestParamInfo<Behaviour::ParamType>& info) {
   return std::get<0>(info.param) + "_" + std::get<1>(info.param);
 }
 
+// The same scenarios with DART integrating (the robots with an MJCF simulated from their URDF).
+class DartBehaviour : public Behaviour {
+ protected:
+  void SetUp() override {
+    std::string reason;
+    if (!ci::sim::engine_available(ci::sim::Engine::dart, &reason)) GTEST_SKIP() << reason;
+  }
+};
+
+scenarios::RobotSetup on_dart(const std::string& robot) {
+  return scenarios::with_engine(scenarios::builtin_robot(robot, CARTESIAN_IMPEDANCE_SOURCE_DIR),
+                                ci::sim::Engine::dart);
+}
+
+TEST_P(DartBehaviour, MatchesTheory) {
+  const auto& [robot, scenario] = GetParam();
+  expect_all_pass(scenarios::run_scenario(scenario, on_dart(robot)));
+}
+
 class BrokenController
     : public ::testing::TestWithParam<std::tuple<std::string, std::string, scenarios::Mutation>> {};
 
-TEST_P(BrokenController, FailsAtLeastOneCheck) {
-  const auto& [robot, scenario, mutation] = GetParam();
-  scenarios::RobotSetup setup = scenarios::builtin_robot(robot, CARTESIAN_IMPEDANCE_SOURCE_DIR);
+void expect_some_failure(scenarios::RobotSetup setup, const std::string& robot,
+                         const std::string& scenario, scenarios::Mutation mutation) {
   setup.mutation = mutation;
   const scenarios::Outcome outcome = scenarios::run_scenario(scenario, setup);
   ASSERT_FALSE(outcome.results.empty());
@@ -74,8 +92,27 @@ TEST_P(BrokenController, FailsAtLeastOneCheck) {
     failures += "\n  " + result.quantity + ": measured " + std::to_string(result.measured);
   }
   EXPECT_GT(failed, 0) << "every check of '" << scenario << "' passed with a broken controller";
-  RecordProperty("failed_checks", failed);
-  RecordProperty("failures", failures);
+  ::testing::Test::RecordProperty("failed_checks", failed);
+  ::testing::Test::RecordProperty("failures", failures);
+}
+
+TEST_P(BrokenController, FailsAtLeastOneCheck) {
+  const auto& [robot, scenario, mutation] = GetParam();
+  expect_some_failure(scenarios::builtin_robot(robot, CARTESIAN_IMPEDANCE_SOURCE_DIR), robot,
+                      scenario, mutation);
+}
+
+class DartBrokenController : public BrokenController {
+ protected:
+  void SetUp() override {
+    std::string reason;
+    if (!ci::sim::engine_available(ci::sim::Engine::dart, &reason)) GTEST_SKIP() << reason;
+  }
+};
+
+TEST_P(DartBrokenController, FailsAtLeastOneCheck) {
+  const auto& [robot, scenario, mutation] = GetParam();
+  expect_some_failure(on_dart(robot), robot, scenario, mutation);
 }
 
 std::string broken_name(const ::testing::TestParamInfo<BrokenController::ParamType>& info) {
@@ -138,6 +175,24 @@ INSTANTIATE_TEST_SUITE_P(Mutants, BrokenController,
 INSTANTIATE_TEST_SUITE_P(SceneMutants, BrokenController,
                          ::testing::Combine(::testing::Values("panda", "planar3"),
                                             ::testing::Values("two_arms"), kMutations),
+                         broken_name);
+
+// Every scenario on DART, for every robot the project ships; the checks fail there too with a
+// broken controller (the Panda's mutants: the other robots' run the same checks).
+INSTANTIATE_TEST_SUITE_P(Panda, DartBehaviour,
+                         ::testing::Combine(::testing::Values("panda"), kScenarios), name);
+INSTANTIATE_TEST_SUITE_P(Iiwa14, DartBehaviour,
+                         ::testing::Combine(::testing::Values("iiwa14"), kScenarios), name);
+INSTANTIATE_TEST_SUITE_P(Ur5e, DartBehaviour,
+                         ::testing::Combine(::testing::Values("ur5e"), kScenarios), name);
+INSTANTIATE_TEST_SUITE_P(Planar3, DartBehaviour,
+                         ::testing::Combine(::testing::Values("planar3"), kScenarios), name);
+INSTANTIATE_TEST_SUITE_P(Scene, DartBehaviour,
+                         ::testing::Combine(::testing::Values("panda", "ur5e"),
+                                            ::testing::Values("two_arms")),
+                         name);
+INSTANTIATE_TEST_SUITE_P(Mutants, DartBrokenController,
+                         ::testing::Combine(::testing::Values("panda"), kScenarios, kMutations),
                          broken_name);
 
 // ---------------------------------------------------------------------------------------------
