@@ -253,7 +253,8 @@ Tour run_tour(const Options& options, const scenarios::RobotSetup& robot, const 
       moment = [&](const std::string& label, const ci::sim::Simulation& sim,
                    const ci::sim::RenderOverlay& overlay) {
         ci::sim::RenderOverlay captioned = overlay;
-        captioned.caption = name + ": " + overlay.caption;
+        captioned.caption = name + (robot.engine == ci::sim::Engine::dart ? " (DART)" : "") + ": " +
+                            overlay.caption;
         sim.render_png((out / ci::demo::picture_file_name(name, label)).string(), 1024, 768,
                        captioned);
       };
@@ -369,7 +370,7 @@ int main(int argc, char** argv) {
   }
   if (not_run > 0) {
     std::cout << not_run << " of " << options.scenarios.size() * tours.size()
-              << " scenario runs could not run; every measurement that was made agrees with "
+              << " scenarios could not run; every measurement that was made agrees with "
                  "theory.\n";
     return 3;
   }

@@ -36,6 +36,19 @@ expect_error "--start-q '0,x,0,0,0,0,0': 'x' is not a number" --start-q 0,x,0,0,
 expect_error "the start configuration is outside the joint range (joint panda_joint4 is at 0" \
   --urdf "$source_dir/models/panda/panda.urdf" --base-link panda_link0 --tip-link panda_link8
 expect_error "--urdf: " --urdf "$source_dir/models/panda/panda.urdf" --base-link panda_link0 --tip-link gripper
+expect_error "--engine: engine 'bullet' is not known; the engines are: mujoco, dart (or both)" --engine bullet
+
+# Both engines side by side (where this build has DART): a table with a column per engine.
+if "$demo" --robot panda --engine both --scenario hold --no-render --no-plots \
+  --out "$scratch/engines" >"$scratch/engines.log" 2>&1; then
+  grep -q "Theory, MuJoCo and DART side by side" "$scratch/engines.log" &&
+    [ -s "$scratch/engines/mujoco/summary.csv" ] && [ -s "$scratch/engines/dart/summary.csv" ] &&
+    grep -q '^"hold","sag under an unknown 1 kg payload (m g / K)","mm",.*,yes,.*,yes$' \
+      "$scratch/engines/engines.csv" ||
+    { echo "FAIL: --engine both:"; cat "$scratch/engines.log"; failures=$((failures + 1)); }
+elif ! grep -q "engine 'dart' is not available" "$scratch/engines.log"; then
+  echo "FAIL: --engine both failed:"; cat "$scratch/engines.log"; failures=$((failures + 1))
+fi
 
 # A scenario that cannot run is its own verdict (exit 3), not a FAIL: here the simulation has no
 # site or body of the flange's name.
