@@ -1,6 +1,6 @@
-// Python bindings of the MuJoCo simulation: the submodule cartesian_impedance.sim (Box,
-// Simulation, make_scene, offscreen_rendering_available). Built when the simulation library is
-// (CARTESIAN_IMPEDANCE_PYTHON_SIM).
+// Python bindings of the simulation: the submodule cartesian_impedance.sim (Box, Simulation,
+// make_scene, engine_available, offscreen_rendering_available). Built when the simulation library
+// is (CARTESIAN_IMPEDANCE_PYTHON_SIM).
 
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
@@ -45,8 +45,9 @@ ci::sim::SimulationOptions simulation_options(py::handle timestep, bool gravity_
                                               const std::string& keyframe,
                                               const std::optional<std::vector<std::string>>& names,
                                               bool multi_point_contacts, py::handle start_q,
-                                              py::handle armature) {
+                                              py::handle armature, const std::string& engine) {
   ci::sim::SimulationOptions options;
+  options.engine = ci::sim::engine_from_name(engine);
   options.timestep = read_scalar(timestep, "timestep");
   options.gravity_compensation = gravity_compensation;
   options.keyframe = keyframe;
@@ -72,7 +73,8 @@ void bind_simulation(py::module_& m) {
   // ---- simulation ----
   py::module_ sim = m.def_submodule(
       "sim",
-      "MuJoCo simulation of a torque-controlled arm: joint torques in, joint state out, gravity "
+      "Simulation of a torque-controlled arm (MuJoCo, or DART for URDF robots: the engine "
+      "option): joint torques in, joint state out, gravity "
       "compensated like Panda and iiwa firmware (on by default), pushes, static boxes, contact "
       "wrenches, offscreen rendering. Poses and wrenches are in MuJoCo's world frame, which is "
       "the controller's base frame for the project's robot files; wrenches are [force; torque].");
@@ -86,7 +88,8 @@ void bind_simulation(py::module_& m) {
                            py::arg("keyframe") = default_options.keyframe,
                            py::arg("joint_names") = py::none(),
                            py::arg("multi_point_contacts") = default_options.multi_point_contacts,
-                           py::arg("start_q") = py::none(), py::arg("armature") = py::none());
+                           py::arg("start_q") = py::none(), py::arg("armature") = py::none(),
+                           py::arg("engine") = ci::sim::engine_name(default_options.engine));
   };
   const char* options_doc =
       " Options: timestep [s] (replaces the model's); gravity_compensation: each joint receives "
@@ -96,7 +99,9 @@ void bind_simulation(py::module_& m) {
       "positions "
       "(n,) [rad or m] to start from and reset() to, instead of the keyframe, each checked against "
       "its joint's range; armature: rotor inertia per joint (n,) or one value for all [kg m^2], "
-      "replacing the model's (use the same for the controller's dynamics.armature).";
+      "replacing the model's (use the same for the controller's dynamics.armature); engine: the "
+      "physics engine, 'mujoco' or 'dart' (DART needs the robot from URDF; see "
+      "engine_available()).";
 
   py::class_<ci::sim::Box>(sim, "Box",
                            "A static box (table, wall, step) that collides with the robot.")
@@ -150,21 +155,21 @@ void bind_simulation(py::module_& m) {
                ", orientation_xyzw=" + numbers_text(b.orientation.coeffs()) + ")";
       });
 
-  py::class_<Sim> simulation(
-      sim, "Simulation",
-      "A simulated robot (MuJoCo). Not thread-safe: one thread drives it. Loaders and setters "
-      "raise Error on bad input.");
+  py::class_<Sim> simulation(sim, "Simulation",
+                             "A simulated robot (MuJoCo or DART). Not thread-safe: one thread "
+                             "drives it. Loaders and setters "
+                             "raise Error on bad input.");
   std::apply(
       [&](auto... args) {
         simulation.def_static(
             "from_mjcf_file",
             [](PathLike path, Real timestep, bool gravity_compensation, const std::string& keyframe,
                std::optional<std::vector<std::string>> names, bool multi_point_contacts,
-               py::object start_q, py::object armature) {
+               py::object start_q, py::object armature, const std::string& engine) {
               return std::make_unique<Sim>(ci::sim::Simulation::from_mjcf_file(
                   read_path(path, "path"),
                   simulation_options(timestep, gravity_compensation, keyframe, names,
-                                     multi_point_contacts, start_q, armature)));
+                                     multi_point_contacts, start_q, armature, engine)));
             },
             py::arg("path"), args...,
             (std::string("Loads an MJCF file (e.g. models/panda/panda.xml); each joint is "
@@ -175,11 +180,11 @@ void bind_simulation(py::module_& m) {
             "from_urdf_file",
             [](PathLike path, Real timestep, bool gravity_compensation, const std::string& keyframe,
                std::optional<std::vector<std::string>> names, bool multi_point_contacts,
-               py::object start_q, py::object armature) {
+               py::object start_q, py::object armature, const std::string& engine) {
               return std::make_unique<Sim>(ci::sim::Simulation::from_urdf_file(
                   read_path(path, "path"),
                   simulation_options(timestep, gravity_compensation, keyframe, names,
-                                     multi_point_contacts, start_q, armature)));
+                                     multi_point_contacts, start_q, armature, engine)));
             },
             py::arg("path"), args...,
             (std::string("Loads a URDF with MuJoCo's importer (no actuators, no floor, no "
@@ -191,11 +196,11 @@ void bind_simulation(py::module_& m) {
             [](PathLike path, const std::vector<ci::sim::Box>& boxes, Real timestep,
                bool gravity_compensation, const std::string& keyframe,
                std::optional<std::vector<std::string>> names, bool multi_point_contacts,
-               py::object start_q, py::object armature) {
+               py::object start_q, py::object armature, const std::string& engine) {
               return std::make_unique<Sim>(ci::sim::make_scene(
                   read_path(path, "robot_mjcf"), boxes,
                   simulation_options(timestep, gravity_compensation, keyframe, names,
-                                     multi_point_contacts, start_q, armature)));
+                                     multi_point_contacts, start_q, armature, engine)));
             },
             py::arg("robot_mjcf"), py::arg("boxes"), args...,
             (std::string("Loads the MJCF robot file with the boxes (a list of Box) added to its "
@@ -233,6 +238,9 @@ void bind_simulation(py::module_& m) {
           "friction_loss", [](Sim& s) { return vector_array(s.get().friction_loss()); },
           "Coulomb friction per joint (n,) [Nm]")
       .def_property_readonly("model_name", [](Sim& s) { return s.get().model_name(); })
+      .def_property_readonly(
+          "engine", [](Sim& s) { return std::string(ci::sim::engine_name(s.get().engine())); },
+          "The physics engine integrating this simulation: 'mujoco' or 'dart'.")
       .def(
           "set_state",
           [](Sim& s, ArrayLike q, ArrayLike dq) {
@@ -360,6 +368,7 @@ void bind_simulation(py::module_& m) {
         if (s.running.load()) return std::string("Simulation(running in Simulation.run())");
         const ci::sim::Simulation& simulation = s.sim;
         return "Simulation('" + simulation.model_name() + "', " +
+               ci::sim::engine_name(simulation.engine()) + ", " +
                std::to_string(simulation.num_joints()) +
                " joints, t = " + ci::format_number(simulation.time()) + " s, timestep " +
                ci::format_number(simulation.timestep()) + " s)";
@@ -373,6 +382,16 @@ void bind_simulation(py::module_& m) {
         return std::make_pair(available, reason);
       },
       "(available, reason): whether render_png() can work in this process, and why not.");
+  sim.def(
+      "engine_available",
+      [](const std::string& name) {
+        std::string reason;
+        const bool available = ci::sim::engine_available(ci::sim::engine_from_name(name), &reason);
+        return std::make_pair(available, reason);
+      },
+      py::arg("engine"),
+      "(available, reason): whether this build can simulate with the engine 'mujoco' or 'dart', "
+      "and why not. Raises Error for an unknown name.");
 }
 
 }  // namespace cartesian_impedance::python

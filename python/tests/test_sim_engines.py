@@ -1,0 +1,86 @@
+"""The simulation's two physics engines from Python: the engine= option of every loader,
+Simulation.engine and engine_available(); the Panda from its URDF behaves alike on both."""
+
+import numpy as np
+import pytest
+
+import cartesian_impedance as ci
+from conftest import PANDA_READY, PANDA_URDF, PANDA_XML, PANDA_YAML, requires_sim
+
+pytestmark = requires_sim
+
+ENGINES = ["mujoco", "dart"]
+
+
+def skip_unless_available(engine):
+    available, reason = ci.sim.engine_available(engine)
+    if not available:
+        pytest.skip("engine %s unavailable: %s" % (engine, reason))
+
+
+def test_engine_available_answers_for_each_engine_and_names_an_unknown_one():
+    assert ci.sim.engine_available("mujoco") == (True, "")
+    available, reason = ci.sim.engine_available("dart")
+    assert available == (reason == "")  # unavailable says why
+    with pytest.raises(ci.Error, match="engine 'bullet' is not known; the engines are: mujoco, dart"):
+        ci.sim.engine_available("bullet")
+
+
+def test_the_default_engine_is_mujoco():
+    sim = ci.sim.Simulation.from_mjcf_file(PANDA_XML)
+    assert sim.engine == "mujoco" and "mujoco" in repr(sim)
+    with pytest.raises(AttributeError):
+        sim.engine = "dart"  # fixed at construction
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_panda_urdf_holds_still_with_gravity_compensation_and_the_controller(panda, engine):
+    # The simulated firmware's gravity compensation plus the controller at its reference: the
+    # joint friction of the URDF holds what is left (measured: 1e-18 rad on MuJoCo, 1e-40 on DART).
+    skip_unless_available(engine)
+    parameters = ci.Parameters.load(PANDA_YAML)
+    armature = parameters["dynamics.armature"]
+    sim = ci.sim.Simulation.from_urdf_file(PANDA_URDF, joint_names=panda.joint_names,
+                                           start_q=PANDA_READY, armature=armature, engine=engine)
+    assert sim.engine == engine and engine in repr(sim)
+    loop = ci.ControlLoop(panda, parameters)
+    loop.start(sim.q, sim.dq)
+    start = sim.body_pose("panda_link8").position
+    assert sim.run(loop, 1.0) == 1000
+    assert loop.state.controller.status == ci.Status.ok
+    assert np.abs(sim.q - PANDA_READY).max() < 1e-6, sim.q - PANDA_READY
+    assert np.linalg.norm(sim.body_pose("panda_link8").position - start) < 1e-6
+    assert np.abs(sim.dq).max() < 1e-6
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_panda_urdf_falls_without_gravity_compensation(engine):
+    skip_unless_available(engine)
+    sim = ci.sim.Simulation.from_urdf_file(PANDA_URDF, start_q=PANDA_READY,
+                                           gravity_compensation=False, engine=engine)
+    start = sim.body_pose("panda_link8").position
+    sim.step(500)  # no torque at all for 0.5 s
+    drop = start[2] - sim.body_pose("panda_link8").position[2]
+    assert drop > 0.05, drop
+    assert np.abs(sim.q - PANDA_READY).max() > 0.1
+
+
+def test_an_unknown_engine_is_named_by_every_loader():
+    message = "engine 'bullet' is not known; the engines are: mujoco, dart"
+    with pytest.raises(ci.Error, match=message):
+        ci.sim.Simulation.from_urdf_file(PANDA_URDF, engine="bullet")
+    with pytest.raises(ci.Error, match=message):
+        ci.sim.Simulation.from_mjcf_file(PANDA_XML, engine="bullet")
+    with pytest.raises(ci.Error, match=message):
+        ci.sim.make_scene(PANDA_XML, [], engine="bullet")
+    with pytest.raises(TypeError):
+        ci.sim.Simulation.from_urdf_file(PANDA_URDF, engine=1)
+
+
+def test_dart_refuses_an_mjcf_file_naming_the_engine():
+    # Refused whether or not this build has DART: the file kind is checked first.
+    with pytest.raises(ci.Error, match="engine 'dart' cannot simulate MJCF file .*panda.xml"):
+        ci.sim.Simulation.from_mjcf_file(PANDA_XML, engine="dart")
+    table = ci.sim.Box.table([0.3, 0.0], [0.2, 0.2], 0.2)
+    with pytest.raises(ci.Error, match="engine 'dart' cannot simulate"):
+        ci.sim.make_scene(PANDA_XML, [table], engine="dart")
