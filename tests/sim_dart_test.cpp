@@ -6,6 +6,8 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -47,7 +49,9 @@ UrdfRobot frictionless(UrdfRobot robot) {
     const std::size_t end = text.find('"', at + 10);
     text.replace(at + 10, end - at - 10, "0");
   }
-  robot.urdf = ::testing::TempDir() + "sim_dart_test_frictionless_" + robot.name + ".urdf";
+  // The process id in the name: ctest runs the two engines' cases at the same time.
+  robot.urdf = ::testing::TempDir() + "sim_dart_test_frictionless_" + robot.name + "_" +
+               std::to_string(getpid()) + ".urdf";
   std::ofstream(robot.urdf) << text;
   return robot;
 }
@@ -81,7 +85,8 @@ Oracle oracle_for(const UrdfRobot& robot) {
   const int n = model.num_joints();
   EXPECT_TRUE(workspace.compute(robot.start, JointVector::Zero(n), kinematics, true));
   // The import's MJCF carries the URDF's damping values unchanged (short decimals).
-  const std::string file = ::testing::TempDir() + "sim_dart_test_" + robot.name + ".xml";
+  const std::string file = ::testing::TempDir() + "sim_dart_test_" + robot.name + "_" +
+                           std::to_string(getpid()) + ".xml";
   std::ofstream(file) << sim::detail::mjcf_from_urdf(robot.urdf, {0.1, 0.5});
   const Reference reference(file);
   std::remove(file.c_str());
