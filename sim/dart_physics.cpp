@@ -14,6 +14,7 @@
 
 #include <tinyxml2.h>
 
+#include <algorithm>
 #include <dart/collision/CollisionFilter.hpp>
 #include <dart/collision/CollisionObject.hpp>
 #include <dart/collision/fcl/FCLCollisionDetector.hpp>
@@ -270,6 +271,7 @@ DartPhysics::DartPhysics(const UrdfScene& scene, const Simulation::Impl& impl)
     weld_of_[bodies_[static_cast<std::size_t>(body)]] = m->body_weldid[body];
   }
 
+  exchanged_.resize(impl.joint_ids.size());
   for (int joint = 0; joint < m->njnt; ++joint) {
     const int type = m->jnt_type[joint];
     if (type != mjJNT_HINGE && type != mjJNT_SLIDE) continue;
@@ -313,12 +315,8 @@ DartPhysics::DartPhysics(const UrdfScene& scene, const Simulation::Impl& impl)
     link.skeleton = dart_joint->getSkeleton().get();
     link.index = dart_joint->getDof(0)->getIndexInSkeleton();
     joints_.push_back(link);
-    for (std::size_t k = 0; k < impl.joint_ids.size(); ++k) {
-      if (impl.joint_ids[k] == joint) {
-        exchanged_.resize(impl.joint_ids.size());
-        exchanged_[k] = link;
-      }
-    }
+    const auto exchanged = std::find(impl.joint_ids.begin(), impl.joint_ids.end(), joint);
+    if (exchanged != impl.joint_ids.end()) exchanged_[exchanged - impl.joint_ids.begin()] = link;
   }
   set_state(impl);
 }

@@ -22,15 +22,6 @@ constexpr int kFixed = 0;
 constexpr int kRotation = 1;
 constexpr int kTranslation = 2;
 
-Eigen::Isometry3d to_eigen(const urdf::Pose& pose) {
-  Eigen::Isometry3d transform = Eigen::Isometry3d::Identity();
-  transform.translation() = Eigen::Vector3d(pose.position.x, pose.position.y, pose.position.z);
-  const Eigen::Quaterniond rotation(pose.rotation.w, pose.rotation.x, pose.rotation.y,
-                                    pose.rotation.z);
-  transform.linear() = rotation.normalized().toRotationMatrix();
-  return transform;
-}
-
 Eigen::Isometry3d to_eigen(const KDL::Frame& frame) {
   Eigen::Isometry3d transform = Eigen::Isometry3d::Identity();
   for (int r = 0; r < 3; ++r) {
@@ -68,7 +59,7 @@ LinkTransforms LinkTransforms::from_urdf_string(const std::string& xml,
         if (!joint) continue;
         LinkJoint entry{joint->name, joint->parent_link_name, joint->child_link_name, -1};
         Motion motion;
-        motion.origin = to_eigen(joint->parent_to_joint_origin_transform);
+        motion.origin = detail::to_eigen(joint->parent_to_joint_origin_transform);
         if (!motion.origin.matrix().allFinite()) {
           throw Error("joint " + quoted(joint->name) + " has an origin that is not finite");
         }

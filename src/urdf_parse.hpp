@@ -6,6 +6,8 @@
 
 #include <urdf_parser/urdf_parser.h>
 
+#include <Eigen/Geometry>
+
 #include <string>
 #include <utility>
 #include <vector>
@@ -50,5 +52,15 @@ struct ModelOwner {
   }
   urdf::ModelInterfaceSharedPtr model;
 };
+
+/// `pose` (urdfdom stores the rpy of the file as a unit quaternion) as an Eigen transform.
+inline Eigen::Isometry3d to_eigen(const urdf::Pose& pose) {
+  Eigen::Isometry3d transform = Eigen::Isometry3d::Identity();
+  transform.translation() = Eigen::Vector3d(pose.position.x, pose.position.y, pose.position.z);
+  const Eigen::Quaterniond rotation(pose.rotation.w, pose.rotation.x, pose.rotation.y,
+                                    pose.rotation.z);
+  transform.linear() = rotation.normalized().toRotationMatrix();
+  return transform;
+}
 
 }  // namespace cartesian_impedance::detail

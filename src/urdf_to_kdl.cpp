@@ -43,16 +43,6 @@ constexpr double kMaxAxisNorm = 1e9;
 // ---------------------------------------------------------------------------------------------
 // Conversions.
 
-Eigen::Isometry3d to_eigen(const urdf::Pose& pose) {
-  Eigen::Isometry3d transform = Eigen::Isometry3d::Identity();
-  transform.translation() = Eigen::Vector3d(pose.position.x, pose.position.y, pose.position.z);
-  // urdfdom stores the rpy of the file as a unit quaternion.
-  const Eigen::Quaterniond rotation(pose.rotation.w, pose.rotation.x, pose.rotation.y,
-                                    pose.rotation.z);
-  transform.linear() = rotation.normalized().toRotationMatrix();
-  return transform;
-}
-
 KDL::Vector to_kdl(const Eigen::Vector3d& v) {
   return KDL::Vector(v.x(), v.y(), v.z());
 }
