@@ -1,6 +1,12 @@
 #include "cartesian_impedance/runtime/node_settings.hpp"
 
+#include <stdlib.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
 #include <optional>
 #include <utility>
 
@@ -58,10 +64,23 @@ const char* to_string(Mode mode) noexcept {
   return mode == Mode::sim ? "sim" : "topics";
 }
 
+const char* to_string(SimEngine engine) noexcept {
+  return engine == SimEngine::dart ? "dart" : "mujoco";
+}
+
 const std::vector<std::string_view>& node_setting_names() {
-  static const std::vector<std::string_view> names = {
-      "mode",    "control_rate",         "publish_rate",      "base_link",  "tip_link", "mjcf_path",
-      "start_q", "joint_states_timeout", "realtime_priority", "publish_tf", "tf_prefix"};
+  static const std::vector<std::string_view> names = {"mode",
+                                                      "control_rate",
+                                                      "publish_rate",
+                                                      "base_link",
+                                                      "tip_link",
+                                                      "mjcf_path",
+                                                      "start_q",
+                                                      "engine",
+                                                      "joint_states_timeout",
+                                                      "realtime_priority",
+                                                      "publish_tf",
+                                                      "tf_prefix"};
   return names;
 }
 
@@ -131,6 +150,25 @@ NodeConfiguration decode_node_configuration(const ParameterValue& tree,
           "(it is for sim mode)");
     }
   }
+  if (const ParameterValue* engine = reader.setting("engine")) {
+    const std::string name = decode_name(
+        *engine, "engine", "an engine", {to_string(SimEngine::mujoco), to_string(SimEngine::dart)});
+    settings.engine = name == to_string(SimEngine::dart) ? SimEngine::dart : SimEngine::mujoco;
+    // Like start_q: a value that would do nothing is refused rather than ignored.
+    if (settings.mode == Mode::topics) {
+      reader.fail("engine",
+                  "engine is set in topics mode, where nothing is simulated; remove it "
+                  "(it is for sim mode)");
+    }
+    // The simulation would refuse it too, but only after the model is loaded and without the
+    // place where the setting was made.
+    if (settings.engine == SimEngine::dart && !settings.mjcf_path.empty()) {
+      reader.fail("engine", "engine 'dart' cannot simulate the MJCF of mjcf_path ('" +
+                                settings.mjcf_path +
+                                "'): DART simulates the robot's URDF; remove mjcf_path or "
+                                "use engine 'mujoco'");
+    }
+  }
   settings.joint_states_timeout = reader.number(kJointStatesTimeout, settings.joint_states_timeout);
   if (const ParameterValue* priority = reader.setting("realtime_priority")) {
     settings.realtime_priority =
@@ -181,6 +219,36 @@ void check_start_q(const NodeConfiguration& configuration, const RobotModel& mod
 
 std::string tf_frame(const NodeSettings& settings, const std::string& link) {
   return settings.tf_prefix + link;
+}
+
+TemporaryFile::TemporaryFile(const std::string& text, const std::string& suffix) {
+  std::error_code ignored;
+  std::string name =
+      (std::filesystem::temp_directory_path(ignored) / ("cartesian_impedance_XXXXXX" + suffix))
+          .string();
+  const int fd = ::mkstemps(name.data(), static_cast<int>(suffix.size()));
+  if (fd < 0) {
+    throw Error("cannot create a temporary file '" + name + "': " + std::strerror(errno));
+  }
+  path_ = name;
+  std::size_t written = 0;
+  while (written < text.size()) {
+    const ssize_t n = ::write(fd, text.data() + written, text.size() - written);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const std::string reason = std::strerror(errno);
+      ::close(fd);
+      std::filesystem::remove(path_, ignored);
+      throw Error("cannot write the temporary file '" + path_ + "': " + reason);
+    }
+    written += static_cast<std::size_t>(n);
+  }
+  ::close(fd);
+}
+
+TemporaryFile::~TemporaryFile() {
+  std::error_code ignored;
+  std::filesystem::remove(path_, ignored);
 }
 
 }  // namespace cartesian_impedance::runtime

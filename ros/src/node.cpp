@@ -3,12 +3,10 @@
 
 #include <std_msgs/Float64MultiArray.h>
 #include <tf2_msgs/TFMessage.h>
-#include <unistd.h>
 
 #include <cstdio>
 #include <cstring>
-#include <filesystem>
-#include <fstream>
+#include <string>
 
 #include <cartesian_impedance/error.hpp>
 
@@ -17,28 +15,6 @@
 namespace cartesian_impedance_ros {
 
 namespace ci = cartesian_impedance;
-
-namespace {
-
-// MuJoCo's URDF import reads a file: the text of robot_description goes into a temporary one.
-ci::sim::Simulation simulate_urdf_text(const std::string& urdf,
-                                       ci::sim::SimulationOptions options) {
-  const std::filesystem::path path =
-      std::filesystem::temp_directory_path() /
-      ("cartesian_impedance_" + std::to_string(::getpid()) + ".urdf");
-  std::ofstream(path) << urdf;
-  try {
-    ci::sim::Simulation simulation = ci::sim::Simulation::from_urdf_file(path.string(), options);
-    std::filesystem::remove(path);
-    return simulation;
-  } catch (...) {
-    std::error_code ignored;
-    std::filesystem::remove(path, ignored);
-    throw;
-  }
-}
-
-}  // namespace
 
 // ---- construction ---------------------------------------------------------------------------
 
@@ -78,10 +54,14 @@ CartesianImpedanceNode::CartesianImpedanceNode(const ros::NodeHandle& node,
     options.gravity_compensation = !configuration_.parameters.dynamics.gravity_compensation;
     options.start_q = Eigen::Map<const Eigen::VectorXd>(
         settings_.start_q.data(), static_cast<Eigen::Index>(settings_.start_q.size()));
-    // Without an MJCF, MuJoCo simulates the URDF itself (robot_description).
-    simulation_.emplace(settings_.mjcf_path.empty()
-                            ? simulate_urdf_text(urdf, options)
-                            : ci::sim::Simulation::from_mjcf_file(settings_.mjcf_path, options));
+    options.engine = ci::sim::engine_from_name(to_string(settings_.engine));
+    if (settings_.mjcf_path.empty()) {
+      // Without an MJCF the engine simulates the URDF itself; its loaders read files.
+      const ci::runtime::TemporaryFile file(urdf, ".urdf");
+      simulation_.emplace(ci::sim::Simulation::from_urdf_file(file.path(), options));
+    } else {
+      simulation_.emplace(ci::sim::Simulation::from_mjcf_file(settings_.mjcf_path, options));
+    }
     runner_.emplace(*simulation_, *loop_);
     joint_state_publisher_ = node_.advertise<sensor_msgs::JointState>("joint_states", 10);
   } else {
@@ -113,9 +93,11 @@ CartesianImpedanceNode::CartesianImpedanceNode(const ros::NodeHandle& node,
   for (const std::string& name : model_->joint_names())
     joints += (joints.empty() ? "" : " ") + name;
   ROS_INFO(
-      "%s: %s -> %s, %d joints (%s), mode %s%s, %g Hz control, %g Hz state%s",
+      "%s: %s -> %s, %d joints (%s), mode %s%s%s, %g Hz control, %g Hz state%s",
       private_node_.getNamespace().c_str(), settings_.base_link.c_str(), settings_.tip_link.c_str(),
       n, joints.c_str(), to_string(settings_.mode),
+      settings_.mode == Mode::sim ? (std::string(", engine ") + to_string(settings_.engine)).c_str()
+                                  : "",
       settings_.mode == Mode::sim && settings_.mjcf_path.empty() ? " (the URDF simulated)" : "",
       settings_.control_rate, settings_.publish_rate,
       links_ ? (", tf of " + std::to_string(links_->joints().size()) + " joints").c_str() : "");

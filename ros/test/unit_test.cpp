@@ -293,6 +293,32 @@ TEST(RosParameters, ErrorsNameParameterValueAndRange) {
   }
 }
 
+TEST(RosParameters, EngineIsASimModeSettingForTheUrdf) {
+  XmlRpcValue root = required_settings();
+  EXPECT_EQ(cir::configuration_from_xmlrpc(root, kNamespace).settings.engine,
+            ci::runtime::SimEngine::mujoco);
+  root["engine"] = std::string("mujoco");
+  EXPECT_EQ(error_of(root), "");
+  root["engine"] = std::string("dart");  // DART simulates the URDF: not with an MJCF
+  EXPECT_EQ(error_of(root), "ROS parameter " + kNamespace +
+                                "/engine: engine 'dart' cannot simulate the MJCF of mjcf_path "
+                                "('panda.xml'): DART simulates the robot's URDF; remove mjcf_path "
+                                "or use engine 'mujoco'");
+  root["mjcf_path"] = std::string("");
+  const cir::NodeSettings settings = cir::configuration_from_xmlrpc(root, kNamespace).settings;
+  EXPECT_EQ(settings.engine, ci::runtime::SimEngine::dart);
+  EXPECT_STREQ(ci::runtime::to_string(settings.engine), "dart");
+  root["engine"] = std::string("bullet");
+  EXPECT_EQ(error_of(root),
+            "ROS parameter " + kNamespace +
+                "/engine: engine = 'bullet' is not an engine (valid: mujoco, dart)");
+  root["engine"] = std::string("mujoco");
+  root["mode"] = std::string("topics");  // nothing is simulated there: refused, not ignored
+  EXPECT_EQ(error_of(root), "ROS parameter " + kNamespace +
+                                "/engine: engine is set in topics mode, where nothing is "
+                                "simulated; remove it (it is for sim mode)");
+}
+
 TEST(RosParameters, UnknownTopLevelKeysAreWarnings) {
   XmlRpcValue root = required_settings();
   root["stifness"]["translation"] = 500;  // not a group: only a warning

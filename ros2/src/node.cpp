@@ -2,12 +2,8 @@
 
 #include "node.hpp"
 
-#include <unistd.h>
-
 #include <chrono>
 #include <cstring>
-#include <filesystem>
-#include <fstream>
 #include <map>
 #include <vector>
 
@@ -29,26 +25,15 @@ void log_line(const ci::runtime::ReportLine& line) {
       line.text);
 }
 
-// MuJoCo's URDF import reads a file: urdf_path itself, or robot_description's text in a
+// The engines' URDF loaders read a file: urdf_path itself, or robot_description's text in a
 // temporary one.
 ci::sim::Simulation simulate_urdf(const Ros2Configuration& configuration,
-                                  ci::sim::SimulationOptions options) {
+                                  const ci::sim::SimulationOptions& options) {
   if (configuration.urdf_source != "robot_description") {
     return ci::sim::Simulation::from_urdf_file(configuration.urdf_source, options);
   }
-  const std::filesystem::path path =
-      std::filesystem::temp_directory_path() /
-      ("cartesian_impedance_" + std::to_string(::getpid()) + ".urdf");
-  std::ofstream(path) << configuration.urdf;
-  try {
-    ci::sim::Simulation simulation = ci::sim::Simulation::from_urdf_file(path.string(), options);
-    std::filesystem::remove(path);
-    return simulation;
-  } catch (...) {
-    std::error_code ignored;
-    std::filesystem::remove(path, ignored);
-    throw;
-  }
+  const ci::runtime::TemporaryFile file(configuration.urdf, ".urdf");
+  return ci::sim::Simulation::from_urdf_file(file.path(), options);
 }
 
 }  // namespace
@@ -95,7 +80,8 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
     options.gravity_compensation = !configuration_.common.parameters.dynamics.gravity_compensation;
     options.start_q = Eigen::Map<const Eigen::VectorXd>(
         settings_.start_q.data(), static_cast<Eigen::Index>(settings_.start_q.size()));
-    // Without an MJCF, MuJoCo simulates the URDF itself.
+    options.engine = ci::sim::engine_from_name(to_string(settings_.engine));
+    // Without an MJCF, the engine simulates the URDF itself.
     simulation_.emplace(settings_.mjcf_path.empty()
                             ? simulate_urdf(configuration_, options)
                             : ci::sim::Simulation::from_mjcf_file(settings_.mjcf_path, options));
@@ -159,6 +145,8 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
   log(LogLevel::info,
       arguments_.fully_qualified_name() + ": " + settings_.base_link + " -> " + settings_.tip_link +
           ", " + std::to_string(n) + " joints (" + joints + "), mode " + to_string(settings_.mode) +
+          (settings_.mode == Mode::sim ? std::string(", engine ") + to_string(settings_.engine)
+                                       : std::string()) +
           ", " + ci::format_number(settings_.control_rate) + " Hz control, " +
           ci::format_number(settings_.publish_rate) + " Hz state" +
           (settings_.mode == Mode::sim && settings_.mjcf_path.empty() ? " (the URDF simulated)"

@@ -11,6 +11,8 @@
 #include <map>
 #include <sstream>
 
+#include <cartesian_impedance/sim/simulation.hpp>
+
 #include "harness.hpp"
 
 namespace cartesian_impedance_ros2::test {
@@ -510,6 +512,28 @@ TEST(Ros2Node, SimulatesTheUrdfFromStartQ) {
   })) << client.settle(0).position.transpose();
 }
 
+// The same with DART (engine: dart) integrating the URDF instead of MuJoCo.
+TEST(Ros2Node, SimulatesTheUrdfWithDart) {
+  std::string reason;
+  if (!ci::sim::engine_available(ci::sim::Engine::dart, &reason)) GTEST_SKIP() << reason;
+  const std::string params = repository() + "/ros2/config/sim_ur5e.yaml";
+  NodeProcess node({"--ros-args", "--params-file", params, "-p", "engine:=dart"});
+  Client client;
+  const State start = client.running();
+  const std::vector<double> start_q = {M_PI, -M_PI / 2, M_PI / 2, -M_PI / 2, -M_PI / 2, 0.0};
+  ASSERT_EQ(start.q.size(), 6u);
+  for (int i = 0; i < 6; ++i) EXPECT_NEAR(start.q[i], start_q[i], 0.02) << i;
+  EXPECT_NE(node.log().find("mode sim, engine dart"), std::string::npos) << node.log();
+  EXPECT_NE(node.log().find("(the URDF simulated)"), std::string::npos) << node.log();
+  // DART's joint friction is exact stiction: the arm stops where the spring no longer overcomes
+  // it, 3.1 mm short at the UR5e's 500 N/m (MuJoCo's soft friction creeps on to 2.8 mm).
+  const Eigen::Vector3d step(0.0, 0.04, 0.03);
+  client.pose(start.position + step, start.orientation);
+  EXPECT_TRUE(client.wait(4.0, [&](const State& s) {
+    return (s.position - (start.position + step)).norm() < 5e-3;
+  })) << client.settle(0).position.transpose();
+}
+
 // Topics mode: joint_states in (as a robot's ros2_control would publish them), torques out to the
 // effort controller, failing closed when joint_states stop.
 TEST(Ros2Node, TopicsModeTakesJointStatesAndCommandsTheEffortController) {
@@ -585,6 +609,8 @@ TEST(Ros2Node, BadParametersExitWithCode2NamingTheParameter) {
       {"start_q[3] = 0.5 rad for joint 'panda_joint4' is outside its limits",
        {"-p", "start_q:=[0, -0.7, 0, 0.5, 0, 1.5, 0.7]"}},
       {"qos policy 'lifespan'", {"-p", "qos_overrides./x.publisher.lifespan:=1"}},
+      // sim_panda.yaml simulates the MJCF, which DART cannot.
+      {"engine 'dart' cannot simulate the MJCF of mjcf_path", {"-p", "engine:=dart"}},
   };
   for (const auto& [expected, extra] : cases) {
     std::vector<std::string> args = {"--ros-args", "--params-file", sim_params()};

@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <iterator>
+#include <string>
 
 #include <cartesian_impedance/error.hpp>
 #include <cartesian_impedance/parameter_tree.hpp>
@@ -217,6 +219,56 @@ TEST(Ros2Parameters, StartConfigurationAndTransformSettings) {
             std::string::npos);
   EXPECT_EQ(message({"-p", "mode:=topics", "-p", "start_q:=[]"}), "accepted");
   EXPECT_EQ(message({"-p", "publish_tf:=1"}), "-p publish_tf: publish_tf = 1 is not true or false");
+}
+
+// engine, through the shared decoder: a sim-mode setting, DART for the URDF only.
+TEST(Ros2Parameters, EngineIsASimModeSettingForTheUrdf) {
+  const std::string sim = "/**:\n  ros__parameters:\n    urdf_path: " CARTESIAN_IMPEDANCE_SOURCE_DIR
+                          "/models/ur5e/ur5e.urdf\n    base_link: base_link\n"
+                          "    tip_link: tool0\n";
+  const Ros2Configuration dart = read_configuration(
+      parse({"--ros-args", "--params-file", write("engine.yaml", sim + "    engine: dart\n")}));
+  EXPECT_EQ(dart.common.settings.engine, ci::runtime::SimEngine::dart);
+  const Ros2Configuration defaults =
+      read_configuration(parse({"--ros-args", "--params-file", write("engine.yaml", sim)}));
+  EXPECT_EQ(defaults.common.settings.engine, ci::runtime::SimEngine::mujoco);
+
+  const auto message = [&](const std::vector<std::string>& extra) {
+    std::vector<std::string> args = {"--ros-args", "--params-file", write("engine.yaml", sim)};
+    args.insert(args.end(), extra.begin(), extra.end());
+    try {
+      read_configuration(parse(args));
+    } catch (const ci::Error& error) {
+      return std::string(error.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_EQ(message({"-p", "engine:=mujoco"}), "accepted");
+  EXPECT_EQ(message({"-p", "engine:=bullet"}),
+            "-p engine: engine = 'bullet' is not an engine (valid: mujoco, dart)");
+  EXPECT_EQ(message({"-p", "mode:=topics", "-p", "engine:=dart"}),
+            "-p engine: engine is set in topics mode, where nothing is simulated; remove it (it "
+            "is for sim mode)");
+  EXPECT_THAT(message({"-p", "engine:=dart", "-p", "mjcf_path:=/models/panda.xml"}),
+              testing::EndsWith("engine 'dart' cannot simulate the MJCF of mjcf_path "
+                                "('/models/panda.xml'): DART simulates the robot's URDF; remove "
+                                "mjcf_path or use engine 'mujoco'"));
+}
+
+// What both shells simulate robot_description's text from: a file of its own, gone afterwards.
+TEST(Ros2Parameters, TemporaryFileHoldsTheTextUntilDestroyed) {
+  std::string first_path;
+  {
+    const ci::runtime::TemporaryFile first("<robot name='a'/>", ".urdf");
+    const ci::runtime::TemporaryFile second("<robot name='b'/>", ".urdf");
+    first_path = first.path();
+    EXPECT_NE(first.path(), second.path());
+    EXPECT_THAT(first.path(), testing::EndsWith(".urdf"));
+    std::ifstream file(first.path());
+    const std::string text((std::istreambuf_iterator<char>(file)), {});
+    EXPECT_EQ(text, "<robot name='a'/>");
+  }
+  EXPECT_FALSE(std::ifstream(first_path).good()) << first_path;
 }
 
 TEST(Ros2Messages, FramesAreNamedWithOrWithoutTheTfPrefix) {

@@ -2,9 +2,9 @@
 /// @file
 /// What every ROS shell (the ROS 1 node, the ROS 2 node) reads from its parameters, decoded once
 /// here: the controller parameters (the table's groups, nested or dotted) and the node's own
-/// settings (mode, rates, links, the simulation model and start configuration, the joint-state
-/// timeout, the thread priority, the transforms for tf). A shell turns its parameter source (the
-/// ROS 1 parameter server, a ROS 2 params file) into a ParameterValue map and calls
+/// settings (mode, rates, links, the simulation model, engine and start configuration, the
+/// joint-state timeout, the thread priority, the transforms for tf). A shell turns its parameter
+/// source (the ROS 1 parameter server, a ROS 2 params file) into a ParameterValue map and calls
 /// decode_node_configuration(); messages read like every other parameter's, placed by the source's
 /// locations.
 
@@ -28,6 +28,16 @@ enum class Mode {
 /// "sim" / "topics".
 const char* to_string(Mode mode) noexcept;
 
+/// The physics engine of sim mode (the shells pass it to sim::SimulationOptions::engine; the
+/// runtime library does not link the simulation, so the setting has its own type).
+enum class SimEngine {
+  mujoco,  ///< MuJoCo: the MJCF of mjcf_path, or the URDF
+  dart     ///< DART: the URDF only (no mjcf_path)
+};
+
+/// "mujoco" / "dart" (the names sim::engine_from_name() takes).
+const char* to_string(SimEngine engine) noexcept;
+
 /// A node's own settings (not controller parameters). Units in brackets.
 struct NodeSettings {
   Mode mode = Mode::sim;
@@ -43,6 +53,9 @@ struct NodeSettings {
   /// URDF limits (check_start_q()). Rejected in topics mode, where the robot's joint_states are
   /// the start.
   std::vector<double> start_q;
+  /// sim mode: the physics engine. DART simulates the URDF itself, so it excludes mjcf_path.
+  /// Rejected in topics mode, where nothing is simulated.
+  SimEngine engine = SimEngine::mujoco;
   double joint_states_timeout = 0.1;  ///< [s] topics mode: older joint states count as lost
   int realtime_priority = 0;          ///< SCHED_FIFO priority of the control thread; 0 = normal
   /// Publish the transforms of the URDF's links below base_link (tf), as robot_state_publisher
@@ -78,8 +91,9 @@ using KeyLocation = std::function<std::string(std::string_view key)>;
 ///         the wrong type or shape or out of range, an unknown parameter inside a group, a
 ///         parameter given twice, a set that fails validate(), a missing base_link or tip_link, a
 ///         publish_rate above the control_rate, a start_q that is not a list of finite numbers
-///         (the message names the index and the value) or that is given in topics mode. A sim
-///         mode without mjcf_path is valid: the URDF is simulated.
+///         (the message names the index and the value) or that is given in topics mode, an
+///         engine that is not "mujoco" or "dart", given in topics mode or "dart" with an
+///         mjcf_path. A sim mode without mjcf_path is valid: the URDF is simulated.
 NodeConfiguration decode_node_configuration(const ParameterValue& tree,
                                             const KeyLocation& location_of,
                                             const std::vector<std::string>& shell_keys,
@@ -93,5 +107,24 @@ void check_start_q(const NodeConfiguration& configuration, const RobotModel& mod
 
 /// The tf frame of a link: tf_prefix + link.
 std::string tf_frame(const NodeSettings& settings, const std::string& link);
+
+/// A new file in the temporary directory holding `text`, removed again with this object. The
+/// simulation's URDF loaders (MuJoCo's, DART's) read files, while a shell may have only the text
+/// of robot_description. The name is unique (mkstemps), so several nodes in one process or on
+/// one machine do not overwrite each other's.
+class TemporaryFile {
+ public:
+  /// `suffix` ends the name (".urdf": the loaders tell the format by it).
+  /// @throws Error naming the path and the system's reason if it cannot be written.
+  TemporaryFile(const std::string& text, const std::string& suffix);
+  ~TemporaryFile();
+  TemporaryFile(const TemporaryFile&) = delete;
+  TemporaryFile& operator=(const TemporaryFile&) = delete;
+
+  const std::string& path() const noexcept { return path_; }
+
+ private:
+  std::string path_;
+};
 
 }  // namespace cartesian_impedance::runtime
