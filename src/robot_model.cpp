@@ -18,6 +18,7 @@
 #include <utility>
 
 #include "cartesian_impedance/error.hpp"
+#include "chain_model.hpp"
 #include "urdf_to_kdl.hpp"
 
 namespace cartesian_impedance {
@@ -26,7 +27,8 @@ namespace detail {
 
 // Everything a RobotModel knows, shared (read-only) by its copies and workspaces.
 struct ModelData {
-  UrdfChain urdf;  // urdf.chain ends with one fixed "tool" segment for T_tip_tool
+  UrdfChain urdf;     // urdf.chain ends with one fixed "tool" segment for T_tip_tool
+  ChainModel native;  // the same chain, prepared for the native backend
   std::string base_link;
   std::string tip_link;
   Eigen::Isometry3d T_tip_tool = Eigen::Isometry3d::Identity();
@@ -97,6 +99,16 @@ const char* to_string(JointType type) noexcept {
   return "unknown";
 }
 
+const char* to_string(ModelBackend backend) noexcept {
+  switch (backend) {
+    case ModelBackend::native:
+      return "native";
+    case ModelBackend::kdl:
+      return "kdl";
+  }
+  return "unknown";
+}
+
 // ---------------------------------------------------------------------------------------------
 // RobotModel
 
@@ -154,8 +166,15 @@ RobotModel RobotModel::from_urdf_source(const std::string& xml, const std::strin
   // The tool is one more fixed, massless segment, so that KDL's pose and Jacobian refer to it.
   data->urdf.chain.addSegment(
       KDL::Segment("tool", KDL::Joint("tool", KDL::Joint::None), detail::to_kdl_frame(tool)));
+  try {
+    data->native = detail::make_chain_model(data->urdf.chain, gravity_base);
+  } catch (const Error& error) {
+    throw LoadError(error.what());
+  }
   RobotModel model(std::move(data));
+  // Either backend may be chosen later: both must compute.
   check_computable(model, source);
+  check_computable(model.with_backend(ModelBackend::kdl), source);
   return model;
 }
 
@@ -189,22 +208,27 @@ const Eigen::Vector3d& RobotModel::gravity_base() const noexcept {
 double RobotModel::moving_mass() const noexcept {
   return data_->urdf.moving_mass;
 }
+ModelBackend RobotModel::backend() const noexcept {
+  return backend_;
+}
+RobotModel RobotModel::with_backend(ModelBackend backend) const noexcept {
+  RobotModel copy(*this);
+  copy.backend_ = backend;
+  return copy;
+}
 
 // ---------------------------------------------------------------------------------------------
 // ModelWorkspace
 
-struct ModelWorkspace::Impl {
-  explicit Impl(const RobotModel& robot)
-      : model(robot),
-        n(robot.num_joints()),
-        // A private copy of the chain: KDL::Joint caches its last rotation in mutable members
-        // (Joint::pose is const but writes q_previous and joint_pose), so two threads computing
-        // on one shared chain would race. Each workspace therefore owns its chain.
-        chain(robot.data_->urdf.chain),
+namespace {
+
+// The KDL backend: KDL's solvers and their in- and outputs, sized once.
+struct KdlSolvers {
+  KdlSolvers(const KDL::Chain& source, const Eigen::Vector3d& gravity, int n)
+      : chain(source),
         fk(chain),
         jacobian_solver(chain),
-        dynamics_solver(chain, KDL::Vector(robot.gravity_base().x(), robot.gravity_base().y(),
-                                           robot.gravity_base().z())),
+        dynamics_solver(chain, KDL::Vector(gravity.x(), gravity.y(), gravity.z())),
         q(static_cast<unsigned int>(n)),
         dq(static_cast<unsigned int>(n)),
         jacobian(static_cast<unsigned int>(n)),
@@ -212,39 +236,29 @@ struct ModelWorkspace::Impl {
         gravity(static_cast<unsigned int>(n)),
         coriolis(static_cast<unsigned int>(n)) {}
 
-  // The solvers keep references to `chain`, so an Impl never moves (it lives behind a pointer).
-  Impl(const Impl&) = delete;
-  Impl& operator=(const Impl&) = delete;
-
-  bool valid_input(const JointVector& q_in, const JointVector& dq_in) const noexcept {
-    return q_in.size() == n && dq_in.size() == n && q_in.allFinite() && dq_in.allFinite();
-  }
+  // The solvers keep references to `chain`, so this never moves (it lives behind a pointer).
+  KdlSolvers(const KdlSolvers&) = delete;
+  KdlSolvers& operator=(const KdlSolvers&) = delete;
 
   // Forward kinematics into `frame`; false if KDL fails or the result is not finite.
   bool compute_frame() noexcept {
     if (fk.JntToCart(q, frame) < 0) return false;
-    return rotation().allFinite() && position().allFinite();
+    return rotation().allFinite() && Eigen::Map<const Eigen::Vector3d>(frame.p.data).allFinite();
   }
-
   Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> rotation() const noexcept {
     return Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(frame.M.data);
   }
   Eigen::Map<const Eigen::Vector3d> position() const noexcept {
     return Eigen::Map<const Eigen::Vector3d>(frame.p.data);
   }
-  void write_pose(Pose& pose) const noexcept {
-    pose.position = position();
-    pose.orientation = Eigen::Quaterniond(Eigen::Matrix3d(rotation()));
-    pose.orientation.normalize();
-  }
 
-  RobotModel model;
-  int n;
+  // A private copy of the chain: KDL::Joint caches its last rotation in mutable members
+  // (Joint::pose is const but writes q_previous and joint_pose), so two threads computing on one
+  // shared chain would race. Each workspace therefore owns its chain.
   KDL::Chain chain;
   KDL::ChainFkSolverPos_recursive fk;
   KDL::ChainJntToJacSolver jacobian_solver;
   KDL::ChainDynParam dynamics_solver;
-  // KDL's in- and outputs, sized once.
   KDL::JntArray q;
   KDL::JntArray dq;
   KDL::Jacobian jacobian;
@@ -253,6 +267,110 @@ struct ModelWorkspace::Impl {
   KDL::JntArray coriolis;
   KDL::Frame frame;
 };
+
+template <typename Rotation>
+void write_pose(const Rotation& rotation, const Eigen::Vector3d& position, Pose& pose) noexcept {
+  pose.position = position;
+  pose.orientation = Eigen::Quaterniond(Eigen::Matrix3d(rotation));
+  pose.orientation.normalize();
+}
+
+}  // namespace
+
+struct ModelWorkspace::Impl {
+  explicit Impl(const RobotModel& robot)
+      : model(robot),
+        n(robot.num_joints()),
+        native(robot.data_->native),
+        kdl(robot.backend() == ModelBackend::kdl
+                ? std::make_unique<KdlSolvers>(robot.data_->urdf.chain, robot.gravity_base(), n)
+                : nullptr) {}
+
+  bool valid_input(const JointVector& q_in, const JointVector& dq_in) const noexcept {
+    return q_in.size() == n && dq_in.size() == n && q_in.allFinite() && dq_in.allFinite();
+  }
+
+  bool compute_native(const JointVector& q, const JointVector& dq, ModelTerms terms,
+                      Kinematics& out) noexcept;
+  bool compute_kdl(const JointVector& q, const JointVector& dq, ModelTerms terms,
+                   Kinematics& out) noexcept;
+
+  RobotModel model;
+  int n;
+  detail::ChainSolver native;
+  std::unique_ptr<KdlSolvers> kdl;  // only for ModelBackend::kdl
+  // The native results, checked before any reaches the caller.
+  Jacobian jacobian;
+  JointMatrix mass;
+  JointVector gravity;
+  JointVector coriolis;
+};
+
+bool ModelWorkspace::Impl::compute_native(const JointVector& q, const JointVector& dq,
+                                          ModelTerms terms, Kinematics& out) noexcept {
+  native.forward(q);
+  if (!native.tool_rotation().allFinite() || !native.tool_position().allFinite()) return false;
+  native.jacobian(jacobian);
+  if (!jacobian.allFinite()) return false;
+  const bool want_mass = includes(terms, ModelTerms::mass);
+  const bool want_gravity = includes(terms, ModelTerms::gravity);
+  const bool want_coriolis = includes(terms, ModelTerms::coriolis);
+  if (want_mass || want_gravity || want_coriolis) native.bodies(want_mass || want_coriolis);
+  if (want_mass) {
+    native.mass(mass);
+    if (!mass.allFinite()) return false;
+  }
+  if (want_gravity) {
+    native.gravity(gravity);
+    if (!gravity.allFinite()) return false;
+  }
+  if (want_coriolis) {
+    native.coriolis(dq, coriolis);
+    if (!coriolis.allFinite()) return false;
+  }
+  // Everything is finite: only now is `out` overwritten.
+  write_pose(native.tool_rotation(), native.tool_position(), out.pose);
+  out.jacobian = jacobian;
+  if (want_mass) out.mass = mass;
+  if (want_gravity) out.gravity = gravity;
+  if (want_coriolis) out.coriolis = coriolis;
+  return true;
+}
+
+bool ModelWorkspace::Impl::compute_kdl(const JointVector& q, const JointVector& dq,
+                                       ModelTerms terms, Kinematics& out) noexcept {
+  KdlSolvers& w = *kdl;
+  w.q.data = q;  // same size: a copy, no allocation
+  if (!w.compute_frame()) return false;
+  if (w.jacobian_solver.JntToJac(w.q, w.jacobian) < 0 || !w.jacobian.data.allFinite()) {
+    return false;
+  }
+  // ChainDynParam runs the recursive Newton-Euler algorithm with zero acceleration (and zero
+  // gravity for the Coriolis term) on buffers it sized at construction: nothing allocates.
+  const bool want_mass = includes(terms, ModelTerms::mass);
+  const bool want_gravity = includes(terms, ModelTerms::gravity);
+  const bool want_coriolis = includes(terms, ModelTerms::coriolis);
+  if (want_mass && (w.dynamics_solver.JntToMass(w.q, w.mass) < 0 || !w.mass.data.allFinite())) {
+    return false;
+  }
+  if (want_gravity &&
+      (w.dynamics_solver.JntToGravity(w.q, w.gravity) < 0 || !w.gravity.data.allFinite())) {
+    return false;
+  }
+  if (want_coriolis) {
+    w.dq.data = dq;
+    if (w.dynamics_solver.JntToCoriolis(w.q, w.dq, w.coriolis) < 0 ||
+        !w.coriolis.data.allFinite()) {
+      return false;
+    }
+  }
+  write_pose(w.rotation(), w.position(), out.pose);
+  out.jacobian = w.jacobian.data;
+  if (want_mass) out.mass = w.mass.data;
+  if (want_gravity) out.gravity = w.gravity.data;
+  if (want_coriolis) out.coriolis = w.coriolis.data;
+  return true;
+}
 
 namespace {
 
@@ -266,16 +384,17 @@ void make_sized_and_finite(int n, Kinematics& out) noexcept {
   if (out.jacobian.cols() != n || !out.jacobian.allFinite()) out.jacobian.setZero(6, n);
   if (out.mass.rows() != n || out.mass.cols() != n || !out.mass.allFinite()) {
     out.mass.setZero(n, n);
-    out.has_dynamics = false;
+    out.terms &= ~ModelTerms::mass;
   }
   if (out.gravity.size() != n || !out.gravity.allFinite()) {
     out.gravity.setZero(n);
-    out.has_dynamics = false;
+    out.terms &= ~ModelTerms::gravity;
   }
   if (out.coriolis.size() != n || !out.coriolis.allFinite()) {
     out.coriolis.setZero(n);
-    out.has_dynamics = false;
+    out.terms &= ~ModelTerms::coriolis;
   }
+  out.has_dynamics = out.terms == ModelTerms::all;
 }
 
 }  // namespace
@@ -302,48 +421,39 @@ Kinematics ModelWorkspace::make_kinematics() const {
 }
 
 bool ModelWorkspace::compute(const JointVector& q, const JointVector& dq, Kinematics& out,
-                             bool dynamics) noexcept {
+                             ModelTerms terms) noexcept {
   if (!impl_) return false;
   Impl& w = *impl_;
   make_sized_and_finite(w.n, out);
   if (!w.valid_input(q, dq)) return false;
-  w.q.data = q;  // same size: a copy, no allocation
-  if (!w.compute_frame()) return false;
-  if (w.jacobian_solver.JntToJac(w.q, w.jacobian) < 0 || !w.jacobian.data.allFinite()) {
-    return false;
-  }
-  if (dynamics) {
-    w.dq.data = dq;
-    // ChainDynParam runs the recursive Newton-Euler algorithm with zero acceleration (and zero
-    // gravity for the Coriolis term) on buffers it sized at construction: nothing allocates.
-    if (w.dynamics_solver.JntToMass(w.q, w.mass) < 0 ||
-        w.dynamics_solver.JntToGravity(w.q, w.gravity) < 0 ||
-        w.dynamics_solver.JntToCoriolis(w.q, w.dq, w.coriolis) < 0) {
-      return false;
-    }
-    if (!w.mass.data.allFinite() || !w.gravity.data.allFinite() || !w.coriolis.data.allFinite()) {
-      return false;
-    }
-  }
-  // Everything is finite: only now is `out` overwritten.
-  w.write_pose(out.pose);
-  out.jacobian = w.jacobian.data;
-  if (dynamics) {
-    out.mass = w.mass.data;
-    out.gravity = w.gravity.data;
-    out.coriolis = w.coriolis.data;
-  }
-  out.has_dynamics = dynamics;
+  terms &= ModelTerms::all;
+  const bool done = w.kdl ? w.compute_kdl(q, dq, terms, out) : w.compute_native(q, dq, terms, out);
+  if (!done) return false;
+  out.terms = terms;
+  out.has_dynamics = terms == ModelTerms::all;
   return true;
+}
+
+bool ModelWorkspace::compute(const JointVector& q, const JointVector& dq, Kinematics& out,
+                             bool dynamics) noexcept {
+  return compute(q, dq, out, dynamics ? ModelTerms::all : ModelTerms::none);
 }
 
 bool ModelWorkspace::compute_pose(const JointVector& q, Pose& T_base_ee) noexcept {
   if (!impl_) return false;
   Impl& w = *impl_;
   if (q.size() != w.n || !q.allFinite()) return false;
-  w.q.data = q;
-  if (!w.compute_frame()) return false;
-  w.write_pose(T_base_ee);
+  if (w.kdl) {
+    w.kdl->q.data = q;
+    if (!w.kdl->compute_frame()) return false;
+    write_pose(w.kdl->rotation(), w.kdl->position(), T_base_ee);
+    return true;
+  }
+  w.native.forward(q);
+  if (!w.native.tool_rotation().allFinite() || !w.native.tool_position().allFinite()) {
+    return false;
+  }
+  write_pose(w.native.tool_rotation(), w.native.tool_position(), T_base_ee);
   return true;
 }
 

@@ -7,7 +7,8 @@
 /// The model is constant after construction and cheap to copy (copies share the loaded chain).
 /// Each control loop or thread owns one ModelWorkspace, whose compute() allocates nothing, takes
 /// no lock and never throws. Users of this header need only Eigen: the URDF parser (urdfdom) and
-/// the dynamics library (KDL) stay private to the model library.
+/// the dynamics library (KDL, kept as a selectable reference backend) stay private to the model
+/// library.
 ///
 /// Frames: every pose, Jacobian and gravity vector is expressed in the base frame (the frame of
 /// `base_link`). Units: SI (m, rad, kg, N, Nm); prismatic joints are in m, m/s and N.
@@ -39,16 +40,59 @@ struct JointLimits {
   JointVector effort;          ///< [Nm or N]; +inf where the URDF gives no <limit>
 };
 
-/// What one call of ModelWorkspace::compute produces. Pose and Jacobian always; mass, gravity
-/// and Coriolis only when dynamics are requested (otherwise they keep their previous values).
+/// The dynamic terms a ModelWorkspace::compute call produces besides pose and Jacobian: a set of
+/// bits, combined with | (e.g. ModelTerms::mass | ModelTerms::gravity). Each costs time, so the
+/// control cycle asks only for what its options use.
+enum class ModelTerms : unsigned {
+  none = 0,
+  mass = 1,      ///< M(q)
+  gravity = 2,   ///< g(q)
+  coriolis = 4,  ///< C(q, dq) dq
+  all = 7
+};
+
+constexpr ModelTerms operator|(ModelTerms a, ModelTerms b) noexcept {
+  return static_cast<ModelTerms>(static_cast<unsigned>(a) | static_cast<unsigned>(b));
+}
+constexpr ModelTerms operator&(ModelTerms a, ModelTerms b) noexcept {
+  return static_cast<ModelTerms>(static_cast<unsigned>(a) & static_cast<unsigned>(b));
+}
+constexpr ModelTerms operator~(ModelTerms a) noexcept {
+  return static_cast<ModelTerms>(~static_cast<unsigned>(a) &
+                                 static_cast<unsigned>(ModelTerms::all));
+}
+constexpr ModelTerms& operator|=(ModelTerms& a, ModelTerms b) noexcept {
+  return a = a | b;
+}
+constexpr ModelTerms& operator&=(ModelTerms& a, ModelTerms b) noexcept {
+  return a = a & b;
+}
+/// True if every term of `wanted` is in `terms`.
+constexpr bool includes(ModelTerms terms, ModelTerms wanted) noexcept {
+  return (terms & wanted) == wanted;
+}
+
+/// Which implementation computes a model's kinematics and dynamics.
+enum class ModelBackend {
+  native,  ///< the library's own algorithms for serial chains (default; several times faster)
+  kdl      ///< the Orocos KDL solvers (FK, JntToJac, ChainDynParam), as a reference
+};
+
+/// "native" or "kdl".
+const char* to_string(ModelBackend backend) noexcept;
+
+/// What one call of ModelWorkspace::compute produces. Pose and Jacobian always; of mass, gravity
+/// and Coriolis only those requested (the others keep their previous values).
 struct Kinematics {
-  Pose pose;                  ///< T_base_ee: tip link times the tool offset, in the base frame
-  Jacobian jacobian;          ///< geometric, 6 x n, rows [linear; angular], reference point the
-                              ///< end-effector (tool) origin, base frame
-  JointMatrix mass;           ///< M(q) [kg m^2, kg m or kg], symmetric positive definite
-  JointVector gravity;        ///< g(q) [Nm or N]: torques that hold the arm still against gravity
-  JointVector coriolis;       ///< C(q, dq) dq [Nm or N]: Coriolis and centrifugal torques
-  bool has_dynamics = false;  ///< true if mass, gravity and coriolis belong to the same q as pose
+  Pose pose;             ///< T_base_ee: tip link times the tool offset, in the base frame
+  Jacobian jacobian;     ///< geometric, 6 x n, rows [linear; angular], reference point the
+                         ///< end-effector (tool) origin, base frame
+  JointMatrix mass;      ///< M(q) [kg m^2, kg m or kg], symmetric positive definite
+  JointVector gravity;   ///< g(q) [Nm or N]: torques that hold the arm still against gravity
+  JointVector coriolis;  ///< C(q, dq) dq [Nm or N]: Coriolis and centrifugal torques
+  /// The terms among mass, gravity and coriolis that belong to the same q (and dq) as pose.
+  ModelTerms terms = ModelTerms::none;
+  bool has_dynamics = false;  ///< true if all three (terms == ModelTerms::all)
 };
 
 namespace detail {
@@ -120,6 +164,12 @@ class RobotModel {
   /// them [kg].
   double moving_mass() const noexcept;
 
+  /// The implementation every ModelWorkspace (and so every ControlLoop) made from this model
+  /// uses: ModelBackend::native unless chosen with with_backend().
+  ModelBackend backend() const noexcept;
+  /// A copy of this model (sharing the loaded data) whose workspaces use `backend`.
+  RobotModel with_backend(ModelBackend backend) const noexcept;
+
  private:
   friend class ModelWorkspace;
   explicit RobotModel(std::shared_ptr<const detail::ModelData> data) noexcept;
@@ -129,6 +179,7 @@ class RobotModel {
                                      const Eigen::Isometry3d& T_tip_tool,
                                      const Eigen::Vector3d& gravity_base);
   std::shared_ptr<const detail::ModelData> data_;
+  ModelBackend backend_ = ModelBackend::native;
 };
 
 /// Per-cycle workspace of one RobotModel: solvers and buffers sized once at construction. One per
@@ -150,14 +201,19 @@ class ModelWorkspace {
   /// A Kinematics sized for the model: identity pose, zero Jacobian and dynamics.
   Kinematics make_kinematics() const;
 
-  /// Computes the pose and Jacobian at `q` and, if `dynamics`, M(q), g(q) and C(q, dq) dq.
-  /// Allocates nothing, takes no lock, never throws.
+  /// Computes the pose and Jacobian at `q` and the dynamic `terms` among M(q), g(q) and
+  /// C(q, dq) dq; the other terms of `out` are left as they were and out.terms says which are
+  /// current. Allocates nothing, takes no lock, never throws.
   /// @param q  joint positions [rad or m], size num_joints()
-  /// @param dq  joint velocities [rad/s or m/s], size num_joints() (checked even without
-  ///            dynamics)
+  /// @param dq  joint velocities [rad/s or m/s], size num_joints() (checked even when
+  ///            Coriolis is not requested)
   /// @return false if q or dq has the wrong size or a non-finite entry, or if a result would not
   ///         be finite. `out` is then left as it was (resized for the model and with non-finite
   ///         entries zeroed if it was not already a valid result), so it is always finite.
+  bool compute(const JointVector& q, const JointVector& dq, Kinematics& out,
+               ModelTerms terms) noexcept;
+
+  /// As compute(q, dq, out, ModelTerms::all) if `dynamics`, else with ModelTerms::none.
   bool compute(const JointVector& q, const JointVector& dq, Kinematics& out,
                bool dynamics = false) noexcept;
 
