@@ -124,7 +124,9 @@ void ControlLoop::start(const Eigen::Ref<const Eigen::VectorXd>& q,
   checks::finite_vector("q", q, "rad");
   check_positions(q);
   const JointVector joints = q;
-  if (!workspace_.compute(joints, JointVector::Zero(num_joints()), kinematics_, true)) {
+  // M and g as in every cycle (Coriolis is zero at rest): a start fails where they cannot be had.
+  if (!workspace_.compute(joints, JointVector::Zero(num_joints()), kinematics_,
+                          ModelTerms::mass | ModelTerms::gravity)) {
     throw Error("the robot model cannot be evaluated at q");
   }
   start(q, dq,
@@ -144,7 +146,8 @@ void ControlLoop::start(const Eigen::Ref<const Eigen::VectorXd>& q,
   apply_messages(inbox_.capacity());  // commands sent before start take effect now, in order
   check_positions(q);
   const JointVector joints = q, velocities = dq;
-  if (!workspace_.compute(joints, JointVector::Zero(num_joints()), kinematics_, true)) {
+  if (!workspace_.compute(joints, JointVector::Zero(num_joints()), kinematics_,
+                          ModelTerms::mass | ModelTerms::gravity)) {
     throw Error("the robot model cannot be evaluated at q");
   }
   fill_robot_state(joints, velocities, kinematics_, robot_);
@@ -451,8 +454,12 @@ const JointVector& ControlLoop::step(const JointVector& q, const JointVector& dq
   apply_messages(kCommandsPerCycle);
   const Parameters& parameters = controller_.parameters();
   const DynamicsParameters& dynamics = parameters.dynamics;
-  const bool need_dynamics = dynamics.gravity_compensation || dynamics.inertia_shaped_damping ||
-                             dynamics.dynamically_consistent_nullspace;
+  // Only the terms the options use: the model computes nothing else (never Coriolis).
+  const bool need_mass =
+      dynamics.inertia_shaped_damping || dynamics.dynamically_consistent_nullspace;
+  const bool need_gravity = dynamics.gravity_compensation;
+  const ModelTerms terms = (need_mass ? ModelTerms::mass : ModelTerms::none) |
+                           (need_gravity ? ModelTerms::gravity : ModelTerms::none);
   const bool dt_plausible =
       dt >= parameters.plausibility.dt.min && dt <= parameters.plausibility.dt.max;
   // A bad measurement, or one the model cannot be evaluated at, fails the cycle closed before
@@ -461,7 +468,7 @@ const JointVector& ControlLoop::step(const JointVector& q, const JointVector& dq
   Fault fault;
   if (find_measurement_fault(q, dq, fault)) {
     controller_.fail_closed(Status::invalid_robot_state, fault, dt);
-  } else if (!workspace_.compute(q, dq, kinematics_, need_dynamics)) {
+  } else if (!workspace_.compute(q, dq, kinematics_, terms)) {
     controller_.fail_closed(
         Status::model_error,
         Fault{"q", -1, 0.0, "gives a pose, Jacobian or M(q) that is not finite"}, dt);
@@ -470,12 +477,16 @@ const JointVector& ControlLoop::step(const JointVector& q, const JointVector& dq
     state_.q = q;
     state_.dq = dq;
     if (dt_plausible && controller_.started()) advance_trajectory(dt);
-    if (need_dynamics) {
+    // A term the options do not use stays empty, so the law cannot read a stale one.
+    if (need_mass) {
       robot_.mass = kinematics_.mass;
       robot_.mass.diagonal() += armature_;
-      robot_.gravity = kinematics_.gravity;
     } else {
       robot_.mass.resize(0, 0);
+    }
+    if (need_gravity) {
+      robot_.gravity = kinematics_.gravity;
+    } else {
       robot_.gravity.resize(0);
     }
     joint_limit_torque();

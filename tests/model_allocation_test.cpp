@@ -1,5 +1,6 @@
 // The model's per-cycle computation allocates nothing: malloc and operator new are counted
-// (support/allocation_counter) over 10,000 calls with dynamics on, for both robots.
+// (support/allocation_counter) over 10,000 calls with dynamics on, for both robots, and over
+// every selection of terms on both backends.
 
 #include <gtest/gtest.h>
 
@@ -70,6 +71,39 @@ TEST_P(ModelAllocationFree, ComputeWithDynamicsAllocatesNothing) {
   EXPECT_EQ(allocations, 0);
   EXPECT_EQ(failures, -100) << "every valid call succeeds, every invalid one fails";
   EXPECT_TRUE(std::isfinite(checksum));
+}
+
+// Every selection of terms, on each backend: the control loop asks for a different one per
+// option set, and each path through the native algorithms must be as free of the heap.
+TEST_P(ModelAllocationFree, EveryTermSelectionOnEachBackendAllocatesNothing) {
+  const RobotCase& robot = GetParam();
+  const ci::RobotModel loaded = ci::RobotModel::from_urdf_file(
+      std::string(CARTESIAN_IMPEDANCE_SOURCE_DIR) + "/" + robot.file, robot.base, robot.tip);
+  const int n = loaded.num_joints();
+  ci::JointVector q(n), dq = ci::JointVector::Constant(n, 0.2);
+  for (int i = 0; i < n; ++i) {
+    q[i] = 0.5 * (loaded.limits().position_lower[i] + loaded.limits().position_upper[i]);
+  }
+  for (const ci::ModelBackend backend : {ci::ModelBackend::native, ci::ModelBackend::kdl}) {
+    ci::ModelWorkspace workspace(loaded.with_backend(backend));
+    ci::Kinematics kinematics = workspace.make_kinematics();
+    for (unsigned bits = 0; bits <= static_cast<unsigned>(ci::ModelTerms::all); ++bits) {
+      const auto terms = static_cast<ci::ModelTerms>(bits);
+      int failures = 0;
+      long allocations = 0;
+      {
+        allocation_counter::Scope scope;
+        for (int k = 0; k < 1000; ++k) {
+          q[0] += 1e-4;
+          failures += !workspace.compute(q, dq, kinematics, terms);
+        }
+        allocations = scope.allocations();
+      }
+      EXPECT_EQ(allocations, 0) << ci::to_string(backend) << ", terms " << bits;
+      EXPECT_EQ(failures, 0) << ci::to_string(backend) << ", terms " << bits;
+      EXPECT_EQ(kinematics.terms, terms);
+    }
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Robots, ModelAllocationFree,
