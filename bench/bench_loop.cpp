@@ -1,5 +1,5 @@
 // Cost of one full ControlLoop::step() for the Panda (model + law + hand-off), and of its parts,
-// so the README can say what dominates.
+// so the README can say what dominates; each on the native model backend and on KDL.
 
 #include <benchmark/benchmark.h>
 
@@ -26,8 +26,13 @@ ci::JointVector ready() {
   return (ci::JointVector(7) << 0, -M_PI / 4, 0, -3 * M_PI / 4, 0, M_PI / 2, M_PI / 4).finished();
 }
 
-void run_loop(benchmark::State& state, const ci::Parameters& parameters) {
-  ci::ControlLoop loop(panda(), parameters);
+// Every joint moves a little each cycle, as measured joints do: KDL caches each joint's rotation
+// while its angle stays the same, which a measurement where only one joint moves would flatter.
+constexpr double kDrift = 1e-7;
+
+void run_loop(benchmark::State& state, const ci::Parameters& parameters,
+              ci::ModelBackend backend = ci::ModelBackend::native) {
+  ci::ControlLoop loop(panda().with_backend(backend), parameters);
   ci::JointVector q = ready(), dq = ci::JointVector::Constant(7, 0.01);
   loop.start(q, dq);
   ci::Pose target = loop.state().controller.pose;
@@ -35,7 +40,7 @@ void run_loop(benchmark::State& state, const ci::Parameters& parameters) {
   loop.set_reference_pose(target);
   allocation_counter::Scope allocations;
   for (auto _ : state) {
-    q[0] += 1e-7;
+    q.array() += kDrift;
     benchmark::DoNotOptimize(loop.step(q, dq, 0.001).data());
   }
   state.counters["allocs_per_step"] =
@@ -46,20 +51,22 @@ void run_loop(benchmark::State& state, const ci::Parameters& parameters) {
   }
 }
 
-// Defaults: kinematics (pose + Jacobian) and M(q), g(q) from KDL (damping shaped by the
-// task-space inertia), law, joint-limit avoidance, state published.
-void BM_LoopStep(benchmark::State& state) {
-  run_loop(state, ci::Parameters{});
+// Defaults: kinematics (pose + Jacobian) and M(q) (damping shaped by the task-space inertia),
+// law, joint-limit avoidance, state published; on each model backend.
+void BM_LoopStep(benchmark::State& state, ci::ModelBackend backend) {
+  run_loop(state, ci::Parameters{}, backend);
 }
-BENCHMARK(BM_LoopStep);
+BENCHMARK_CAPTURE(BM_LoopStep, native, ci::ModelBackend::native);
+BENCHMARK_CAPTURE(BM_LoopStep, kdl, ci::ModelBackend::kdl);
 
 // The published controller's unit-mass damping: kinematics only, no M(q).
-void BM_LoopStepUnitMassDamping(benchmark::State& state) {
+void BM_LoopStepUnitMassDamping(benchmark::State& state, ci::ModelBackend backend) {
   ci::Parameters parameters;
   parameters.dynamics.inertia_shaped_damping = false;
-  run_loop(state, parameters);
+  run_loop(state, parameters, backend);
 }
-BENCHMARK(BM_LoopStepUnitMassDamping);
+BENCHMARK_CAPTURE(BM_LoopStepUnitMassDamping, native, ci::ModelBackend::native);
+BENCHMARK_CAPTURE(BM_LoopStepUnitMassDamping, kdl, ci::ModelBackend::kdl);
 
 // The step that starts a trajectory of range(0) points: the same cost for 10 as for 10,000,
 // because the velocities are derived when the trajectory is sent (timed: the step only).
@@ -115,28 +122,75 @@ void BM_StepWithAFullInbox(benchmark::State& state) {
 }
 BENCHMARK(BM_StepWithAFullInbox)->UseManualTime();
 
-// Every model-based option: KDL mass matrix, gravity and Coriolis as well.
-void BM_LoopStepAllDynamics(benchmark::State& state) {
+// Every model-based option: M(q) and g(q) as well (the loop never asks for Coriolis).
+void BM_LoopStepAllDynamics(benchmark::State& state, ci::ModelBackend backend) {
   ci::Parameters parameters;
   parameters.dynamics.gravity_compensation = true;
   parameters.dynamics.inertia_shaped_damping = true;
   parameters.dynamics.dynamically_consistent_nullspace = true;
-  run_loop(state, parameters);
+  run_loop(state, parameters, backend);
 }
-BENCHMARK(BM_LoopStepAllDynamics);
+BENCHMARK_CAPTURE(BM_LoopStepAllDynamics, native, ci::ModelBackend::native);
+BENCHMARK_CAPTURE(BM_LoopStepAllDynamics, kdl, ci::ModelBackend::kdl);
 
-// The model alone.
-void BM_ModelKinematics(benchmark::State& state) {
-  const ci::RobotModel model = panda();
+// The model alone: pose and Jacobian plus `terms`.
+void run_model(benchmark::State& state, ci::ModelBackend backend, ci::ModelTerms terms) {
+  const ci::RobotModel model = panda().with_backend(backend);
   ci::ModelWorkspace workspace(model);
   ci::Kinematics kinematics = workspace.make_kinematics();
-  ci::JointVector q = ready(), dq = ci::JointVector::Zero(7);
+  ci::JointVector q = ready(), dq = ci::JointVector::Constant(7, 0.1);
+  allocation_counter::Scope allocations;
   for (auto _ : state) {
-    q[0] += 1e-7;
-    benchmark::DoNotOptimize(workspace.compute(q, dq, kinematics, state.range(0) != 0));
+    q.array() += kDrift;
+    benchmark::DoNotOptimize(workspace.compute(q, dq, kinematics, terms));
+    benchmark::ClobberMemory();
   }
+  state.counters["allocs_per_call"] =
+      static_cast<double>(allocations.allocations()) / static_cast<double>(state.iterations());
 }
-BENCHMARK(BM_ModelKinematics)->Arg(0)->Arg(1)->ArgName("dynamics");
+
+void BM_PoseJacobian(benchmark::State& state, ci::ModelBackend backend) {
+  run_model(state, backend, ci::ModelTerms::none);
+}
+BENCHMARK_CAPTURE(BM_PoseJacobian, native, ci::ModelBackend::native);
+BENCHMARK_CAPTURE(BM_PoseJacobian, kdl, ci::ModelBackend::kdl);
+
+void BM_PoseJacobianMass(benchmark::State& state, ci::ModelBackend backend) {
+  run_model(state, backend, ci::ModelTerms::mass);
+}
+BENCHMARK_CAPTURE(BM_PoseJacobianMass, native, ci::ModelBackend::native);
+BENCHMARK_CAPTURE(BM_PoseJacobianMass, kdl, ci::ModelBackend::kdl);
+
+void BM_PoseJacobianGravity(benchmark::State& state, ci::ModelBackend backend) {
+  run_model(state, backend, ci::ModelTerms::gravity);
+}
+BENCHMARK_CAPTURE(BM_PoseJacobianGravity, native, ci::ModelBackend::native);
+BENCHMARK_CAPTURE(BM_PoseJacobianGravity, kdl, ci::ModelBackend::kdl);
+
+void BM_PoseJacobianCoriolis(benchmark::State& state, ci::ModelBackend backend) {
+  run_model(state, backend, ci::ModelTerms::coriolis);
+}
+BENCHMARK_CAPTURE(BM_PoseJacobianCoriolis, native, ci::ModelBackend::native);
+BENCHMARK_CAPTURE(BM_PoseJacobianCoriolis, kdl, ci::ModelBackend::kdl);
+
+void BM_PoseJacobianAllTerms(benchmark::State& state, ci::ModelBackend backend) {
+  run_model(state, backend, ci::ModelTerms::all);
+}
+BENCHMARK_CAPTURE(BM_PoseJacobianAllTerms, native, ci::ModelBackend::native);
+BENCHMARK_CAPTURE(BM_PoseJacobianAllTerms, kdl, ci::ModelBackend::kdl);
+
+// What the loop asked for before terms could be chosen: all (dynamics:1) or none (dynamics:0).
+void BM_ModelKinematics(benchmark::State& state, ci::ModelBackend backend) {
+  run_model(state, backend, state.range(0) != 0 ? ci::ModelTerms::all : ci::ModelTerms::none);
+}
+BENCHMARK_CAPTURE(BM_ModelKinematics, native, ci::ModelBackend::native)
+    ->Arg(0)
+    ->Arg(1)
+    ->ArgName("dynamics");
+BENCHMARK_CAPTURE(BM_ModelKinematics, kdl, ci::ModelBackend::kdl)
+    ->Arg(0)
+    ->Arg(1)
+    ->ArgName("dynamics");
 
 }  // namespace
 BENCHMARK_MAIN();

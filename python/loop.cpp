@@ -36,9 +36,17 @@ Eigen::Isometry3d isometry(const ci::Pose& pose) {
   return transform;
 }
 
+ci::ModelBackend read_backend(const std::string& name) {
+  if (name == "native") return ci::ModelBackend::native;
+  if (name == "kdl") return ci::ModelBackend::kdl;
+  throw ci::Error("backend = '" + name + "'; expected 'native' or 'kdl'");
+}
+
 std::unique_ptr<Model> load_model(bool from_file, const std::string& source,
                                   const std::string& base_link, const std::string& tip_link,
-                                  py::handle tool, py::handle gravity) {
+                                  py::handle tool, py::handle gravity,
+                                  const std::string& backend_name) {
+  const ci::ModelBackend backend = read_backend(backend_name);
   const Eigen::Isometry3d tool_transform =
       tool.is_none() ? Eigen::Isometry3d::Identity() : isometry(read_pose(tool, "tool"));
   const auto load = [&](auto&&... gravity_argument) {
@@ -47,10 +55,10 @@ std::unique_ptr<Model> load_model(bool from_file, const std::string& source,
                      : ci::RobotModel::from_urdf_string(source, base_link, tip_link, tool_transform,
                                                         gravity_argument...);
   };
-  if (gravity.is_none()) return std::make_unique<Model>(load());
+  if (gravity.is_none()) return std::make_unique<Model>(load().with_backend(backend));
   Eigen::Vector3d gravity_base;
   read_vector(gravity, "gravity", Length{3}, gravity_base);
-  return std::make_unique<Model>(load(gravity_base));
+  return std::make_unique<Model>(load(gravity_base).with_backend(backend));
 }
 
 ci::JointVector finite_joints(py::handle object, std::string_view name, int num_joints) {
@@ -125,23 +133,30 @@ void bind_robot_model(py::module_& m) {
       .def_static(
           "from_urdf_file",
           [](PathLike path, const std::string& base_link, const std::string& tip_link,
-             PoseLike tool, ArrayLike gravity) {
-            return load_model(true, read_path(path, "path"), base_link, tip_link, tool, gravity);
+             PoseLike tool, ArrayLike gravity, const std::string& backend) {
+            return load_model(true, read_path(path, "path"), base_link, tip_link, tool, gravity,
+                              backend);
           },
           py::arg("path"), py::arg("base_link"), py::arg("tip_link"), py::arg("tool") = py::none(),
-          py::arg("gravity") = py::none(),
+          py::arg("gravity") = py::none(), py::arg("backend") = "native",
           "Loads a URDF file. tool: T_tip_tool, the end-effector frame in the tip-link frame "
           "(Pose, (position [m], quaternion x, y, z, w) or 4x4; default identity). gravity: "
-          "acceleration (3,) [m/s^2] in the base frame (default (0, 0, -9.81)). Raises Error "
-          "naming the path for a missing file, unknown links, an unsupported chain, ...")
+          "acceleration (3,) [m/s^2] in the base frame (default (0, 0, -9.81)). backend: "
+          "'native' (default) or 'kdl', what computes the kinematics and dynamics (also of every "
+          "ControlLoop made from the model). Raises Error naming the path for a missing file, "
+          "unknown links, an unsupported chain, ...")
       .def_static(
           "from_urdf_string",
           [](const std::string& xml, const std::string& base_link, const std::string& tip_link,
-             PoseLike tool, ArrayLike gravity) {
-            return load_model(false, xml, base_link, tip_link, tool, gravity);
+             PoseLike tool, ArrayLike gravity, const std::string& backend) {
+            return load_model(false, xml, base_link, tip_link, tool, gravity, backend);
           },
           py::arg("xml"), py::arg("base_link"), py::arg("tip_link"), py::arg("tool") = py::none(),
-          py::arg("gravity") = py::none(), "As from_urdf_file(), from URDF text.")
+          py::arg("gravity") = py::none(), py::arg("backend") = "native",
+          "As from_urdf_file(), from URDF text.")
+      .def_property_readonly(
+          "backend", [](const Model& s) { return ci::to_string(s.model.backend()); },
+          "'native' or 'kdl'.")
       .def_property_readonly("num_joints", [](const Model& s) { return s.model.num_joints(); })
       .def_property_readonly(
           "joint_names", [](const Model& s) { return s.model.joint_names(); },

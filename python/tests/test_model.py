@@ -94,3 +94,20 @@ def test_pose_forms_and_quaternion_order_x_y_z_w():
     np.testing.assert_array_equal(identity.matrix(), np.eye(4))
     identity.position = np.arange(3, dtype=np.int64)
     np.testing.assert_array_equal(identity.position, [0, 1, 2])
+
+
+def test_backend_kdl_agrees_with_the_native_default(panda, ready):
+    assert panda.backend == "native"
+    kdl = ci.RobotModel.from_urdf_file(PANDA_URDF, "panda_link0", "panda_link8", backend="kdl")
+    assert kdl.backend == "kdl"
+    dq = np.full(7, 0.3)
+    a, b = panda.compute(ready, dq), kdl.compute(ready, dq)
+    np.testing.assert_allclose(a.pose.position, b.pose.position, atol=1e-12)
+    np.testing.assert_allclose(a.jacobian, b.jacobian, atol=1e-12)
+    for term in ("mass", "gravity", "coriolis"):
+        np.testing.assert_allclose(getattr(a, term), getattr(b, term), atol=1e-10)
+    loop = ci.ControlLoop(kdl)
+    loop.start(ready, np.zeros(7))
+    assert np.all(np.isfinite(loop.step(ready, np.zeros(7), 0.001)))
+    with pytest.raises(ci.Error, match="expected 'native' or 'kdl'"):
+        ci.RobotModel.from_urdf_file(PANDA_URDF, "panda_link0", "panda_link8", backend="rbdl")
