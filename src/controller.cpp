@@ -504,8 +504,9 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
   }
 
   // The damper acts on the velocity relative to the reference's (zero unless tracking).
-  Vector6d velocity = -filtered.twist;
-  velocity.noalias() += jacobian * robot.dq;
+  Vector6d velocity;
+  jacobian_times(jacobian, robot.dq, velocity);
+  velocity -= filtered.twist;
   // Spring and damper in the stiffness frame; in the end-effector frame the error and velocity
   // are rotated in and the resulting wrench back out.
   Vector6d error_frame, velocity_frame, force_frame;
@@ -529,7 +530,7 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
   } else {
     rotate_six(rotation, force_frame, force);
   }
-  state_.tau_cartesian.noalias() = jacobian.transpose() * force;
+  jacobian_transpose_times(jacobian, force, state_.tau_cartesian);
 
   // Nullspace joint impedance, projected so that it does not disturb the end effector.
   const JointVector& stiffness_ns = filtered.nullspace_stiffness;
@@ -558,7 +559,7 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
   } else {
     rotate_six(rotation, filtered.wrench, state_.wrench_base);
   }
-  state_.tau_wrench.noalias() = jacobian.transpose() * state_.wrench_base;
+  jacobian_transpose_times(jacobian, state_.wrench_base, state_.tau_wrench);
 
   if (dynamics.gravity_compensation) {
     state_.tau_gravity = robot.gravity;

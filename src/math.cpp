@@ -165,32 +165,44 @@ namespace {
 // Eigen's LLT spends most of its time in the set-up of its general blocked triangular solver; and
 // L D L^T rather than Cholesky because the cost here is the chain of latencies from one column to
 // the next, and L D L^T has one division in it per column where Cholesky has a square root and a
-// division. False if A is not positive definite.
-bool cholesky_solve(Matrix6d& a, Vector6d& b) noexcept {
-  Vector6d pivots, inverse_pivot;
-  Vector6d scaled;  // L(j, k) * D(k) of the current row j
+// division. Right-looking (each column updates the rest at once), so that the next pivot waits
+// for one multiply-subtract after the division, not for a sum over all earlier columns; the loops
+// have constant bounds, which the compiler unrolls completely. False if A is not positive
+// definite.
+bool cholesky_solve(const Matrix6d& system, const Vector6d& rhs, Vector6d& x) noexcept {
+  Matrix6d a = system;  // a local, so that the unrolled code keeps it in registers
+  Vector6d inverse_pivot;
+#pragma GCC unroll 6
   for (int j = 0; j < 6; ++j) {
-    double pivot = a(j, j);
-    for (int k = 0; k < j; ++k) {
-      scaled[k] = a(j, k) * pivots[k];
-      pivot -= a(j, k) * scaled[k];
-    }
+    const double pivot = a(j, j);
     if (!(pivot > 0.0)) return false;
-    pivots[j] = pivot;
     inverse_pivot[j] = 1.0 / pivot;
+    Vector6d unscaled;  // D(j) L(i, j)
+#pragma GCC unroll 6
     for (int i = j + 1; i < 6; ++i) {
-      double value = a(i, j);
-      for (int k = 0; k < j; ++k) value -= a(i, k) * scaled[k];
-      a(i, j) = value * inverse_pivot[j];
+      unscaled[i] = a(i, j);
+      a(i, j) = unscaled[i] * inverse_pivot[j];
+    }
+#pragma GCC unroll 6
+    for (int k = j + 1; k < 6; ++k) {
+#pragma GCC unroll 6
+      for (int i = k; i < 6; ++i) a(i, k) -= a(i, j) * unscaled[k];
     }
   }
+  Vector6d b = rhs;
+#pragma GCC unroll 6
   for (int i = 0; i < 6; ++i) {  // L y = b
+#pragma GCC unroll 6
     for (int k = 0; k < i; ++k) b[i] -= a(i, k) * b[k];
   }
+#pragma GCC unroll 6
   for (int i = 0; i < 6; ++i) b[i] *= inverse_pivot[i];  // D z = y
-  for (int i = 5; i >= 0; --i) {                         // L^T x = z
+#pragma GCC unroll 6
+  for (int i = 5; i >= 0; --i) {  // L^T x = z
+#pragma GCC unroll 6
     for (int k = i + 1; k < 6; ++k) b[i] -= a(k, i) * b[k];
   }
+  x = b;
   return true;
 }
 
@@ -199,9 +211,7 @@ bool cholesky_solve(Matrix6d& a, Vector6d& b) noexcept {
 void NullspaceProjector::solve_task_system() noexcept {
   // L D L^T is the fast path; a singular J with lambda = 0 makes the matrix only semi-definite,
   // and Eigen's pivoting LDLT then still returns a finite least-squares answer.
-  task_factor_ = task_gram_;
-  task_solution_ = task_vector_;
-  if (!cholesky_solve(task_factor_, task_solution_)) {
+  if (!cholesky_solve(task_gram_, task_vector_, task_solution_)) {
     task_ldlt_.compute(task_gram_);
     task_solution_ = task_ldlt_.solve(task_vector_);
   }
@@ -213,20 +223,25 @@ void NullspaceProjector::project(const Jacobian& jacobian, double lambda, const 
   const double lambda_squared = lambda * lambda;
   if (n >= 6) {
     // N tau_0 = tau_0 - J^T (J J^T + lambda^2 I)^-1 (J tau_0): O(6n) beyond the 6x6 factorisation.
-    // J J^T as a sum of outer products of fixed-size columns (the dynamic inner dimension of
-    // jacobian * jacobian.transpose() is slower), lower triangle only: nothing else is read.
-    task_gram_.setZero();
-    for (Eigen::Index i = 0; i < n; ++i) {
-      const Vector6d column = jacobian.col(i);
-      for (int c = 0; c < 6; ++c) {
-        for (int r = c; r < 6; ++r) task_gram_(r, c) += column[r] * column[c];
+    // Column c of J J^T is sum_i J(c, i) J.col(i); three columns at a time give six independent
+    // chains of additions held in registers (the factorisation reads the lower triangle only).
+    for (int c = 0; c < 6; c += 3) {
+      Vector6d first = Vector6d::Zero(), second = Vector6d::Zero(), third = Vector6d::Zero();
+      for (Eigen::Index i = 0; i < n; ++i) {
+        const Vector6d column = jacobian.col(i);
+        first += column * column[c];
+        second += column * column[c + 1];
+        third += column * column[c + 2];
       }
+      task_gram_.col(c) = first;
+      task_gram_.col(c + 1) = second;
+      task_gram_.col(c + 2) = third;
     }
     task_gram_.diagonal().array() += lambda_squared;
-    task_vector_.noalias() = jacobian * tau_0;
+    jacobian_times(jacobian, tau_0, task_vector_);
     solve_task_system();
-    projected = tau_0;
-    projected.noalias() -= jacobian.transpose() * task_solution_;
+    jacobian_transpose_times(jacobian, task_solution_, projected);
+    projected = tau_0 - projected;
   } else {
     // Push-through identity: J^T (J J^T + l^2 I)^-1 J = J^T J (J^T J + l^2 I)^-1, an n x n system,
     // which stays regular when n < 6 makes J J^T singular.
