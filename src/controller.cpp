@@ -471,17 +471,13 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
     damping_frame_ = scheduled_damping_;
     damping_diagonal = stiffness_diagonal_ && scheduled_damping_diagonal_;
   } else if (dynamics.inertia_shaped_damping) {
-    Matrix6d inertia;
-    if (!task_space_inertia(jacobian, robot.mass, parameters_.nullspace.pseudo_inverse_damping,
-                            inertia)) {
+    if (!inertia_damping_.compute(jacobian, robot.mass,
+                                  parameters_.nullspace.pseudo_inverse_damping,
+                                  in_base ? nullptr : &rotation, filtered.stiffness,
+                                  filtered.damping_ratio, damping_frame_)) {
       state_.tau.setConstant(std::nan(""));  // reported as a numerical error by update()
       return;
     }
-    if (!in_base) {
-      const Matrix6d rotation6 = block_rotation(rotation);
-      inertia = rotation6.transpose() * inertia * rotation6;
-    }
-    damping_frame_ = inertia_shaped_damping(filtered.stiffness, filtered.damping_ratio, inertia);
     damping_computed_for_stiffness_.setConstant(std::nan(""));
     damping_diagonal = false;
   } else if (stiffness_diagonal_) {
