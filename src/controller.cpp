@@ -270,8 +270,12 @@ bool CartesianImpedanceController::find_fault(const RobotState& robot,
   }
   // One sum checks every value for the common case (a NaN or an infinity anywhere makes it NaN or
   // infinite); only a failing sum pays for finding the element.
-  const double sum = robot.q.sum() + robot.dq.sum() + robot.jacobian.sum() +
-                     robot.pose.position.sum() + robot.pose.orientation.coeffs().sum();
+  // The Jacobian column by column: fixed-size additions, where Eigen's sum() of the 6 x n
+  // matrix runs a dynamic-size reduction.
+  Vector6d column_sum = Vector6d::Zero();
+  for (Eigen::Index i = 0; i < robot.jacobian.cols(); ++i) column_sum += robot.jacobian.col(i);
+  const double sum = robot.q.sum() + robot.dq.sum() + column_sum.sum() + robot.pose.position.sum() +
+                     robot.pose.orientation.coeffs().sum();
   if (!std::isfinite(sum)) {
     if (find_non_finite(robot.q, "q", fault) || find_non_finite(robot.dq, "dq", fault) ||
         find_non_finite(robot.jacobian, "jacobian", fault) ||

@@ -12,9 +12,12 @@ Eigen::Vector3d orientation_error(const Eigen::Quaterniond& current,
   Eigen::Quaterniond relative = current * desired.conjugate();
   if (relative.w() < 0.0) relative.coeffs() = -relative.coeffs();
   const double sin_half = relative.vec().norm();
-  // atan2 keeps full precision near pi, where acos(w) would lose half the digits.
+  // atan2 keeps full precision near pi, where acos(w) would lose half the digits. Up to 60
+  // degrees asin(sin_half) is as precise (its slope is below 1.16 there; the product of two
+  // normalised quaternions is unit to a few eps) and costs a quarter of glibc's atan2.
   if (sin_half < 1e-9) return (2.0 / relative.w()) * relative.vec();
-  const double angle = 2.0 * std::atan2(sin_half, relative.w());
+  const double angle =
+      2.0 * (sin_half <= 0.5 ? std::asin(sin_half) : std::atan2(sin_half, relative.w()));
   return (angle / sin_half) * relative.vec();
 }
 
@@ -380,9 +383,13 @@ constexpr int kRounds[5][3][2] = {{{0, 1}, {2, 3}, {4, 5}},
 
 void TrackingMatrixSqrt::compute(const Matrix6d& spd) noexcept {
   // One Newton-Schulz step, Q (3 I - Q^T Q) / 2, undoes the drift from orthonormality that
-  // thousands of calls' worth of rotations accumulate (quadratically: 1e-14 leaves 1e-28).
-  const Matrix6d gram = axes_.transpose() * axes_;
-  axes_ = axes_ * (1.5 * Matrix6d::Identity() - 0.5 * gram);
+  // thousands of calls' worth of rotations would accumulate (quadratically: 1e-14 leaves 1e-28);
+  // only rotations cause drift.
+  if (rotated_) {
+    const Matrix6d gram = axes_.transpose() * axes_;
+    axes_ = axes_ * (1.5 * Matrix6d::Identity() - 0.5 * gram);
+  }
+  rotated_ = false;
   Matrix6d b = axes_.transpose() * spd * axes_;
   b = 0.5 * (b + b.transpose());
   const double diagonal = b.diagonal().squaredNorm();
@@ -424,6 +431,7 @@ void TrackingMatrixSqrt::compute(const Matrix6d& spd) noexcept {
           if (b(pair[0], pair[1]) != 0.0) rotations[count++] = make_rotation(b, pair[0], pair[1]);
         }
         for (int k = 0; k < count; ++k) apply(rotations[k], b, axes_);
+        rotated_ = rotated_ || count > 0;
       }
       roots = b.diagonal().cwiseMax(0.0).cwiseSqrt();
     }
@@ -477,41 +485,51 @@ bool InertiaShapedDamping::compute(const Jacobian& jacobian, const JointMatrix& 
   outer_sum(reduced_, weighted_, a);  // J M^-1 J^T; only the upper triangle is read below
   a.diagonal().array() += lambda * lambda;
   if (frame_rotation != nullptr) {
-    const Matrix6d rotation6 = block_rotation(*frame_rotation);
-    a = rotation6.transpose() * a.selfadjointView<Eigen::Upper>() * rotation6;
+    // R6^T A R6 block by block (R6 = blockdiag(R, R) is half zeros); only the upper triangle of
+    // A holds the sums of products in the same order the base frame uses, so it is mirrored first.
+    a.triangularView<Eigen::StrictlyLower>() = a.transpose();
+    const Eigen::Matrix3d& r = *frame_rotation;
+    const Eigen::Matrix3d top = r.transpose() * a.topLeftCorner<3, 3>() * r;
+    const Eigen::Matrix3d coupling = r.transpose() * a.topRightCorner<3, 3>() * r;
+    const Eigen::Matrix3d bottom = r.transpose() * a.bottomRightCorner<3, 3>() * r;
+    a.topLeftCorner<3, 3>() = top;
+    a.topRightCorner<3, 3>() = coupling;
+    a.bottomRightCorner<3, 3>() = bottom;
   }
   // A = V V^T with V upper triangular, from the last column backwards (right-looking).
   Matrix6d v = Matrix6d::Zero();
   v.triangularView<Eigen::Upper>() = a.triangularView<Eigen::Upper>();
   Vector6d inverse_diagonal;
+#pragma GCC unroll 6
   for (int j = 5; j >= 0; --j) {
     const double pivot = v(j, j);
     if (!(pivot > 0.0)) return false;
     const double root = std::sqrt(pivot);
     v(j, j) = root;
     inverse_diagonal[j] = 1.0 / root;
+#pragma GCC unroll 6
     for (int i = 0; i < j; ++i) v(i, j) *= inverse_diagonal[j];
+#pragma GCC unroll 6
     for (int k = 0; k < j; ++k) {
+#pragma GCC unroll 6
       for (int i = 0; i <= k; ++i) v(i, k) -= v(i, j) * v(k, j);
     }
   }
-  // W = V^-1, upper triangular: the lower Cholesky factor of Lambda_f is W^T.
-  Matrix6d w = Matrix6d::Zero();
-  for (int j = 0; j < 6; ++j) {
-    w(j, j) = inverse_diagonal[j];
-    for (int i = j - 1; i >= 0; --i) {
-      double sum = 0.0;
-      for (int k = i + 1; k <= j; ++k) sum += v(i, k) * w(k, j);
-      w(i, j) = -sum * inverse_diagonal[i];
-    }
-  }
-  // L^-1 K L^-T = V^T K V, and with its square root Q T Q^T,
-  // D = L (2 Z^1/2 Q T Q^T Z^1/2) L^T = 2 P T P^T with P = W^T Z^1/2 Q.
+  // L^-1 K L^-T = V^T K V, and with its square root Q T Q^T and L = V^-T,
+  // D = L (2 Z^1/2 Q T Q^T Z^1/2) L^T = 2 P T P^T with P = V^-T Z^1/2 Q: a forward substitution
+  // with V^T, row by row (each row a fixed-size vector operation).
   Matrix6d normalised = v.transpose() * stiffness * v;
   normalised = 0.5 * (normalised + normalised.transpose());
   tracker_.compute(normalised);
   const Vector6d zeta_root = damping_ratio.cwiseSqrt();
-  const Matrix6d projection = w.transpose() * (zeta_root.asDiagonal() * tracker_.axes());
+  Eigen::Matrix<double, 6, 6, Eigen::RowMajor> projection =
+      zeta_root.asDiagonal() * tracker_.axes();
+#pragma GCC unroll 6
+  for (int i = 0; i < 6; ++i) {
+#pragma GCC unroll 6
+    for (int k = 0; k < i; ++k) projection.row(i) -= v(k, i) * projection.row(k);
+    projection.row(i) *= inverse_diagonal[i];
+  }
   damping.noalias() = 2.0 * projection * tracker_.root_in_axes() * projection.transpose();
   damping = 0.5 * (damping + damping.transpose()).eval();  // exactly symmetric, as D must be
   return damping.allFinite();

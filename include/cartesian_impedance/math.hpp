@@ -97,6 +97,7 @@ class TrackingMatrixSqrt {
   Matrix6d axes_ = Matrix6d::Identity();
   Matrix6d root_ = Matrix6d::Zero();
   int sweeps_ = -1;
+  bool rotated_ = false;  // the last call rotated the axes (which may have drifted since)
 };
 
 /// sqrt(N) through a TrackingMatrixSqrt: the same as matrix_sqrt(spd) to round-off, cheaper when
