@@ -270,8 +270,12 @@ bool CartesianImpedanceController::find_fault(const RobotState& robot,
   }
   // One sum checks every value for the common case (a NaN or an infinity anywhere makes it NaN or
   // infinite); only a failing sum pays for finding the element.
-  const double sum = robot.q.sum() + robot.dq.sum() + robot.jacobian.sum() +
-                     robot.pose.position.sum() + robot.pose.orientation.coeffs().sum();
+  // The Jacobian column by column: fixed-size additions, where Eigen's sum() of the 6 x n
+  // matrix runs a dynamic-size reduction.
+  Vector6d column_sum = Vector6d::Zero();
+  for (Eigen::Index i = 0; i < robot.jacobian.cols(); ++i) column_sum += robot.jacobian.col(i);
+  const double sum = robot.q.sum() + robot.dq.sum() + column_sum.sum() + robot.pose.position.sum() +
+                     robot.pose.orientation.coeffs().sum();
   if (!std::isfinite(sum)) {
     if (find_non_finite(robot.q, "q", fault) || find_non_finite(robot.dq, "dq", fault) ||
         find_non_finite(robot.jacobian, "jacobian", fault) ||
@@ -471,17 +475,13 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
     damping_frame_ = scheduled_damping_;
     damping_diagonal = stiffness_diagonal_ && scheduled_damping_diagonal_;
   } else if (dynamics.inertia_shaped_damping) {
-    Matrix6d inertia;
-    if (!task_space_inertia(jacobian, robot.mass, parameters_.nullspace.pseudo_inverse_damping,
-                            inertia)) {
+    if (!inertia_damping_.compute(jacobian, robot.mass,
+                                  parameters_.nullspace.pseudo_inverse_damping,
+                                  in_base ? nullptr : &rotation, filtered.stiffness,
+                                  filtered.damping_ratio, damping_frame_)) {
       state_.tau.setConstant(std::nan(""));  // reported as a numerical error by update()
       return;
     }
-    if (!in_base) {
-      const Matrix6d rotation6 = block_rotation(rotation);
-      inertia = rotation6.transpose() * inertia * rotation6;
-    }
-    damping_frame_ = inertia_shaped_damping(filtered.stiffness, filtered.damping_ratio, inertia);
     damping_computed_for_stiffness_.setConstant(std::nan(""));
     damping_diagonal = false;
   } else if (stiffness_diagonal_) {
@@ -504,8 +504,9 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
   }
 
   // The damper acts on the velocity relative to the reference's (zero unless tracking).
-  Vector6d velocity = -filtered.twist;
-  velocity.noalias() += jacobian * robot.dq;
+  Vector6d velocity;
+  jacobian_times(jacobian, robot.dq, velocity);
+  velocity -= filtered.twist;
   // Spring and damper in the stiffness frame; in the end-effector frame the error and velocity
   // are rotated in and the resulting wrench back out.
   Vector6d error_frame, velocity_frame, force_frame;
@@ -529,7 +530,7 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
   } else {
     rotate_six(rotation, force_frame, force);
   }
-  state_.tau_cartesian.noalias() = jacobian.transpose() * force;
+  jacobian_transpose_times(jacobian, force, state_.tau_cartesian);
 
   // Nullspace joint impedance, projected so that it does not disturb the end effector.
   const JointVector& stiffness_ns = filtered.nullspace_stiffness;
@@ -558,7 +559,7 @@ void CartesianImpedanceController::compute_torque(const RobotState& robot) noexc
   } else {
     rotate_six(rotation, filtered.wrench, state_.wrench_base);
   }
-  state_.tau_wrench.noalias() = jacobian.transpose() * state_.wrench_base;
+  jacobian_transpose_times(jacobian, state_.wrench_base, state_.tau_wrench);
 
   if (dynamics.gravity_compensation) {
     state_.tau_gravity = robot.gravity;

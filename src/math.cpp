@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace cartesian_impedance {
 
@@ -11,9 +12,12 @@ Eigen::Vector3d orientation_error(const Eigen::Quaterniond& current,
   Eigen::Quaterniond relative = current * desired.conjugate();
   if (relative.w() < 0.0) relative.coeffs() = -relative.coeffs();
   const double sin_half = relative.vec().norm();
-  // atan2 keeps full precision near pi, where acos(w) would lose half the digits.
+  // atan2 keeps full precision near pi, where acos(w) would lose half the digits. Up to 60
+  // degrees asin(sin_half) is as precise (its slope is below 1.16 there; the product of two
+  // normalised quaternions is unit to a few eps) and costs a quarter of glibc's atan2.
   if (sin_half < 1e-9) return (2.0 / relative.w()) * relative.vec();
-  const double angle = 2.0 * std::atan2(sin_half, relative.w());
+  const double angle =
+      2.0 * (sin_half <= 0.5 ? std::asin(sin_half) : std::atan2(sin_half, relative.w()));
   return (angle / sin_half) * relative.vec();
 }
 
@@ -165,33 +169,64 @@ namespace {
 // Eigen's LLT spends most of its time in the set-up of its general blocked triangular solver; and
 // L D L^T rather than Cholesky because the cost here is the chain of latencies from one column to
 // the next, and L D L^T has one division in it per column where Cholesky has a square root and a
-// division. False if A is not positive definite.
-bool cholesky_solve(Matrix6d& a, Vector6d& b) noexcept {
-  Vector6d pivots, inverse_pivot;
-  Vector6d scaled;  // L(j, k) * D(k) of the current row j
+// division. Right-looking (each column updates the rest at once), so that the next pivot waits
+// for one multiply-subtract after the division, not for a sum over all earlier columns; the loops
+// have constant bounds, which the compiler unrolls completely. False if A is not positive
+// definite.
+bool cholesky_solve(const Matrix6d& system, const Vector6d& rhs, Vector6d& x) noexcept {
+  Matrix6d a = system;  // a local, so that the unrolled code keeps it in registers
+  Vector6d inverse_pivot;
+#pragma GCC unroll 6
   for (int j = 0; j < 6; ++j) {
-    double pivot = a(j, j);
-    for (int k = 0; k < j; ++k) {
-      scaled[k] = a(j, k) * pivots[k];
-      pivot -= a(j, k) * scaled[k];
-    }
+    const double pivot = a(j, j);
     if (!(pivot > 0.0)) return false;
-    pivots[j] = pivot;
     inverse_pivot[j] = 1.0 / pivot;
+    Vector6d unscaled;  // D(j) L(i, j)
+#pragma GCC unroll 6
     for (int i = j + 1; i < 6; ++i) {
-      double value = a(i, j);
-      for (int k = 0; k < j; ++k) value -= a(i, k) * scaled[k];
-      a(i, j) = value * inverse_pivot[j];
+      unscaled[i] = a(i, j);
+      a(i, j) = unscaled[i] * inverse_pivot[j];
+    }
+#pragma GCC unroll 6
+    for (int k = j + 1; k < 6; ++k) {
+#pragma GCC unroll 6
+      for (int i = k; i < 6; ++i) a(i, k) -= a(i, j) * unscaled[k];
     }
   }
+  Vector6d b = rhs;
+#pragma GCC unroll 6
   for (int i = 0; i < 6; ++i) {  // L y = b
+#pragma GCC unroll 6
     for (int k = 0; k < i; ++k) b[i] -= a(i, k) * b[k];
   }
+#pragma GCC unroll 6
   for (int i = 0; i < 6; ++i) b[i] *= inverse_pivot[i];  // D z = y
-  for (int i = 5; i >= 0; --i) {                         // L^T x = z
+#pragma GCC unroll 6
+  for (int i = 5; i >= 0; --i) {  // L^T x = z
+#pragma GCC unroll 6
     for (int k = i + 1; k < 6; ++k) b[i] -= a(k, i) * b[k];
   }
+  x = b;
   return true;
+}
+
+// out = left * right^T for two 6 x n matrices. Column c of the result is
+// sum_i right(c, i) left.col(i); three columns at a time give nine independent chains of
+// additions held in registers.
+void outer_sum(const Jacobian& left, const Jacobian& right, Matrix6d& out) noexcept {
+  const Eigen::Index n = left.cols();
+  for (int c = 0; c < 6; c += 3) {
+    Vector6d first = Vector6d::Zero(), second = Vector6d::Zero(), third = Vector6d::Zero();
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const Vector6d column = left.col(i);
+      first += column * right(c, i);
+      second += column * right(c + 1, i);
+      third += column * right(c + 2, i);
+    }
+    out.col(c) = first;
+    out.col(c + 1) = second;
+    out.col(c + 2) = third;
+  }
 }
 
 }  // namespace
@@ -199,9 +234,7 @@ bool cholesky_solve(Matrix6d& a, Vector6d& b) noexcept {
 void NullspaceProjector::solve_task_system() noexcept {
   // L D L^T is the fast path; a singular J with lambda = 0 makes the matrix only semi-definite,
   // and Eigen's pivoting LDLT then still returns a finite least-squares answer.
-  task_factor_ = task_gram_;
-  task_solution_ = task_vector_;
-  if (!cholesky_solve(task_factor_, task_solution_)) {
+  if (!cholesky_solve(task_gram_, task_vector_, task_solution_)) {
     task_ldlt_.compute(task_gram_);
     task_solution_ = task_ldlt_.solve(task_vector_);
   }
@@ -213,20 +246,13 @@ void NullspaceProjector::project(const Jacobian& jacobian, double lambda, const 
   const double lambda_squared = lambda * lambda;
   if (n >= 6) {
     // N tau_0 = tau_0 - J^T (J J^T + lambda^2 I)^-1 (J tau_0): O(6n) beyond the 6x6 factorisation.
-    // J J^T as a sum of outer products of fixed-size columns (the dynamic inner dimension of
-    // jacobian * jacobian.transpose() is slower), lower triangle only: nothing else is read.
-    task_gram_.setZero();
-    for (Eigen::Index i = 0; i < n; ++i) {
-      const Vector6d column = jacobian.col(i);
-      for (int c = 0; c < 6; ++c) {
-        for (int r = c; r < 6; ++r) task_gram_(r, c) += column[r] * column[c];
-      }
-    }
+    // (The factorisation reads the lower triangle of J J^T only.)
+    outer_sum(jacobian, jacobian, task_gram_);
     task_gram_.diagonal().array() += lambda_squared;
-    task_vector_.noalias() = jacobian * tau_0;
+    jacobian_times(jacobian, tau_0, task_vector_);
     solve_task_system();
-    projected = tau_0;
-    projected.noalias() -= jacobian.transpose() * task_solution_;
+    jacobian_transpose_times(jacobian, task_solution_, projected);
+    projected = tau_0 - projected;
   } else {
     // Push-through identity: J^T (J J^T + l^2 I)^-1 J = J^T J (J^T J + l^2 I)^-1, an n x n system,
     // which stays regular when n < 6 makes J J^T singular.
@@ -301,6 +327,212 @@ Matrix6d inertia_shaped_damping(const Matrix6d& stiffness, const Vector6d& dampi
                          matrix_sqrt(0.5 * (normalised + normalised.transpose())) *
                          zeta_root.asDiagonal();
   return lower * inner * lower.transpose();
+}
+
+namespace {
+
+constexpr double kEpsilon = std::numeric_limits<double>::epsilon();
+
+// The Jacobi rotation J (J(p,p) = J(q,q) = c, J(p,q) = -J(q,p) = s) for which J^T b J has a zero
+// at (p, q); t = tan(angle) is the smaller root of t^2 + 2 tau t - 1 = 0 (Golub and Van Loan,
+// sym.schur2), which keeps the angle below 45 degrees.
+struct Rotation {
+  int p, q;
+  double c, s, t;
+};
+
+Rotation make_rotation(const Matrix6d& b, int p, int q) noexcept {
+  const double apq = b(p, q);
+  const double tau = (b(q, q) - b(p, p)) / (2.0 * apq);
+  // For |tau| > 1e8, t = 1 / (2 tau) and c = 1 are exact to round-off (the next terms are
+  // relatively 1 / (4 tau^2) and t^2 / 2); the common case once Q tracks, and the square roots
+  // of the general formula are the longest latencies of a sweep.
+  if (std::abs(tau) > 1e8) return {p, q, 1.0, 0.5 / tau, 0.5 / tau};
+  const double t = std::copysign(1.0, tau) / (std::abs(tau) + std::sqrt(1.0 + tau * tau));
+  const double c = 1.0 / std::sqrt(1.0 + t * t);
+  return {p, q, c, t * c, t};
+}
+
+// b = J^T b J and axes = axes J.
+void apply(const Rotation& r, Matrix6d& b, Matrix6d& axes) noexcept {
+  const int p = r.p, q = r.q;
+  const double apq = b(p, q), app = b(p, p), aqq = b(q, q);
+  const Vector6d column_p = b.col(p), column_q = b.col(q);
+  b.col(p) = r.c * column_p - r.s * column_q;
+  b.col(q) = r.s * column_p + r.c * column_q;
+  b.row(p) = b.col(p).transpose();
+  b.row(q) = b.col(q).transpose();
+  b(p, p) = app - r.t * apq;
+  b(q, q) = aqq + r.t * apq;
+  b(p, q) = 0.0;
+  b(q, p) = 0.0;
+  const Vector6d axis_p = axes.col(p), axis_q = axes.col(q);
+  axes.col(p) = r.c * axis_p - r.s * axis_q;
+  axes.col(q) = r.s * axis_p + r.c * axis_q;
+}
+
+// The 15 pairs of six indices in five rounds of three disjoint pairs: the rotations of a round
+// read only elements the others leave alone, so their square roots and divisions overlap.
+constexpr int kRounds[5][3][2] = {{{0, 1}, {2, 3}, {4, 5}},
+                                  {{0, 2}, {1, 4}, {3, 5}},
+                                  {{0, 3}, {1, 5}, {2, 4}},
+                                  {{0, 4}, {1, 3}, {2, 5}},
+                                  {{0, 5}, {1, 2}, {3, 4}}};
+
+}  // namespace
+
+void TrackingMatrixSqrt::compute(const Matrix6d& spd) noexcept {
+  // One Newton-Schulz step, Q (3 I - Q^T Q) / 2, undoes the drift from orthonormality that
+  // thousands of calls' worth of rotations would accumulate (quadratically: 1e-14 leaves 1e-28);
+  // only rotations cause drift.
+  if (rotated_) {
+    const Matrix6d gram = axes_.transpose() * axes_;
+    axes_ = axes_ * (1.5 * Matrix6d::Identity() - 0.5 * gram);
+  }
+  rotated_ = false;
+  Matrix6d b = axes_.transpose() * spd * axes_;
+  b = 0.5 * (b + b.transpose());
+  const double diagonal = b.diagonal().squaredNorm();
+  const double off_diagonal = b.squaredNorm() - diagonal;
+  // Elements below eps times the trace are the round-off N came with (they matter only where
+  // both diagonal elements are as small, and there the square root is undetermined to about
+  // sqrt(eps) anyway); they are left out of the test and of the Newton step.
+  const double floor = kEpsilon * std::abs(b.trace());
+  Vector6d roots = b.diagonal().cwiseMax(0.0).cwiseSqrt();
+  auto converged = [&]() {
+    for (int p = 0; p < 5; ++p) {
+      for (int q = p + 1; q < 6; ++q) {
+        const double apq = std::abs(b(p, q));
+        const double scale = roots[p] + roots[q];
+        if (apq > floor && apq > kNewtonRatio * scale * scale) return false;
+      }
+    }
+    return true;
+  };
+  // Jacobi converges quadratically from a nearly diagonal start; far from one, the sweeps
+  // would cost more than Eigen's tridiagonal QR.
+  if (diagonal > 0.0 && off_diagonal <= kMaxOffDiagonal * kMaxOffDiagonal * diagonal) {
+    for (sweeps_ = 0; sweeps_ <= kMaxSweeps; ++sweeps_) {
+      if (converged()) {
+        root_ = roots.asDiagonal();
+        for (int p = 0; p < 5; ++p) {
+          for (int q = p + 1; q < 6; ++q) {
+            const double apq = b(p, q), scale = roots[p] + roots[q];
+            if (std::abs(apq) > floor && scale > 0.0) root_(p, q) = root_(q, p) = apq / scale;
+          }
+        }
+        return;
+      }
+      if (sweeps_ == kMaxSweeps) break;
+      for (const auto& round : kRounds) {
+        Rotation rotations[3];
+        int count = 0;
+        for (const auto& pair : round) {
+          if (b(pair[0], pair[1]) != 0.0) rotations[count++] = make_rotation(b, pair[0], pair[1]);
+        }
+        for (int k = 0; k < count; ++k) apply(rotations[k], b, axes_);
+        rotated_ = rotated_ || count > 0;
+      }
+      roots = b.diagonal().cwiseMax(0.0).cwiseSqrt();
+    }
+  }
+  sweeps_ = -1;
+  const Eigen::SelfAdjointEigenSolver<Matrix6d> solver(spd);
+  axes_ = solver.eigenvectors();
+  root_ = solver.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
+}
+
+Matrix6d matrix_sqrt(const Matrix6d& spd, TrackingMatrixSqrt& tracker) noexcept {
+  tracker.compute(spd);
+  return tracker.axes() * tracker.root_in_axes() * tracker.axes().transpose();
+}
+
+bool InertiaShapedDamping::compute(const Jacobian& jacobian, const JointMatrix& mass, double lambda,
+                                   const Eigen::Matrix3d* frame_rotation, const Matrix6d& stiffness,
+                                   const Vector6d& damping_ratio, Matrix6d& damping) noexcept {
+  const Eigen::Index n = jacobian.cols();
+  // M = L D L^T, right-looking, lower triangle only (as Eigen's LLT reads it). No square roots:
+  // J M^-1 J^T = (L^-1 J^T)^T D^-1 (L^-1 J^T).
+  mass_factor_ = mass;
+  JointVector& inverse_pivot = inverse_pivot_;
+  inverse_pivot.resize(n);
+  for (Eigen::Index j = 0; j < n; ++j) {
+    const double pivot = mass_factor_(j, j);
+    if (!(pivot > 0.0)) return false;
+    inverse_pivot[j] = 1.0 / pivot;
+    for (Eigen::Index k = j + 1; k < n; ++k) {
+      const double unscaled = mass_factor_(k, j);
+      // Columns k > j are updated column by column; row j of the upper triangle (unused by the
+      // factorisation) keeps D(j) L(k, j) for the update.
+      mass_factor_(j, k) = unscaled;
+      mass_factor_(k, j) = unscaled * inverse_pivot[j];
+    }
+    for (Eigen::Index k = j + 1; k < n; ++k) {
+      const double unscaled = mass_factor_(j, k);
+      for (Eigen::Index i = k; i < n; ++i) mass_factor_(i, k) -= mass_factor_(i, j) * unscaled;
+    }
+  }
+  // Column i of reduced_ is row i of L^-1 J^T: forward substitution with fixed-size columns.
+  reduced_.resize(6, n);
+  weighted_.resize(6, n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    Vector6d column = jacobian.col(i);
+    for (Eigen::Index k = 0; k < i; ++k) column -= mass_factor_(i, k) * reduced_.col(k);
+    reduced_.col(i) = column;
+    weighted_.col(i) = column * inverse_pivot[i];
+  }
+  Matrix6d a;
+  outer_sum(reduced_, weighted_, a);  // J M^-1 J^T; only the upper triangle is read below
+  a.diagonal().array() += lambda * lambda;
+  if (frame_rotation != nullptr) {
+    // R6^T A R6 block by block (R6 = blockdiag(R, R) is half zeros); only the upper triangle of
+    // A holds the sums of products in the same order the base frame uses, so it is mirrored first.
+    a.triangularView<Eigen::StrictlyLower>() = a.transpose();
+    const Eigen::Matrix3d& r = *frame_rotation;
+    const Eigen::Matrix3d top = r.transpose() * a.topLeftCorner<3, 3>() * r;
+    const Eigen::Matrix3d coupling = r.transpose() * a.topRightCorner<3, 3>() * r;
+    const Eigen::Matrix3d bottom = r.transpose() * a.bottomRightCorner<3, 3>() * r;
+    a.topLeftCorner<3, 3>() = top;
+    a.topRightCorner<3, 3>() = coupling;
+    a.bottomRightCorner<3, 3>() = bottom;
+  }
+  // A = V V^T with V upper triangular, from the last column backwards (right-looking).
+  Matrix6d v = Matrix6d::Zero();
+  v.triangularView<Eigen::Upper>() = a.triangularView<Eigen::Upper>();
+  Vector6d inverse_diagonal;
+#pragma GCC unroll 6
+  for (int j = 5; j >= 0; --j) {
+    const double pivot = v(j, j);
+    if (!(pivot > 0.0)) return false;
+    const double root = std::sqrt(pivot);
+    v(j, j) = root;
+    inverse_diagonal[j] = 1.0 / root;
+#pragma GCC unroll 6
+    for (int i = 0; i < j; ++i) v(i, j) *= inverse_diagonal[j];
+#pragma GCC unroll 6
+    for (int k = 0; k < j; ++k) {
+#pragma GCC unroll 6
+      for (int i = 0; i <= k; ++i) v(i, k) -= v(i, j) * v(k, j);
+    }
+  }
+  // L^-1 K L^-T = V^T K V, and with its square root Q T Q^T and L = V^-T,
+  // D = L (2 Z^1/2 Q T Q^T Z^1/2) L^T = 2 P T P^T with P = V^-T Z^1/2 Q: a forward substitution
+  // with V^T, row by row (each row a fixed-size vector operation).
+  Matrix6d normalised = v.transpose() * stiffness * v;
+  normalised = 0.5 * (normalised + normalised.transpose());
+  tracker_.compute(normalised);
+  const Vector6d zeta_root = damping_ratio.cwiseSqrt();
+  Eigen::Matrix<double, 6, 6, Eigen::RowMajor> projection =
+      zeta_root.asDiagonal() * tracker_.axes();
+#pragma GCC unroll 6
+  for (int i = 0; i < 6; ++i) {
+#pragma GCC unroll 6
+    for (int k = 0; k < i; ++k) projection.row(i) -= v(k, i) * projection.row(k);
+    projection.row(i) *= inverse_diagonal[i];
+  }
+  damping.noalias() = 2.0 * projection * tracker_.root_in_axes() * projection.transpose();
+  damping = 0.5 * (damping + damping.transpose()).eval();  // exactly symmetric, as D must be
+  return damping.allFinite();
 }
 
 JointMatrix NullspaceProjector::matrix(const Jacobian& jacobian, const JointMatrix& mass,

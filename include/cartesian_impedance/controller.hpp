@@ -236,7 +236,8 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   Matrix6d damping_computed_for_stiffness_;  // filtered K the damping was last computed for
   Vector6d damping_computed_for_ratio_;      // filtered zeta the damping was last computed for
   NullspaceProjector projector_;
-  JointVector nullspace_damping_;  // D_ns of the cycle
+  InertiaShapedDamping inertia_damping_;  // tracks the square root's axes from cycle to cycle
+  JointVector nullspace_damping_;         // D_ns of the cycle
   // Set by schedule(): the damping then comes from the caller, not from the damping ratios.
   bool scheduled_ = false;
   bool scheduled_damping_diagonal_ = true;

@@ -64,11 +64,90 @@ bool task_space_inertia(const Jacobian& jacobian, const JointMatrix& mass, doubl
 Matrix6d inertia_shaped_damping(const Matrix6d& stiffness, const Vector6d& damping_ratio,
                                 const Matrix6d& inertia) noexcept;
 
+/// Square root of a symmetric positive semi-definite 6x6 matrix that changes little from one call
+/// to the next (the normalised stiffness of the inertia-shaped damping, which follows q), as
+/// sqrt(N) = Q T Q^T with Q orthonormal and T symmetric and nearly diagonal. The last call's Q
+/// turns the new N nearly diagonal, B = Q^T N Q; Jacobi rotations (in parallel rounds of three
+/// independent ones) reduce B until every off-diagonal element is tiny against its diagonal pair,
+/// and one Newton step of the square root in that basis, T = diag(sqrt(b_ii)) + E with
+/// E_ij = b_ij / (sqrt(b_ii) + sqrt(b_jj)), takes the rest (its error is second order in those
+/// elements and, unlike an eigenvector correction, independent of eigenvalue gaps). Bounded: if B
+/// is far from diagonal (the first call, a jump of the stiffness) or kMaxSweeps sweeps do not get
+/// there, Eigen's SelfAdjointEigenSolver decides instead and seeds the next call. The result is
+/// matrix_sqrt(N) to round-off.
+class TrackingMatrixSqrt {
+ public:
+  /// Decomposes `spd` (symmetric; negative round-off eigenvalues count as zero).
+  void compute(const Matrix6d& spd) noexcept;
+  /// Q (orthonormal to round-off) and T of sqrt(N) = Q T Q^T.
+  const Matrix6d& axes() const noexcept { return axes_; }
+  const Matrix6d& root_in_axes() const noexcept { return root_; }
+  /// Jacobi sweeps of the last call (0: B was diagonal enough at once); -1 if the last call went
+  /// to Eigen's solver.
+  int sweeps() const noexcept { return sweeps_; }
+
+  /// Largest off-diagonal part of B (Frobenius norm against the diagonal's) for which Jacobi is
+  /// tried; sweeps allowed; and the largest b_ij / (sqrt(b_ii) + sqrt(b_jj))^2 left to the Newton
+  /// step (whose error is about the square of that, relative).
+  static constexpr double kMaxOffDiagonal = 1e-2;
+  static constexpr int kMaxSweeps = 4;
+  static constexpr double kNewtonRatio = 1e-9;
+
+ private:
+  Matrix6d axes_ = Matrix6d::Identity();
+  Matrix6d root_ = Matrix6d::Zero();
+  int sweeps_ = -1;
+  bool rotated_ = false;  // the last call rotated the axes (which may have drifted since)
+};
+
+/// sqrt(N) through a TrackingMatrixSqrt: the same as matrix_sqrt(spd) to round-off, cheaper when
+/// called with slowly changing matrices.
+Matrix6d matrix_sqrt(const Matrix6d& spd, TrackingMatrixSqrt& tracker) noexcept;
+
+/// inertia_shaped_damping(K, zeta, Lambda) with Lambda = task_space_inertia(J, M, lambda) (turned
+/// into the stiffness frame, Lambda_f = R6^T Lambda R6 with R6 = blockdiag(R, R), when
+/// `frame_rotation` is given), computed without forming Lambda: with A = Lambda_f^-1 =
+/// R6^T (J M^-1 J^T + lambda^2 I) R6 = V V^T, V upper triangular (a Cholesky factorisation from the
+/// last row up), L = V^-T is exactly the lower Cholesky factor of Lambda_f, so the normalised
+/// stiffness L^-1 K L^-T is V^T K V and D = V^-T S V^-1. One L D L^T of M and one 6x6 Cholesky
+/// instead of three factorisations and an inverse; the square root through a TrackingMatrixSqrt.
+/// The same result to round-off (see the tests for the tolerances). False if M or A is not
+/// positive definite. noexcept, allocation-free; the workspace is sized once.
+class InertiaShapedDamping {
+ public:
+  bool compute(const Jacobian& jacobian, const JointMatrix& mass, double lambda,
+               const Eigen::Matrix3d* frame_rotation, const Matrix6d& stiffness,
+               const Vector6d& damping_ratio, Matrix6d& damping) noexcept;
+  const TrackingMatrixSqrt& tracker() const noexcept { return tracker_; }
+
+ private:
+  TrackingMatrixSqrt tracker_;
+  JointMatrix mass_factor_;    // unit lower L of M = L D L^T (strictly lower part)
+  Jacobian reduced_;           // L^-1 J^T, transposed: 6 x n
+  Jacobian weighted_;          // the same, columns divided by D
+  JointVector inverse_pivot_;  // D^-1
+};
+
 /// True if every off-diagonal element is exactly zero.
 bool is_diagonal(const Matrix6d& matrix) noexcept;
 
 /// blockdiag(R, R): maps 6-vectors [linear; angular] from a frame with orientation R to the base.
 Matrix6d block_rotation(const Eigen::Matrix3d& rotation) noexcept;
+
+/// v = J x for a 6 x n Jacobian: a sum of fixed-size columns, which at these sizes is several
+/// times faster than Eigen's product with its dynamic inner dimension. `x` has n elements.
+inline void jacobian_times(const Jacobian& jacobian, const JointVector& x, Vector6d& v) noexcept {
+  v.setZero();
+  for (Eigen::Index i = 0; i < jacobian.cols(); ++i) v += jacobian.col(i) * x[i];
+}
+
+/// out = J^T v for a 6 x n Jacobian (resized to n, within its fixed capacity): n fixed-size
+/// dot products. `out` is overwritten.
+inline void jacobian_transpose_times(const Jacobian& jacobian, const Vector6d& v,
+                                     JointVector& out) noexcept {
+  out.resize(jacobian.cols());
+  for (Eigen::Index i = 0; i < jacobian.cols(); ++i) out[i] = jacobian.col(i).dot(v);
+}
 
 /// Computes N tau_0 with N = I - J^T (J J^T + lambda^2 I)^-1 J without forming N and without an
 /// SVD: a 6x6 Cholesky (or an n x n one when n < 6, via J^T J, which is the same matrix
