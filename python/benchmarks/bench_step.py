@@ -9,7 +9,7 @@ Not run by ctest. Usage (from the repository root, after building the module):
     PYTHONPATH=build/python /usr/bin/python3 python/benchmarks/bench_step.py [--calls 200000]
         [--cpp-benchmark build/bench/benchmarks]
 
---cpp-benchmark also runs Google Benchmark's BM_LoopStep for comparison.
+--cpp-benchmark also runs Google Benchmark's BM_LoopStep/native for comparison.
 """
 
 import argparse
@@ -114,7 +114,7 @@ def main():
     if args.cpp_benchmark:
         print("\nGoogle Benchmark, %s:" % args.cpp_benchmark)
         sys.stdout.flush()
-        subprocess.run([args.cpp_benchmark, "--benchmark_filter=BM_LoopStep$",
+        subprocess.run([args.cpp_benchmark, "--benchmark_filter=BM_LoopStep/native$",
                         "--benchmark_repetitions=5", "--benchmark_report_aggregates_only=true"],
                        check=True)
     return 0
