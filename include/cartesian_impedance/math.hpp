@@ -187,7 +187,6 @@ class NullspaceProjector {
   Eigen::PartialPivLU<JointMatrix> joint_lu_;
   Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::ColMajor, kMaxJoints, 6> mass_inverse_jt_;
   Matrix6d task_gram_;
-  Matrix6d task_factor_;
   JointMatrix joint_gram_;
   JointMatrix joint_system_;
   Vector6d task_vector_;
