@@ -396,33 +396,14 @@ void TrackingMatrixSqrt::compute(const Matrix6d& spd) noexcept {
   const double off_diagonal = b.squaredNorm() - diagonal;
   // Elements below eps times the trace are the round-off N came with (they matter only where
   // both diagonal elements are as small, and there the square root is undetermined to about
-  // sqrt(eps) anyway); they are left out of the test and of the Newton step.
+  // sqrt(eps) anyway); they are left out of the tests and of the Newton steps.
   const double floor = kEpsilon * std::abs(b.trace());
-  Vector6d roots = b.diagonal().cwiseMax(0.0).cwiseSqrt();
-  auto converged = [&]() {
-    for (int p = 0; p < 5; ++p) {
-      for (int q = p + 1; q < 6; ++q) {
-        const double apq = std::abs(b(p, q));
-        const double scale = roots[p] + roots[q];
-        if (apq > floor && apq > kNewtonRatio * scale * scale) return false;
-      }
-    }
-    return true;
-  };
+  refinements_ = 0;
   // Jacobi converges quadratically from a nearly diagonal start; far from one, the sweeps
   // would cost more than Eigen's tridiagonal QR.
   if (diagonal > 0.0 && off_diagonal <= kMaxOffDiagonal * kMaxOffDiagonal * diagonal) {
     for (sweeps_ = 0; sweeps_ <= kMaxSweeps; ++sweeps_) {
-      if (converged()) {
-        root_ = roots.asDiagonal();
-        for (int p = 0; p < 5; ++p) {
-          for (int q = p + 1; q < 6; ++q) {
-            const double apq = b(p, q), scale = roots[p] + roots[q];
-            if (std::abs(apq) > floor && scale > 0.0) root_(p, q) = root_(q, p) = apq / scale;
-          }
-        }
-        return;
-      }
+      if (refine(b, floor)) return;
       if (sweeps_ == kMaxSweeps) break;
       for (const auto& round : kRounds) {
         Rotation rotations[3];
@@ -433,13 +414,63 @@ void TrackingMatrixSqrt::compute(const Matrix6d& spd) noexcept {
         for (int k = 0; k < count; ++k) apply(rotations[k], b, axes_);
         rotated_ = rotated_ || count > 0;
       }
-      roots = b.diagonal().cwiseMax(0.0).cwiseSqrt();
     }
   }
   sweeps_ = -1;
   const Eigen::SelfAdjointEigenSolver<Matrix6d> solver(spd);
   axes_ = solver.eigenvectors();
   root_ = solver.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
+}
+
+bool TrackingMatrixSqrt::refine(const Matrix6d& b, double floor) noexcept {
+  const Vector6d roots = b.diagonal().cwiseMax(0.0).cwiseSqrt();
+  // Newton steps X += F on X^2 = B, each solving X F + F X = R = B - X^2 with X's diagonal part
+  // S = diag(s) for X: F_ij = R_ij / (s_i + s_j), whatever the eigenvalue gaps. From X = S the
+  // step is Newton's own and leaves an error of about r0^2 (r0 the largest |b_ij| / (s_i + s_j)^2
+  // over i != j); every later step is off Newton's by X - S, whose elements are at most
+  // r0 (s_i + s_j), so a correction of relative size r leaves about r (r + 6 r0). Only the upper
+  // triangles are computed; X stays exactly symmetric.
+  root_ = roots.asDiagonal();
+  Matrix6d residual = b;  // B - S^2: B's off-diagonal part
+  residual.diagonal().setZero();
+  Matrix6d inverse_sum;
+  bool have_inverse_sum = false;
+  double first = 0.0;
+  for (int step = 0;; ++step) {
+    double ratio = 0.0;
+    for (int q = 0; q < 6; ++q) {
+      for (int p = 0; p <= q; ++p) {
+        double r = residual(p, q);
+        if (std::abs(r) <= floor) continue;
+        if (!have_inverse_sum) {
+          for (int j = 0; j < 6; ++j) {
+            for (int i = 0; i <= j; ++i) {
+              const double sum = roots[i] + roots[j];
+              inverse_sum(i, j) = sum > 0.0 ? 1.0 / sum : 0.0;
+            }
+          }
+          have_inverse_sum = true;
+        }
+        r *= inverse_sum(p, q);
+        ratio = std::max(ratio, std::abs(r * inverse_sum(p, q)));
+        root_(p, q) += r;
+        if (p != q) root_(q, p) += r;
+      }
+    }
+    if (step == 0) {
+      if (ratio > kRefineRatio) return false;  // far from diagonal: a Jacobi sweep first
+      first = ratio;
+    } else if (ratio > first) {
+      return false;  // a guard: for r0 <= kRefineRatio the steps contract by about 6 r0
+    }
+    const double error = ratio * (step == 0 ? ratio : std::max(ratio, 6.0 * first));
+    if (error <= kTargetError) return true;
+    if (step == kMaxRefinements) return false;
+    ++refinements_;
+    for (int q = 0; q < 6; ++q) {
+      for (int p = 0; p <= q; ++p) residual(p, q) = b(p, q) - root_.col(p).dot(root_.col(q));
+    }
+  }
 }
 
 Matrix6d matrix_sqrt(const Matrix6d& spd, TrackingMatrixSqrt& tracker) noexcept {

@@ -374,27 +374,35 @@ bool ModelWorkspace::Impl::compute_kdl(const JointVector& q, const JointVector& 
 
 namespace {
 
-// Gives `out` the model's sizes and replaces anything non-finite, so that a failed compute()
-// still leaves a usable (if stale) result. Resizing bounded Eigen objects never allocates.
+// Gives the terms of `out` not in `fresh` the model's sizes and replaces anything non-finite in
+// them. Resizing bounded Eigen objects never allocates.
+void make_terms_sized_and_finite(int n, Kinematics& out, ModelTerms fresh) noexcept {
+  if (!includes(fresh, ModelTerms::mass) &&
+      (out.mass.rows() != n || out.mass.cols() != n || !out.mass.allFinite())) {
+    out.mass.setZero(n, n);
+    out.terms &= ~ModelTerms::mass;
+  }
+  if (!includes(fresh, ModelTerms::gravity) &&
+      (out.gravity.size() != n || !out.gravity.allFinite())) {
+    out.gravity.setZero(n);
+    out.terms &= ~ModelTerms::gravity;
+  }
+  if (!includes(fresh, ModelTerms::coriolis) &&
+      (out.coriolis.size() != n || !out.coriolis.allFinite())) {
+    out.coriolis.setZero(n);
+    out.terms &= ~ModelTerms::coriolis;
+  }
+  out.has_dynamics = out.terms == ModelTerms::all;
+}
+
+// The same for all of `out`, so that a failed compute() still leaves a usable (if stale) result.
 void make_sized_and_finite(int n, Kinematics& out) noexcept {
   if (!out.pose.position.allFinite()) out.pose.position.setZero();
   if (!out.pose.orientation.coeffs().allFinite() || out.pose.orientation.norm() < 0.5) {
     out.pose.orientation.setIdentity();
   }
   if (out.jacobian.cols() != n || !out.jacobian.allFinite()) out.jacobian.setZero(6, n);
-  if (out.mass.rows() != n || out.mass.cols() != n || !out.mass.allFinite()) {
-    out.mass.setZero(n, n);
-    out.terms &= ~ModelTerms::mass;
-  }
-  if (out.gravity.size() != n || !out.gravity.allFinite()) {
-    out.gravity.setZero(n);
-    out.terms &= ~ModelTerms::gravity;
-  }
-  if (out.coriolis.size() != n || !out.coriolis.allFinite()) {
-    out.coriolis.setZero(n);
-    out.terms &= ~ModelTerms::coriolis;
-  }
-  out.has_dynamics = out.terms == ModelTerms::all;
+  make_terms_sized_and_finite(n, out, ModelTerms::none);
 }
 
 }  // namespace
@@ -424,13 +432,16 @@ bool ModelWorkspace::compute(const JointVector& q, const JointVector& dq, Kinema
                              ModelTerms terms) noexcept {
   if (!impl_) return false;
   Impl& w = *impl_;
-  make_sized_and_finite(w.n, out);
-  if (!w.valid_input(q, dq)) return false;
   terms &= ModelTerms::all;
-  const bool done = w.kdl ? w.compute_kdl(q, dq, terms, out) : w.compute_native(q, dq, terms, out);
-  if (!done) return false;
+  // The backends overwrite `out` only once everything they computed is finite: the pose, the
+  // Jacobian and the requested terms are then fresh, and only the rest needs checking.
+  if (!w.valid_input(q, dq) ||
+      !(w.kdl ? w.compute_kdl(q, dq, terms, out) : w.compute_native(q, dq, terms, out))) {
+    make_sized_and_finite(w.n, out);
+    return false;
+  }
   out.terms = terms;
-  out.has_dynamics = terms == ModelTerms::all;
+  make_terms_sized_and_finite(w.n, out, terms);
   return true;
 }
 

@@ -45,7 +45,8 @@ struct TrajectoryProgress {
   double goal_error = 0.0;  ///< [rad or m] largest |q - q_goal| (once past the end)
 };
 
-/// What one step leaves in the outbox.
+/// What one step leaves in the outbox. (ControlLoop::publish_state() copies it field by field: a
+/// new field goes there too.)
 struct LoopState {
   ControllerState controller;  ///< the law's snapshot: errors, targets, torque parts, limits
   JointVector q;               ///< measured joint positions [rad or m]
@@ -110,7 +111,7 @@ class ControlLoop : public CommandSetters<ControlLoop> {
   bool started() const noexcept { return controller_.started(); }
 
   /// The state after the last step (cycle thread only; other threads use latest_state()).
-  const LoopState& state() const noexcept { return state_; }
+  const LoopState& state() const noexcept { return *published_; }
   /// The controller, for inspection from the cycle thread.
   const CartesianImpedanceController& controller() const noexcept { return controller_; }
 
@@ -181,6 +182,7 @@ class ControlLoop : public CommandSetters<ControlLoop> {
   void end_trajectory(TrajectoryState state, bool hold_measured) noexcept;
   void advance_trajectory(double dt) noexcept;
   void joint_limit_torque() noexcept;
+  void publish_state() noexcept;
 
   RobotModel model_;
   ModelWorkspace workspace_;
@@ -189,7 +191,8 @@ class ControlLoop : public CommandSetters<ControlLoop> {
   Kinematics kinematics_;
   Kinematics reference_kinematics_;
   RobotState robot_;
-  LoopState state_;
+  LoopState state_;  // the loop's own fields; `controller` only where a publication was dropped
+  const LoopState* published_ = &state_;  // the last state published (an outbox slot or state_)
 
   CommandQueue<Message> inbox_;
   SnapshotBuffer<LoopState, 4> outbox_;

@@ -12,6 +12,7 @@
 #include <cstddef>
 #include <memory>
 #include <new>
+#include <utility>
 
 namespace cartesian_impedance {
 
@@ -98,17 +99,26 @@ class SnapshotBuffer {
   /// Makes a copy of `value` the newest snapshot. Never blocks. Returns false if every other slot
   /// was being read (the snapshot is then dropped). Only one thread may publish.
   bool publish(const T& value) noexcept(std::is_nothrow_copy_assignable_v<T>) {
+    return publish_with([&value](T& slot) { slot = value; }) != nullptr;
+  }
+
+  /// Like publish(), but `write(T&)` fills the free slot in place (it may assume nothing of the
+  /// slot's old contents beyond its being a valid T). Returns the new snapshot, which stays
+  /// unchanged until the publishing thread publishes again, or nullptr if every other slot was
+  /// being read (nothing is then written).
+  template <typename Write>
+  const T* publish_with(Write&& write) noexcept(noexcept(write(std::declval<T&>()))) {
     const int newest = newest_.load(std::memory_order_seq_cst);
     for (int i = 1; i < kSlots; ++i) {
       const int slot = (newest + i) % kSlots;
       if (slots_[slot].readers.load(std::memory_order_seq_cst) != 0) continue;
-      slots_[slot].value = value;
+      write(slots_[slot].value);
       newest_.store(slot, std::memory_order_seq_cst);
       // A reader that announced itself on `slot` after the check above sees `newest_` move
       // away from it only later; readers re-check `newest_` after announcing, so they retry.
-      return true;
+      return &slots_[slot].value;
     }
-    return false;
+    return nullptr;
   }
 
   /// Copies the newest snapshot into `value`. Safe from any number of threads at once.

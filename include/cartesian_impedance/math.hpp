@@ -91,12 +91,18 @@ class TrackingMatrixSqrt {
   /// step (whose error is about the square of that, relative).
   static constexpr double kMaxOffDiagonal = 1e-2;
   static constexpr int kMaxSweeps = 4;
-  static constexpr double kNewtonRatio = 1e-9;
+  static constexpr double kTargetError = 1e-17;
+  static constexpr double kRefineRatio = 1e-4;
+  static constexpr int kMaxRefinements = 4;
+  /// Newton steps after the first in the last call.
+  int refinements() const noexcept { return refinements_; }
 
  private:
+  bool refine(const Matrix6d& b, double floor) noexcept;
   Matrix6d axes_ = Matrix6d::Identity();
   Matrix6d root_ = Matrix6d::Zero();
   int sweeps_ = -1;
+  int refinements_ = 0;
   bool rotated_ = false;  // the last call rotated the axes (which may have drifted since)
 };
 
