@@ -433,28 +433,29 @@ bool TrackingMatrixSqrt::refine(const Matrix6d& b, double floor) noexcept {
   root_ = roots.asDiagonal();
   Matrix6d residual = b;  // B - S^2: B's off-diagonal part
   residual.diagonal().setZero();
-  Matrix6d inverse_sum;
+  Matrix6d inverse_sum;  // 1 / (s_i + s_j), upper triangle, once a correction needs it
   bool have_inverse_sum = false;
   double first = 0.0;
   for (int step = 0;; ++step) {
     double ratio = 0.0;
     for (int q = 0; q < 6; ++q) {
       for (int p = 0; p <= q; ++p) {
-        double r = residual(p, q);
-        if (std::abs(r) <= floor) continue;
+        const double sum = roots[p] + roots[q];
+        // A correction below the target error (of X's scale) is left out: at rest, all are,
+        // and the call costs no division.
+        if (std::abs(residual(p, q)) <= std::max(floor, kTargetError * sum * sum) || !(sum > 0.0)) {
+          continue;
+        }
         if (!have_inverse_sum) {
           for (int j = 0; j < 6; ++j) {
-            for (int i = 0; i <= j; ++i) {
-              const double sum = roots[i] + roots[j];
-              inverse_sum(i, j) = sum > 0.0 ? 1.0 / sum : 0.0;
-            }
+            for (int i = 0; i <= j; ++i) inverse_sum(i, j) = 1.0 / (roots[i] + roots[j]);
           }
           have_inverse_sum = true;
         }
-        r *= inverse_sum(p, q);
-        ratio = std::max(ratio, std::abs(r * inverse_sum(p, q)));
-        root_(p, q) += r;
-        if (p != q) root_(q, p) += r;
+        const double correction = residual(p, q) * inverse_sum(p, q);
+        ratio = std::max(ratio, std::abs(correction * inverse_sum(p, q)));
+        root_(p, q) += correction;
+        if (p != q) root_(q, p) += correction;
       }
     }
     if (step == 0) {
@@ -478,42 +479,76 @@ Matrix6d matrix_sqrt(const Matrix6d& spd, TrackingMatrixSqrt& tracker) noexcept 
   return tracker.axes() * tracker.root_in_axes() * tracker.axes().transpose();
 }
 
+namespace {
+
+// A = J M^-1 J^T (upper triangle) through M = L D L^T (right-looking, lower triangle only, as
+// Eigen's LLT reads it; no square roots): A = (L^-1 J^T)^T D^-1 (L^-1 J^T). N is the joint count
+// where it is known at compile time (the loops then unroll and stay in registers: half the time
+// at 7 joints), or Eigen::Dynamic. False if M is not positive definite.
+template <int N>
+bool inverse_task_inertia(const Jacobian& jacobian, const JointMatrix& mass, Matrix6d& a) noexcept {
+  constexpr int kMax = N == Eigen::Dynamic ? kMaxJoints : N;
+  const int n = N == Eigen::Dynamic ? static_cast<int>(jacobian.cols()) : N;
+  Eigen::Matrix<double, N, N, Eigen::ColMajor, kMax, kMax> factor = mass;
+  Eigen::Matrix<double, N, 1, Eigen::ColMajor, kMax, 1> inverse_pivot(n);
+  for (int j = 0; j < n; ++j) {
+    const double pivot = factor(j, j);
+    if (!(pivot > 0.0)) return false;
+    inverse_pivot[j] = 1.0 / pivot;
+    for (int k = j + 1; k < n; ++k) {
+      const double unscaled = factor(k, j);
+      // Columns k > j are updated column by column; row j of the upper triangle (unused by the
+      // factorisation) keeps D(j) L(k, j) for the update.
+      factor(j, k) = unscaled;
+      factor(k, j) = unscaled * inverse_pivot[j];
+    }
+    for (int k = j + 1; k < n; ++k) {
+      const double unscaled = factor(j, k);
+      for (int i = k; i < n; ++i) factor(i, k) -= factor(i, j) * unscaled;
+    }
+  }
+  // Column i of `reduced` is row i of L^-1 J^T: forward substitution with fixed-size columns.
+  Eigen::Matrix<double, 6, N, Eigen::ColMajor, 6, kMax> reduced(6, n), weighted(6, n);
+  for (int i = 0; i < n; ++i) {
+    Vector6d column = jacobian.col(i);
+    for (int k = 0; k < i; ++k) column -= factor(i, k) * reduced.col(k);
+    reduced.col(i) = column;
+    weighted.col(i) = column * inverse_pivot[i];
+  }
+  // a = reduced weighted^T, three columns at a time (nine independent chains of additions).
+  for (int c = 0; c < 6; c += 3) {
+    Vector6d first = Vector6d::Zero(), second = Vector6d::Zero(), third = Vector6d::Zero();
+    for (int i = 0; i < n; ++i) {
+      const Vector6d column = reduced.col(i);
+      first += column * weighted(c, i);
+      second += column * weighted(c + 1, i);
+      third += column * weighted(c + 2, i);
+    }
+    a.col(c) = first;
+    a.col(c + 1) = second;
+    a.col(c + 2) = third;
+  }
+  return true;
+}
+
+}  // namespace
+
 bool InertiaShapedDamping::compute(const Jacobian& jacobian, const JointMatrix& mass, double lambda,
                                    const Eigen::Matrix3d* frame_rotation, const Matrix6d& stiffness,
                                    const Vector6d& damping_ratio, Matrix6d& damping) noexcept {
-  const Eigen::Index n = jacobian.cols();
-  // M = L D L^T, right-looking, lower triangle only (as Eigen's LLT reads it). No square roots:
-  // J M^-1 J^T = (L^-1 J^T)^T D^-1 (L^-1 J^T).
-  mass_factor_ = mass;
-  JointVector& inverse_pivot = inverse_pivot_;
-  inverse_pivot.resize(n);
-  for (Eigen::Index j = 0; j < n; ++j) {
-    const double pivot = mass_factor_(j, j);
-    if (!(pivot > 0.0)) return false;
-    inverse_pivot[j] = 1.0 / pivot;
-    for (Eigen::Index k = j + 1; k < n; ++k) {
-      const double unscaled = mass_factor_(k, j);
-      // Columns k > j are updated column by column; row j of the upper triangle (unused by the
-      // factorisation) keeps D(j) L(k, j) for the update.
-      mass_factor_(j, k) = unscaled;
-      mass_factor_(k, j) = unscaled * inverse_pivot[j];
-    }
-    for (Eigen::Index k = j + 1; k < n; ++k) {
-      const double unscaled = mass_factor_(j, k);
-      for (Eigen::Index i = k; i < n; ++i) mass_factor_(i, k) -= mass_factor_(i, j) * unscaled;
-    }
+  Matrix6d a;  // J M^-1 J^T; only the upper triangle is read below
+  bool positive = false;
+  switch (jacobian.cols()) {
+    case 6:
+      positive = inverse_task_inertia<6>(jacobian, mass, a);
+      break;
+    case 7:
+      positive = inverse_task_inertia<7>(jacobian, mass, a);
+      break;
+    default:
+      positive = inverse_task_inertia<Eigen::Dynamic>(jacobian, mass, a);
   }
-  // Column i of reduced_ is row i of L^-1 J^T: forward substitution with fixed-size columns.
-  reduced_.resize(6, n);
-  weighted_.resize(6, n);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    Vector6d column = jacobian.col(i);
-    for (Eigen::Index k = 0; k < i; ++k) column -= mass_factor_(i, k) * reduced_.col(k);
-    reduced_.col(i) = column;
-    weighted_.col(i) = column * inverse_pivot[i];
-  }
-  Matrix6d a;
-  outer_sum(reduced_, weighted_, a);  // J M^-1 J^T; only the upper triangle is read below
+  if (!positive) return false;
   a.diagonal().array() += lambda * lambda;
   if (frame_rotation != nullptr) {
     // R6^T A R6 block by block (R6 = blockdiag(R, R) is half zeros); only the upper triangle of
@@ -527,29 +562,46 @@ bool InertiaShapedDamping::compute(const Jacobian& jacobian, const JointMatrix& 
     a.topRightCorner<3, 3>() = coupling;
     a.bottomRightCorner<3, 3>() = bottom;
   }
-  // A = V V^T with V upper triangular, from the last column backwards (right-looking).
+  // A = U E U^T with U unit upper triangular and E diagonal, from the last column backwards
+  // (right-looking; one division per column in the chain from column to column), then
+  // V = U E^1/2, so A = V V^T with the square roots off that chain.
   Matrix6d v = Matrix6d::Zero();
   v.triangularView<Eigen::Upper>() = a.triangularView<Eigen::Upper>();
-  Vector6d inverse_diagonal;
+  Vector6d pivots;
 #pragma GCC unroll 6
   for (int j = 5; j >= 0; --j) {
     const double pivot = v(j, j);
     if (!(pivot > 0.0)) return false;
-    const double root = std::sqrt(pivot);
-    v(j, j) = root;
-    inverse_diagonal[j] = 1.0 / root;
+    pivots[j] = pivot;
+    const double inverse_pivot = 1.0 / pivot;
+    Vector6d unscaled;  // E(j) U(i, j)
 #pragma GCC unroll 6
-    for (int i = 0; i < j; ++i) v(i, j) *= inverse_diagonal[j];
+    for (int i = 0; i < j; ++i) {
+      unscaled[i] = v(i, j);
+      v(i, j) *= inverse_pivot;
+    }
 #pragma GCC unroll 6
     for (int k = 0; k < j; ++k) {
 #pragma GCC unroll 6
-      for (int i = 0; i <= k; ++i) v(i, k) -= v(i, j) * v(k, j);
+      for (int i = 0; i <= k; ++i) v(i, k) -= v(i, j) * unscaled[k];
     }
+  }
+  const Vector6d roots = pivots.cwiseSqrt();
+  const Vector6d inverse_diagonal = roots.cwiseInverse();
+#pragma GCC unroll 6
+  for (int j = 0; j < 6; ++j) {
+    v.col(j).head(j) *= roots[j];
+    v(j, j) = roots[j];
   }
   // L^-1 K L^-T = V^T K V, and with its square root Q T Q^T and L = V^-T,
   // D = L (2 Z^1/2 Q T Q^T Z^1/2) L^T = 2 P T P^T with P = V^-T Z^1/2 Q: a forward substitution
   // with V^T, row by row (each row a fixed-size vector operation).
-  Matrix6d normalised = v.transpose() * stiffness * v;
+  Matrix6d normalised;
+  if (is_diagonal(stiffness)) {  // the common case: one 6x6 product instead of two
+    normalised.noalias() = (v.transpose() * stiffness.diagonal().asDiagonal()) * v;
+  } else {
+    normalised.noalias() = v.transpose() * stiffness * v;
+  }
   normalised = 0.5 * (normalised + normalised.transpose());
   tracker_.compute(normalised);
   const Vector6d zeta_root = damping_ratio.cwiseSqrt();

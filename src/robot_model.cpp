@@ -374,21 +374,22 @@ bool ModelWorkspace::Impl::compute_kdl(const JointVector& q, const JointVector& 
 
 namespace {
 
-// Gives the terms of `out` not in `fresh` the model's sizes and replaces anything non-finite in
-// them. Resizing bounded Eigen objects never allocates.
-void make_terms_sized_and_finite(int n, Kinematics& out, ModelTerms fresh) noexcept {
+// Gives the terms of `out` not in `fresh` the model's sizes and, where `check_values`, replaces
+// anything non-finite in them. Resizing bounded Eigen objects never allocates.
+void make_terms_sized_and_finite(int n, Kinematics& out, ModelTerms fresh,
+                                 bool check_values) noexcept {
   if (!includes(fresh, ModelTerms::mass) &&
-      (out.mass.rows() != n || out.mass.cols() != n || !out.mass.allFinite())) {
+      (out.mass.rows() != n || out.mass.cols() != n || (check_values && !out.mass.allFinite()))) {
     out.mass.setZero(n, n);
     out.terms &= ~ModelTerms::mass;
   }
   if (!includes(fresh, ModelTerms::gravity) &&
-      (out.gravity.size() != n || !out.gravity.allFinite())) {
+      (out.gravity.size() != n || (check_values && !out.gravity.allFinite()))) {
     out.gravity.setZero(n);
     out.terms &= ~ModelTerms::gravity;
   }
   if (!includes(fresh, ModelTerms::coriolis) &&
-      (out.coriolis.size() != n || !out.coriolis.allFinite())) {
+      (out.coriolis.size() != n || (check_values && !out.coriolis.allFinite()))) {
     out.coriolis.setZero(n);
     out.terms &= ~ModelTerms::coriolis;
   }
@@ -402,7 +403,7 @@ void make_sized_and_finite(int n, Kinematics& out) noexcept {
     out.pose.orientation.setIdentity();
   }
   if (out.jacobian.cols() != n || !out.jacobian.allFinite()) out.jacobian.setZero(6, n);
-  make_terms_sized_and_finite(n, out, ModelTerms::none);
+  make_terms_sized_and_finite(n, out, ModelTerms::none, true);
 }
 
 }  // namespace
@@ -440,8 +441,10 @@ bool ModelWorkspace::compute(const JointVector& q, const JointVector& dq, Kinema
     make_sized_and_finite(w.n, out);
     return false;
   }
+  // The terms left out keep what they had: sized and finite since the last compute(), unless
+  // the caller wrote into them (only the sizes matter to the bounded storage).
   out.terms = terms;
-  make_terms_sized_and_finite(w.n, out, terms);
+  make_terms_sized_and_finite(w.n, out, terms, false);
   return true;
 }
 

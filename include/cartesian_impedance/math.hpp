@@ -67,14 +67,16 @@ Matrix6d inertia_shaped_damping(const Matrix6d& stiffness, const Vector6d& dampi
 /// Square root of a symmetric positive semi-definite 6x6 matrix that changes little from one call
 /// to the next (the normalised stiffness of the inertia-shaped damping, which follows q), as
 /// sqrt(N) = Q T Q^T with Q orthonormal and T symmetric and nearly diagonal. The last call's Q
-/// turns the new N nearly diagonal, B = Q^T N Q; Jacobi rotations (in parallel rounds of three
-/// independent ones) reduce B until every off-diagonal element is tiny against its diagonal pair,
-/// and one Newton step of the square root in that basis, T = diag(sqrt(b_ii)) + E with
-/// E_ij = b_ij / (sqrt(b_ii) + sqrt(b_jj)), takes the rest (its error is second order in those
-/// elements and, unlike an eigenvector correction, independent of eigenvalue gaps). Bounded: if B
-/// is far from diagonal (the first call, a jump of the stiffness) or kMaxSweeps sweeps do not get
-/// there, Eigen's SelfAdjointEigenSolver decides instead and seeds the next call. The result is
-/// matrix_sqrt(N) to round-off.
+/// turns the new N nearly diagonal, B = Q^T N Q, and Newton steps of the square root in that
+/// basis take the rest: from diag(sqrt(b_ii)), each solves X F + F X = B - X^2 with X's diagonal
+/// for X, F_ij = R_ij / (sqrt(b_ii) + sqrt(b_jj)). The first is Newton's own step (its error is
+/// second order in B's off-diagonal elements); later ones each gain about the size of those
+/// elements; and unlike an eigenvector correction none depends on eigenvalue gaps. While the
+/// robot moves, Q drifts from N's axes; once an off-diagonal element exceeds kRefineRatio of its
+/// diagonal pair, Jacobi rotations (in parallel rounds of three independent ones) turn Q back
+/// first. Bounded: if B is far from diagonal (the first call, a jump of the stiffness) or
+/// kMaxSweeps sweeps do not get there, Eigen's SelfAdjointEigenSolver decides instead and seeds
+/// the next call. The result is matrix_sqrt(N) to round-off.
 class TrackingMatrixSqrt {
  public:
   /// Decomposes `spd` (symmetric; negative round-off eigenvalues count as zero).
@@ -82,20 +84,20 @@ class TrackingMatrixSqrt {
   /// Q (orthonormal to round-off) and T of sqrt(N) = Q T Q^T.
   const Matrix6d& axes() const noexcept { return axes_; }
   const Matrix6d& root_in_axes() const noexcept { return root_; }
-  /// Jacobi sweeps of the last call (0: B was diagonal enough at once); -1 if the last call went
-  /// to Eigen's solver.
+  /// Jacobi sweeps of the last call (0: Q was kept); -1 if the last call went to Eigen's solver.
   int sweeps() const noexcept { return sweeps_; }
+  /// Newton steps of the last call after the first.
+  int refinements() const noexcept { return refinements_; }
 
   /// Largest off-diagonal part of B (Frobenius norm against the diagonal's) for which Jacobi is
-  /// tried; sweeps allowed; and the largest b_ij / (sqrt(b_ii) + sqrt(b_jj))^2 left to the Newton
-  /// step (whose error is about the square of that, relative).
+  /// tried, and sweeps allowed. Newton steps start while every b_ij / (sqrt(b_ii) + sqrt(b_jj))^2
+  /// is at most kRefineRatio, and stop once the estimated error relative to sqrt(b_ii) + sqrt(b_jj)
+  /// is at most kTargetError (below the round-off of one product), after kMaxRefinements at most.
   static constexpr double kMaxOffDiagonal = 1e-2;
   static constexpr int kMaxSweeps = 4;
+  static constexpr double kRefineRatio = 1e-5;
   static constexpr double kTargetError = 1e-17;
-  static constexpr double kRefineRatio = 1e-4;
   static constexpr int kMaxRefinements = 4;
-  /// Newton steps after the first in the last call.
-  int refinements() const noexcept { return refinements_; }
 
  private:
   bool refine(const Matrix6d& b, double floor) noexcept;
@@ -128,10 +130,6 @@ class InertiaShapedDamping {
 
  private:
   TrackingMatrixSqrt tracker_;
-  JointMatrix mass_factor_;    // unit lower L of M = L D L^T (strictly lower part)
-  Jacobian reduced_;           // L^-1 J^T, transposed: 6 x n
-  Jacobian weighted_;          // the same, columns divided by D
-  JointVector inverse_pivot_;  // D^-1
 };
 
 /// True if every off-diagonal element is exactly zero.
