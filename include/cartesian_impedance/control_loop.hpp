@@ -110,7 +110,8 @@ class ControlLoop : public CommandSetters<ControlLoop> {
   /// True once start() has succeeded.
   bool started() const noexcept { return controller_.started(); }
 
-  /// The state after the last step (cycle thread only; other threads use latest_state()).
+  /// The state after the last step (cycle thread only, and read before the next step, which may
+  /// reuse its storage; other threads use latest_state()).
   const LoopState& state() const noexcept { return *published_; }
   /// The controller, for inspection from the cycle thread.
   const CartesianImpedanceController& controller() const noexcept { return controller_; }
