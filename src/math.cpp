@@ -481,53 +481,37 @@ Matrix6d matrix_sqrt(const Matrix6d& spd, TrackingMatrixSqrt& tracker) noexcept 
 
 namespace {
 
-// A = J M^-1 J^T (upper triangle) through M = L D L^T (right-looking, lower triangle only, as
-// Eigen's LLT reads it; no square roots): A = (L^-1 J^T)^T D^-1 (L^-1 J^T). N is the joint count
-// where it is known at compile time (the loops then unroll and stay in registers: half the time
-// at 7 joints), or Eigen::Dynamic. False if M is not positive definite.
-template <int N>
+// A = J M^-1 J^T through M = L D L^T (right-looking, lower triangle only, as Eigen's LLT reads
+// it; no square roots): A = (L^-1 J^T)^T D^-1 (L^-1 J^T). False if M is not positive definite.
 bool inverse_task_inertia(const Jacobian& jacobian, const JointMatrix& mass, Matrix6d& a) noexcept {
-  constexpr int kMax = N == Eigen::Dynamic ? kMaxJoints : N;
-  const int n = N == Eigen::Dynamic ? static_cast<int>(jacobian.cols()) : N;
-  Eigen::Matrix<double, N, N, Eigen::ColMajor, kMax, kMax> factor = mass;
-  Eigen::Matrix<double, N, 1, Eigen::ColMajor, kMax, 1> inverse_pivot(n);
-  for (int j = 0; j < n; ++j) {
+  const Eigen::Index n = jacobian.cols();
+  JointMatrix factor = mass;
+  JointVector inverse_pivot(n);
+  for (Eigen::Index j = 0; j < n; ++j) {
     const double pivot = factor(j, j);
     if (!(pivot > 0.0)) return false;
     inverse_pivot[j] = 1.0 / pivot;
-    for (int k = j + 1; k < n; ++k) {
+    for (Eigen::Index k = j + 1; k < n; ++k) {
       const double unscaled = factor(k, j);
       // Columns k > j are updated column by column; row j of the upper triangle (unused by the
       // factorisation) keeps D(j) L(k, j) for the update.
       factor(j, k) = unscaled;
       factor(k, j) = unscaled * inverse_pivot[j];
     }
-    for (int k = j + 1; k < n; ++k) {
+    for (Eigen::Index k = j + 1; k < n; ++k) {
       const double unscaled = factor(j, k);
-      for (int i = k; i < n; ++i) factor(i, k) -= factor(i, j) * unscaled;
+      for (Eigen::Index i = k; i < n; ++i) factor(i, k) -= factor(i, j) * unscaled;
     }
   }
   // Column i of `reduced` is row i of L^-1 J^T: forward substitution with fixed-size columns.
-  Eigen::Matrix<double, 6, N, Eigen::ColMajor, 6, kMax> reduced(6, n), weighted(6, n);
-  for (int i = 0; i < n; ++i) {
+  Jacobian reduced(6, n), weighted(6, n);
+  for (Eigen::Index i = 0; i < n; ++i) {
     Vector6d column = jacobian.col(i);
-    for (int k = 0; k < i; ++k) column -= factor(i, k) * reduced.col(k);
+    for (Eigen::Index k = 0; k < i; ++k) column -= factor(i, k) * reduced.col(k);
     reduced.col(i) = column;
     weighted.col(i) = column * inverse_pivot[i];
   }
-  // a = reduced weighted^T, three columns at a time (nine independent chains of additions).
-  for (int c = 0; c < 6; c += 3) {
-    Vector6d first = Vector6d::Zero(), second = Vector6d::Zero(), third = Vector6d::Zero();
-    for (int i = 0; i < n; ++i) {
-      const Vector6d column = reduced.col(i);
-      first += column * weighted(c, i);
-      second += column * weighted(c + 1, i);
-      third += column * weighted(c + 2, i);
-    }
-    a.col(c) = first;
-    a.col(c + 1) = second;
-    a.col(c + 2) = third;
-  }
+  outer_sum(reduced, weighted, a);
   return true;
 }
 
@@ -537,18 +521,7 @@ bool InertiaShapedDamping::compute(const Jacobian& jacobian, const JointMatrix& 
                                    const Eigen::Matrix3d* frame_rotation, const Matrix6d& stiffness,
                                    const Vector6d& damping_ratio, Matrix6d& damping) noexcept {
   Matrix6d a;  // J M^-1 J^T; only the upper triangle is read below
-  bool positive = false;
-  switch (jacobian.cols()) {
-    case 6:
-      positive = inverse_task_inertia<6>(jacobian, mass, a);
-      break;
-    case 7:
-      positive = inverse_task_inertia<7>(jacobian, mass, a);
-      break;
-    default:
-      positive = inverse_task_inertia<Eigen::Dynamic>(jacobian, mass, a);
-  }
-  if (!positive) return false;
+  if (!inverse_task_inertia(jacobian, mass, a)) return false;
   a.diagonal().array() += lambda * lambda;
   if (frame_rotation != nullptr) {
     // R6^T A R6 block by block (R6 = blockdiag(R, R) is half zeros); only the upper triangle of

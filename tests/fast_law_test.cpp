@@ -197,9 +197,8 @@ double condition(const DynamicsCase& c, double lambda) {
 
 // D without Lambda against inertia_shaped_damping(task_space_inertia()): base and end-effector
 // frames, uniform and per-axis zeta (which makes D depend on the factor being the lower Cholesky
-// one of Lambda), 6, 7 and 9 joints (the unrolled sizes and the general one), a well and a badly
-// conditioned M. The old route inverts A and factors the inverse: its error grows like
-// eps cond(A), which sets the tolerance.
+// one of Lambda), 6, 7 and 9 joints, a well and a badly conditioned M. The old route inverts A and
+// factors the inverse: its error grows like eps cond(A), which sets the tolerance.
 TEST(InertiaShapedDamping, AgreesWithTheRouteThroughLambda) {
   std::mt19937 rng(24);
   for (int n : {6, 7, 9}) {

@@ -115,18 +115,17 @@ Matrix6d matrix_sqrt(const Matrix6d& spd, TrackingMatrixSqrt& tracker) noexcept;
 /// inertia_shaped_damping(K, zeta, Lambda) with Lambda = task_space_inertia(J, M, lambda) (turned
 /// into the stiffness frame, Lambda_f = R6^T Lambda R6 with R6 = blockdiag(R, R), when
 /// `frame_rotation` is given), computed without forming Lambda: with A = Lambda_f^-1 =
-/// R6^T (J M^-1 J^T + lambda^2 I) R6 = V V^T, V upper triangular (a Cholesky factorisation from the
-/// last row up), L = V^-T is exactly the lower Cholesky factor of Lambda_f, so the normalised
-/// stiffness L^-1 K L^-T is V^T K V and D = V^-T S V^-1. One L D L^T of M and one 6x6 Cholesky
-/// instead of three factorisations and an inverse; the square root through a TrackingMatrixSqrt.
-/// The same result to round-off (see the tests for the tolerances). False if M or A is not
-/// positive definite. noexcept, allocation-free; the workspace is sized once.
+/// R6^T (J M^-1 J^T + lambda^2 I) R6 = V V^T, V upper triangular (A = U E U^T from the last row
+/// up, V = U E^1/2), L = V^-T is exactly the lower Cholesky factor of Lambda_f, so the normalised
+/// stiffness L^-1 K L^-T is V^T K V and D = V^-T S V^-1. One L D L^T of M and one 6x6
+/// factorisation instead of three factorisations and an inverse; the square root through a
+/// TrackingMatrixSqrt. The same result to round-off (see the tests for the tolerances). False if
+/// M or A is not positive definite. noexcept, allocation-free (bounded-size locals only).
 class InertiaShapedDamping {
  public:
   bool compute(const Jacobian& jacobian, const JointMatrix& mass, double lambda,
                const Eigen::Matrix3d* frame_rotation, const Matrix6d& stiffness,
                const Vector6d& damping_ratio, Matrix6d& damping) noexcept;
-  const TrackingMatrixSqrt& tracker() const noexcept { return tracker_; }
 
  private:
   TrackingMatrixSqrt tracker_;
