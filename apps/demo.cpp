@@ -14,10 +14,10 @@
 #include <string>
 #include <vector>
 
-#include "cartesian_impedance/config.hpp"
-#include "cartesian_impedance/error.hpp"
-#include "cartesian_impedance/parameters.hpp"
-#include "cartesian_impedance/robot_model.hpp"
+#include "cartesian_impedance/config/yaml.hpp"
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/core/parameters.hpp"
+#include "cartesian_impedance/model/robot_model.hpp"
 #include "demo_output.hpp"
 #include "scenarios.hpp"
 

@@ -4,8 +4,8 @@
 #include <random>
 #include <sstream>
 
-#include "cartesian_impedance/config.hpp"
-#include "cartesian_impedance/error.hpp"
+#include "cartesian_impedance/config/yaml.hpp"
+#include "cartesian_impedance/core/error.hpp"
 #include "scenario_support.hpp"
 
 namespace cartesian_impedance::scenarios {

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "cartesian_impedance/control_loop.hpp"
+#include "cartesian_impedance/loop/control_loop.hpp"
 #include "cartesian_impedance/sim/closed_loop_runner.hpp"
 #include "cartesian_impedance/sim/simulation.hpp"
 

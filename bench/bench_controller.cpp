@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "cartesian_impedance/compat/cartesian_impedance_controller.hpp"
-#include "cartesian_impedance/controller.hpp"
+#include "cartesian_impedance/core/controller.hpp"
 #include "support/allocation_counter.hpp"
 #include "support/published_reference.hpp"
 #include "support/random_cases.hpp"

@@ -8,8 +8,8 @@
 #include <cmath>
 #include <vector>
 
-#include "cartesian_impedance/control_loop.hpp"
-#include "cartesian_impedance/error.hpp"
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/loop/control_loop.hpp"
 #include "support/allocation_counter.hpp"
 
 namespace ci = cartesian_impedance;

@@ -8,7 +8,7 @@
 //
 // Usage: scripted_motion [--quiet]
 
-#include <cartesian_impedance/controller.hpp>
+#include <cartesian_impedance/core/controller.hpp>
 
 #include <cmath>
 #include <cstdio>

@@ -7,7 +7,7 @@
 #include <optional>
 #include <string>
 
-#include "cartesian_impedance/types.hpp"
+#include "cartesian_impedance/core/types.hpp"
 #include "conversions.hpp"
 #include "parameters.hpp"
 

@@ -10,10 +10,10 @@
 #include <string>
 #include <utility>
 
-#include "cartesian_impedance/control_loop.hpp"
-#include "cartesian_impedance/controller.hpp"
-#include "cartesian_impedance/error.hpp"
-#include "cartesian_impedance/types.hpp"
+#include "cartesian_impedance/core/controller.hpp"
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/core/types.hpp"
+#include "cartesian_impedance/loop/control_loop.hpp"
 #include "commands.hpp"
 #include "conversions.hpp"
 #include "module.hpp"

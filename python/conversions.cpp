@@ -6,7 +6,7 @@
 #include <algorithm>
 #include <sstream>
 
-#include "cartesian_impedance/error.hpp"
+#include "cartesian_impedance/core/error.hpp"
 
 namespace cartesian_impedance::python {
 

@@ -15,9 +15,9 @@
 #include <string>
 #include <string_view>
 
-#include "cartesian_impedance/control_loop.hpp"
-#include "cartesian_impedance/parameters.hpp"
-#include "cartesian_impedance/types.hpp"
+#include "cartesian_impedance/core/parameters.hpp"
+#include "cartesian_impedance/core/types.hpp"
+#include "cartesian_impedance/loop/control_loop.hpp"
 
 namespace cartesian_impedance::python {
 

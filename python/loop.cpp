@@ -15,10 +15,10 @@
 #include <utility>
 #include <vector>
 
-#include "cartesian_impedance/control_loop.hpp"
-#include "cartesian_impedance/error.hpp"
-#include "cartesian_impedance/robot_model.hpp"
-#include "cartesian_impedance/types.hpp"
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/core/types.hpp"
+#include "cartesian_impedance/loop/control_loop.hpp"
+#include "cartesian_impedance/model/robot_model.hpp"
 #include "commands.hpp"
 #include "conversions.hpp"
 #include "module.hpp"

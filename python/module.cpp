@@ -21,8 +21,8 @@
 
 #include <pybind11/pybind11.h>
 
-#include "cartesian_impedance/error.hpp"
-#include "cartesian_impedance/types.hpp"
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/core/types.hpp"
 #include "module.hpp"
 
 namespace py = pybind11;

@@ -1,5 +1,5 @@
 // Python bindings of Parameters and the parameter table: the Python adapter of the library's one
-// parameter decoder (cartesian_impedance/parameter_tree.hpp), as the YAML loader and the ROS
+// parameter decoder (cartesian_impedance/core/parameter_tree.hpp), as the YAML loader and the ROS
 // parameter reader are. Python values become a ci::ParameterValue tree (to_value) that
 // ci::decode_parameters() / ci::assign_parameter() decode; values leave through
 // ci::encode_parameter(s) (to_python). Every message about a value's type, shape or range is the
@@ -12,9 +12,9 @@
 #include <string_view>
 #include <utility>
 
-#include "cartesian_impedance/config.hpp"
-#include "cartesian_impedance/error.hpp"
-#include "cartesian_impedance/parameter_tree.hpp"
+#include "cartesian_impedance/config/yaml.hpp"
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/core/parameter_tree.hpp"
 #include "conversions.hpp"
 #include "module.hpp"
 

@@ -4,7 +4,7 @@
 
 #include <pybind11/pybind11.h>
 
-#include "cartesian_impedance/parameters.hpp"
+#include "cartesian_impedance/core/parameters.hpp"
 #include "conversions.hpp"
 
 namespace cartesian_impedance::python {

@@ -17,11 +17,11 @@
 #include <utility>
 #include <vector>
 
-#include "cartesian_impedance/control_loop.hpp"
-#include "cartesian_impedance/error.hpp"
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/core/types.hpp"
+#include "cartesian_impedance/loop/control_loop.hpp"
 #include "cartesian_impedance/sim/closed_loop_runner.hpp"
 #include "cartesian_impedance/sim/simulation.hpp"
-#include "cartesian_impedance/types.hpp"
 #include "conversions.hpp"
 #include "module.hpp"
 #include "wrappers.hpp"

@@ -8,9 +8,9 @@
 #include <string>
 #include <utility>
 
-#include "cartesian_impedance/control_loop.hpp"
-#include "cartesian_impedance/parameters.hpp"
-#include "cartesian_impedance/robot_model.hpp"
+#include "cartesian_impedance/core/parameters.hpp"
+#include "cartesian_impedance/loop/control_loop.hpp"
+#include "cartesian_impedance/model/robot_model.hpp"
 
 namespace cartesian_impedance::python {
 

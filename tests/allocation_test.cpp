@@ -6,7 +6,7 @@
 #include <random>
 
 #include "cartesian_impedance/compat/cartesian_impedance_controller.hpp"
-#include "cartesian_impedance/controller.hpp"
+#include "cartesian_impedance/core/controller.hpp"
 #include "support/allocation_counter.hpp"
 #include "support/random_cases.hpp"
 

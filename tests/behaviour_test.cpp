@@ -9,8 +9,8 @@
 #include <algorithm>
 #include <random>
 
-#include "cartesian_impedance/config.hpp"
-#include "cartesian_impedance/error.hpp"
+#include "cartesian_impedance/config/yaml.hpp"
+#include "cartesian_impedance/core/error.hpp"
 #include "scenarios.hpp"
 
 namespace ci = cartesian_impedance;

@@ -16,8 +16,8 @@
 #include <vector>
 
 #include "cartesian_impedance/compat/cartesian_impedance_controller.hpp"
-#include "cartesian_impedance/controller.hpp"
-#include "cartesian_impedance/error.hpp"
+#include "cartesian_impedance/core/controller.hpp"
+#include "cartesian_impedance/core/error.hpp"
 #include "support/published_reference.hpp"
 
 namespace ci = cartesian_impedance;

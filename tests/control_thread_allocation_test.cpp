@@ -7,7 +7,7 @@
 #include <chrono>
 #include <thread>
 
-#include "cartesian_impedance/control_loop.hpp"
+#include "cartesian_impedance/loop/control_loop.hpp"
 #include "cartesian_impedance/runtime/control_thread.hpp"
 #include "support/allocation_counter.hpp"
 #include "support/robots.hpp"

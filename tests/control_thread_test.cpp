@@ -20,8 +20,8 @@
 #include <thread>
 #include <vector>
 
-#include "cartesian_impedance/control_loop.hpp"
-#include "cartesian_impedance/error.hpp"
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/loop/control_loop.hpp"
 #include "cartesian_impedance/runtime/control_thread.hpp"
 #include "cartesian_impedance/runtime/timing.hpp"
 #include "support/robots.hpp"

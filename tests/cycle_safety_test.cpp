@@ -8,8 +8,8 @@
 #include <string>
 #include <vector>
 
-#include "cartesian_impedance/controller.hpp"
-#include "cartesian_impedance/parameters.hpp"
+#include "cartesian_impedance/core/controller.hpp"
+#include "cartesian_impedance/core/parameters.hpp"
 #include "support/validation_harness.hpp"
 
 namespace ci = cartesian_impedance;

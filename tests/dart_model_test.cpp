@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "cartesian_impedance/robot_model.hpp"
+#include "cartesian_impedance/model/robot_model.hpp"
 
 namespace {
 

@@ -12,9 +12,9 @@
 #include <limits>
 #include <thread>
 
-#include "cartesian_impedance/control_loop.hpp"
-#include "cartesian_impedance/error.hpp"
-#include "cartesian_impedance/math.hpp"
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/core/math.hpp"
+#include "cartesian_impedance/loop/control_loop.hpp"
 #include "support/model_simulation.hpp"
 #include "support/robots.hpp"
 

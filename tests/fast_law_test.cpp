@@ -15,7 +15,8 @@
 #include <cmath>
 #include <random>
 
-#include "cartesian_impedance/math.hpp"
+#include "cartesian_impedance/core/math.hpp"
+#include "support/law_reference.hpp"
 #include "support/random_cases.hpp"
 
 namespace ci = cartesian_impedance;
@@ -209,12 +210,13 @@ TEST(InertiaShapedDamping, AgreesWithTheRouteThroughLambda) {
         const double lambda = trial % 3 == 0 ? 0.0 : 0.05;
         const bool end_effector = trial % 4 < 2;
         ci::Matrix6d inertia;
-        ASSERT_TRUE(ci::task_space_inertia(c.jacobian, c.mass, lambda, inertia));
+        ASSERT_TRUE(law_reference::task_space_inertia(c.jacobian, c.mass, lambda, inertia));
         if (end_effector) {
           const ci::Matrix6d rotation6 = ci::block_rotation(c.rotation);
           inertia = rotation6.transpose() * inertia * rotation6;
         }
-        const ci::Matrix6d expected = ci::inertia_shaped_damping(c.stiffness, c.zeta, inertia);
+        const ci::Matrix6d expected =
+            law_reference::inertia_shaped_damping(c.stiffness, c.zeta, inertia);
         ci::InertiaShapedDamping fast;
         ci::Matrix6d damping;
         for (int call = 0; call < 2; ++call) {  // the fallback, then Jacobi from its axes
@@ -238,7 +240,7 @@ TEST(InertiaShapedDamping, RefusesAnIndefiniteMass) {
   ci::Matrix6d damping;
   ci::Matrix6d inertia;
   c.mass(3, 3) = -1.0;
-  EXPECT_FALSE(ci::task_space_inertia(c.jacobian, c.mass, 0.05, inertia));
+  EXPECT_FALSE(law_reference::task_space_inertia(c.jacobian, c.mass, 0.05, inertia));
   EXPECT_FALSE(fast.compute(c.jacobian, c.mass, 0.05, nullptr, c.stiffness, c.zeta, damping));
   c.mass(3, 3) = std::nan("");
   EXPECT_FALSE(fast.compute(c.jacobian, c.mass, 0.05, nullptr, c.stiffness, c.zeta, damping));

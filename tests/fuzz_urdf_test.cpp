@@ -16,8 +16,8 @@
 #include <typeinfo>
 #include <vector>
 
-#include "cartesian_impedance/error.hpp"
-#include "cartesian_impedance/robot_model.hpp"
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/model/robot_model.hpp"
 #include "support/mutator.hpp"
 
 namespace ci = cartesian_impedance;

@@ -13,9 +13,9 @@
 #include <typeinfo>
 #include <vector>
 
-#include "cartesian_impedance/config.hpp"
-#include "cartesian_impedance/error.hpp"
-#include "cartesian_impedance/parameters.hpp"
+#include "cartesian_impedance/config/yaml.hpp"
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/core/parameters.hpp"
 #include "support/mutator.hpp"
 
 namespace ci = cartesian_impedance;

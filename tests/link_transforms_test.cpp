@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
-#include "cartesian_impedance/error.hpp"
-#include "cartesian_impedance/link_transforms.hpp"
-#include "cartesian_impedance/robot_model.hpp"
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/model/link_transforms.hpp"
+#include "cartesian_impedance/model/robot_model.hpp"
 #include "support/model_fixtures.hpp"
 
 namespace ci = cartesian_impedance;

@@ -4,7 +4,7 @@
 
 #include <gtest/gtest.h>
 
-#include "cartesian_impedance/control_loop.hpp"
+#include "cartesian_impedance/loop/control_loop.hpp"
 #include "support/allocation_counter.hpp"
 #include "support/model_simulation.hpp"
 

@@ -8,8 +8,8 @@
 #include <random>
 #include <thread>
 
-#include "cartesian_impedance/control_loop.hpp"
-#include "cartesian_impedance/error.hpp"
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/loop/control_loop.hpp"
 #include "support/model_simulation.hpp"
 #include "support/robots.hpp"
 

@@ -5,7 +5,8 @@
 #include <cmath>
 #include <random>
 
-#include "cartesian_impedance/math.hpp"
+#include "cartesian_impedance/core/math.hpp"
+#include "support/law_reference.hpp"
 #include "support/random_cases.hpp"
 
 namespace ci = cartesian_impedance;
@@ -240,7 +241,7 @@ TEST(NullspaceProjector, ExactProjectorAnnihilatesTaskSpace) {
       const ci::Vector6d task = jacobian * projected;
       EXPECT_LE(task.cwiseAbs().maxCoeff(), 1e-10) << "n = " << n;
       // Idempotent and symmetric (an orthogonal projector).
-      const ci::JointMatrix n_matrix = projector.matrix(jacobian, 0.0);
+      const ci::JointMatrix n_matrix = law_reference::nullspace_matrix(projector, jacobian, 0.0);
       EXPECT_LE((n_matrix * n_matrix - n_matrix).cwiseAbs().maxCoeff(), 1e-10);
       EXPECT_LE((n_matrix - n_matrix.transpose()).cwiseAbs().maxCoeff(), 1e-10);
       if (n == 6) {
@@ -265,7 +266,7 @@ TEST(NullspaceProjector, DampedProjectorMatchesFormula) {
           j * j.transpose() + lambda * lambda * Eigen::MatrixXd::Identity(6, 6);
       const Eigen::MatrixXd expected =
           Eigen::MatrixXd::Identity(n, n) - j.transpose() * gram.inverse() * j;
-      const Eigen::MatrixXd actual = projector.matrix(jacobian, lambda);
+      const Eigen::MatrixXd actual = law_reference::nullspace_matrix(projector, jacobian, lambda);
       EXPECT_LE((actual - expected).cwiseAbs().maxCoeff(), 1e-14 / (lambda * lambda) + 1e-11)
           << "n = " << n << ", lambda = " << lambda;
     }
@@ -279,7 +280,7 @@ TEST(NullspaceProjector, FewerThanSixJointsHaveNoNullspace) {
   ci::NullspaceProjector projector;
   for (int n = 1; n < 6; ++n) {
     const ci::Jacobian jacobian = random_jacobian(n, rng);
-    const ci::JointMatrix n_matrix = projector.matrix(jacobian, 0.0);
+    const ci::JointMatrix n_matrix = law_reference::nullspace_matrix(projector, jacobian, 0.0);
     EXPECT_LE(n_matrix.cwiseAbs().maxCoeff(), 1e-12) << "n = " << n;
   }
 }
@@ -299,7 +300,8 @@ TEST(NullspaceProjector, DynamicallyConsistentProjectionCausesNoTaskAcceleration
     ci::JointMatrix a(n, n);
     for (Eigen::Index i = 0; i < a.size(); ++i) a.data()[i] = uniform(rng, -1, 1);
     const ci::JointMatrix mass = a * a.transpose() + 0.5 * ci::JointMatrix::Identity(n, n);
-    const ci::JointMatrix projector_matrix = projector.matrix(jacobian, mass, 0.0);
+    const ci::JointMatrix projector_matrix =
+        law_reference::nullspace_matrix(projector, jacobian, mass, 0.0);
     const ci::JointVector tau_0 = random_joints(n, rng, 50.0);
     const ci::Vector6d acceleration =
         jacobian * mass.llt().solve(ci::JointVector(projector_matrix * tau_0));
@@ -318,7 +320,7 @@ TEST(Damping, InertiaShapedDampingIsCriticalPerMode) {
   stiffness.diagonal() << 500, 600, 700, 50, 60, 70;
   ci::Vector6d zeta;
   zeta << 1, 0.7, 0.5, 1, 1.2, 0.8;
-  const ci::Matrix6d damping = ci::inertia_shaped_damping(stiffness, zeta, inertia);
+  const ci::Matrix6d damping = law_reference::inertia_shaped_damping(stiffness, zeta, inertia);
   for (int i = 0; i < 6; ++i) {
     EXPECT_NEAR(damping(i, i), 2 * zeta[i] * std::sqrt(inertia(i, i) * stiffness(i, i)), 1e-9);
   }
@@ -328,7 +330,7 @@ TEST(Damping, InertiaShapedDampingIsCriticalPerMode) {
   for (int trial = 0; trial < 50; ++trial) {
     const ci::Matrix6d k = random_stiffness(rng);
     const ci::Matrix6d m = random_stiffness(rng, 0.5, 5.0);  // any SPD matrix serves as inertia
-    const ci::Matrix6d d = ci::inertia_shaped_damping(k, ci::Vector6d::Ones(), m);
+    const ci::Matrix6d d = law_reference::inertia_shaped_damping(k, ci::Vector6d::Ones(), m);
     const Eigen::LLT<ci::Matrix6d> llt(m);
     const ci::Matrix6d lower = llt.matrixL();
     const ci::Matrix6d l_inverse = lower.inverse();

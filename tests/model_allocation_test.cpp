@@ -9,7 +9,7 @@
 #include <random>
 #include <string>
 
-#include "cartesian_impedance/robot_model.hpp"
+#include "cartesian_impedance/model/robot_model.hpp"
 #include "support/allocation_counter.hpp"
 
 namespace ci = cartesian_impedance;

@@ -27,7 +27,7 @@
 #include <string>
 #include <vector>
 
-#include "cartesian_impedance/robot_model.hpp"
+#include "cartesian_impedance/model/robot_model.hpp"
 #include "support/model_fixtures.hpp"
 
 namespace ci = cartesian_impedance;

@@ -15,8 +15,8 @@
 #include <thread>
 #include <vector>
 
-#include "cartesian_impedance/error.hpp"
-#include "cartesian_impedance/robot_model.hpp"
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/model/robot_model.hpp"
 #include "support/model_fixtures.hpp"
 
 namespace ci = cartesian_impedance;

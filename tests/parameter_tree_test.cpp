@@ -13,10 +13,10 @@
 #include <utility>
 #include <vector>
 
-#include "cartesian_impedance/config.hpp"
-#include "cartesian_impedance/error.hpp"
-#include "cartesian_impedance/parameter_tree.hpp"
-#include "cartesian_impedance/parameters.hpp"
+#include "cartesian_impedance/config/yaml.hpp"
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/core/parameter_tree.hpp"
+#include "cartesian_impedance/core/parameters.hpp"
 
 namespace ci = cartesian_impedance;
 

@@ -11,9 +11,9 @@
 #include <utility>
 #include <vector>
 
-#include "cartesian_impedance/controller.hpp"
-#include "cartesian_impedance/error.hpp"
-#include "cartesian_impedance/parameters.hpp"
+#include "cartesian_impedance/core/controller.hpp"
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/core/parameters.hpp"
 #include "support/validation_harness.hpp"
 
 namespace ci = cartesian_impedance;

@@ -5,7 +5,7 @@
 
 #include <random>
 
-#include "cartesian_impedance/controller.hpp"
+#include "cartesian_impedance/core/controller.hpp"
 #include "support/random_cases.hpp"
 #include "support/reference_controller.hpp"
 

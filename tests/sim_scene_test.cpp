@@ -16,10 +16,10 @@
 #include <string>
 #include <vector>
 
-#include "cartesian_impedance/error.hpp"
-#include "cartesian_impedance/robot_model.hpp"
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/model/robot_model.hpp"
 #include "cartesian_impedance/sim/simulation.hpp"
-#include "sim/simulation_impl.hpp"
+#include "src/sim/simulation_impl.hpp"
 #include "support/sim_reference.hpp"
 
 namespace ci = cartesian_impedance;

@@ -27,10 +27,10 @@
 #include <string>
 #include <vector>
 
-#include "cartesian_impedance/error.hpp"
-#include "cartesian_impedance/robot_model.hpp"
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/model/robot_model.hpp"
 #include "cartesian_impedance/sim/simulation.hpp"
-#include "sim/simulation_impl.hpp"
+#include "src/sim/simulation_impl.hpp"
 #include "support/sim_reference.hpp"
 
 #ifdef CARTESIAN_IMPEDANCE_COUNT_ALLOCATIONS

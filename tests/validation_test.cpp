@@ -12,9 +12,9 @@
 #include <string>
 #include <vector>
 
-#include "cartesian_impedance/controller.hpp"
-#include "cartesian_impedance/error.hpp"
-#include "cartesian_impedance/parameters.hpp"
+#include "cartesian_impedance/core/controller.hpp"
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/core/parameters.hpp"
 #include "support/validation_harness.hpp"
 
 namespace ci = cartesian_impedance;
@@ -360,7 +360,7 @@ TEST(StartValidation, RejectsWronglySizedOrUnnormalisedState) {
     robot = good;
     robot.jacobian = ci::Jacobian::Ones(6, size);
     expect_rejected("jacobian of " + values, [&](auto& c) { c.start(robot); },
-                    {"robot.jacobian", values, "expected 7"});
+                    {"robot.jacobian", std::to_string(size) + " columns", "expected 7"});
     const Eigen::VectorXd tau_previous = Eigen::VectorXd::Zero(size);
     expect_rejected("tau_previous of " + values, [&](auto& c) { c.start(good, tau_previous); },
                     {"tau_previous", values, "expected 7"});

@@ -5,7 +5,7 @@
 
 #include <string_view>
 
-#include <cartesian_impedance/error.hpp>
+#include <cartesian_impedance/core/error.hpp>
 
 #include "node.hpp"
 

@@ -4,7 +4,7 @@
 #include <string>
 #include <type_traits>
 
-#include <cartesian_impedance/math.hpp>
+#include <cartesian_impedance/core/math.hpp>
 
 namespace cartesian_impedance_ros {
 

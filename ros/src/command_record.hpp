@@ -17,8 +17,8 @@
 #include <optional>
 #include <vector>
 
-#include <cartesian_impedance/command.hpp>
-#include <cartesian_impedance/parameters.hpp>
+#include <cartesian_impedance/core/command.hpp>
+#include <cartesian_impedance/core/parameters.hpp>
 
 #include <cartesian_impedance_ros/DampingConfig.h>
 #include <cartesian_impedance_ros/StiffnessConfig.h>

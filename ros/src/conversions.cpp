@@ -4,15 +4,15 @@
 #include <string>
 #include <string_view>
 
-#include <cartesian_impedance/error.hpp>
-#include <cartesian_impedance/runtime/state_message.hpp>
+#include <cartesian_impedance/core/error.hpp>
+#include <cartesian_impedance/node/state_message.hpp>
 
 namespace cartesian_impedance_ros {
 
 namespace ci = cartesian_impedance;
 
-ci::runtime::JointStateView joint_state_view(const sensor_msgs::JointState& message) {
-  ci::runtime::JointStateView view;
+ci::node::JointStateView joint_state_view(const sensor_msgs::JointState& message) {
+  ci::node::JointStateView view;
   view.names.assign(message.name.begin(), message.name.end());
   view.position = {message.position.data(), message.position.size()};
   view.velocity = {message.velocity.data(), message.velocity.size()};
@@ -29,7 +29,7 @@ ci::Pose pose_from_message(const geometry_msgs::Pose& message) {
 }
 
 void pose_to_message(const ci::Pose& pose, geometry_msgs::Pose& message) {
-  ci::runtime::fill_pose(pose, message);
+  ci::node::fill_pose(pose, message);
 }
 
 ci::Vector6d vector_from_wrench(const geometry_msgs::Wrench& message) {
@@ -40,7 +40,7 @@ ci::Vector6d vector_from_wrench(const geometry_msgs::Wrench& message) {
 }
 
 void vector_to_wrench(const ci::Vector6d& vector, geometry_msgs::Wrench& message) {
-  ci::runtime::fill_wrench(vector, message);
+  ci::node::fill_wrench(vector, message);
 }
 
 Eigen::Isometry3d isometry_from_transform(const geometry_msgs::Transform& message) {
@@ -112,7 +112,7 @@ ci::JointTrajectory trajectory_from_message(const trajectory_msgs::JointTrajecto
 
 namespace {
 
-// How runtime::fill_state_message() writes ROS 1's strings and arrays.
+// How node::fill_state_message() writes ROS 1's strings and arrays.
 struct Ros1Fields {
   void text(std::string& field, std::string_view value) {
     field.assign(value.data(), value.size());
@@ -132,11 +132,11 @@ struct Ros1Fields {
 void fill_state_message(const ci::LoopState& state, const std::vector<std::string>& joint_names,
                         const JointSample* measured, ControllerState& message) {
   Ros1Fields fields;
-  ci::runtime::fill_state_message(state, joint_names, measured, message, fields);
+  ci::node::fill_state_message(state, joint_names, measured, message, fields);
 }
 
 void fill_timing(const ci::runtime::ControlThreadStatistics& statistics, ControllerState& message) {
-  ci::runtime::fill_timing(statistics, message);
+  ci::node::fill_timing(statistics, message);
 }
 
 }  // namespace cartesian_impedance_ros

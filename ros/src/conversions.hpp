@@ -14,12 +14,12 @@
 #include <string>
 #include <vector>
 
-#include <cartesian_impedance/control_loop.hpp>
+#include <cartesian_impedance/core/trajectory.hpp>
+#include <cartesian_impedance/core/types.hpp>
+#include <cartesian_impedance/loop/control_loop.hpp>
+#include <cartesian_impedance/node/joint_states.hpp>
 #include <cartesian_impedance/runtime/control_thread.hpp>
-#include <cartesian_impedance/runtime/joint_states.hpp>
 #include <cartesian_impedance/runtime/robot_io.hpp>
-#include <cartesian_impedance/trajectory.hpp>
-#include <cartesian_impedance/types.hpp>
 
 #include <cartesian_impedance_ros/ControllerState.h>
 
@@ -32,8 +32,7 @@ using JointSample = cartesian_impedance::runtime::JointMeasurement;
 
 /// A sensor_msgs/JointState as the view the runtime's JointStateMapper maps into the model's
 /// joint order (runtime/joint_states.hpp). The view points into `message`: keep it alive.
-cartesian_impedance::runtime::JointStateView joint_state_view(
-    const sensor_msgs::JointState& message);
+cartesian_impedance::node::JointStateView joint_state_view(const sensor_msgs::JointState& message);
 
 /// Position and quaternion (x, y, z, w), not normalised: the library checks the unit norm.
 cartesian_impedance::Pose pose_from_message(const geometry_msgs::Pose& message);

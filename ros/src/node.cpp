@@ -8,7 +8,8 @@
 #include <cstring>
 #include <string>
 
-#include <cartesian_impedance/error.hpp>
+#include <cartesian_impedance/core/error.hpp>
+#include <cartesian_impedance/node/temporary_file.hpp>
 
 #include "node.hpp"
 
@@ -36,7 +37,7 @@ CartesianImpedanceNode::CartesianImpedanceNode(const ros::NodeHandle& node,
                     "robot_description\" textfile=\"models/panda/panda.urdf\"/>");
   }
   model_.emplace(ci::RobotModel::from_urdf_string(urdf, settings_.base_link, settings_.tip_link));
-  ci::runtime::check_start_q(configuration_, *model_);
+  ci::node::check_start_q(configuration_, *model_);
   // Callbacks wait up to 0.1 s for room in a full inbox (the cycle drains 8 commands per step),
   // so a burst of commands is delayed rather than lost; only a loop that stopped stepping makes
   // a callback give up, with a warning naming the command.
@@ -54,10 +55,10 @@ CartesianImpedanceNode::CartesianImpedanceNode(const ros::NodeHandle& node,
     options.gravity_compensation = !configuration_.parameters.dynamics.gravity_compensation;
     options.start_q = Eigen::Map<const Eigen::VectorXd>(
         settings_.start_q.data(), static_cast<Eigen::Index>(settings_.start_q.size()));
-    options.engine = ci::sim::engine_from_name(to_string(settings_.engine));
+    options.engine = settings_.engine;
     if (settings_.mjcf_path.empty()) {
       // Without an MJCF the engine simulates the URDF itself; its loaders read files.
-      const ci::runtime::TemporaryFile file(urdf, ".urdf");
+      const ci::node::TemporaryFile file(urdf, ".urdf");
       simulation_.emplace(ci::sim::Simulation::from_urdf_file(file.path(), options));
     } else {
       simulation_.emplace(ci::sim::Simulation::from_mjcf_file(settings_.mjcf_path, options));
@@ -65,7 +66,7 @@ CartesianImpedanceNode::CartesianImpedanceNode(const ros::NodeHandle& node,
     runner_.emplace(*simulation_, *loop_);
     joint_state_publisher_ = node_.advertise<sensor_msgs::JointState>("joint_states", 10);
   } else {
-    joint_mapper_ = std::make_unique<ci::runtime::JointStateMapper>(model_->joint_names());
+    joint_mapper_ = std::make_unique<ci::node::JointStateMapper>(model_->joint_names());
     joint_samples_.emplace(n);
     torques_.emplace(n);
     effort_publisher_ = node_.advertise<std_msgs::Float64MultiArray>("effort_command", 10);
@@ -96,8 +97,9 @@ CartesianImpedanceNode::CartesianImpedanceNode(const ros::NodeHandle& node,
       "%s: %s -> %s, %d joints (%s), mode %s%s%s, %g Hz control, %g Hz state%s",
       private_node_.getNamespace().c_str(), settings_.base_link.c_str(), settings_.tip_link.c_str(),
       n, joints.c_str(), to_string(settings_.mode),
-      settings_.mode == Mode::sim ? (std::string(", engine ") + to_string(settings_.engine)).c_str()
-                                  : "",
+      settings_.mode == Mode::sim
+          ? (std::string(", engine ") + ci::sim::engine_name(settings_.engine)).c_str()
+          : "",
       settings_.mode == Mode::sim && settings_.mjcf_path.empty() ? " (the URDF simulated)" : "",
       settings_.control_rate, settings_.publish_rate,
       links_ ? (", tf of " + std::to_string(links_->joints().size()) + " joints").c_str() : "");

@@ -37,11 +37,11 @@
 #include <thread>
 #include <vector>
 
-#include <cartesian_impedance/control_loop.hpp>
-#include <cartesian_impedance/link_transforms.hpp>
-#include <cartesian_impedance/robot_model.hpp>
+#include <cartesian_impedance/loop/control_loop.hpp>
+#include <cartesian_impedance/model/link_transforms.hpp>
+#include <cartesian_impedance/model/robot_model.hpp>
+#include <cartesian_impedance/node/joint_states.hpp>
 #include <cartesian_impedance/runtime/control_thread.hpp>
-#include <cartesian_impedance/runtime/joint_states.hpp>
 #include <cartesian_impedance/runtime/robot_io.hpp>
 #include <cartesian_impedance/sim/closed_loop_runner.hpp>
 #include <cartesian_impedance/sim/simulation.hpp>
@@ -148,9 +148,9 @@ class CartesianImpedanceNode {
   std::optional<cartesian_impedance::RobotModel> model_;
   std::optional<cartesian_impedance::LinkTransforms> links_;  // set if ~publish_tf
   std::unique_ptr<cartesian_impedance::ControlLoop> loop_;
-  std::optional<cartesian_impedance::sim::Simulation> simulation_;                // sim mode
-  std::optional<cartesian_impedance::sim::ClosedLoopRunner> runner_;              // sim mode
-  std::unique_ptr<cartesian_impedance::runtime::JointStateMapper> joint_mapper_;  // topics mode
+  std::optional<cartesian_impedance::sim::Simulation> simulation_;             // sim mode
+  std::optional<cartesian_impedance::sim::ClosedLoopRunner> runner_;           // sim mode
+  std::unique_ptr<cartesian_impedance::node::JointStateMapper> joint_mapper_;  // topics mode
   // Hand-off to and from the control thread (topics mode; lock-free, no allocation after
   // construction): joint_states in (one writer: the joint_states callback), torques out.
   std::optional<cartesian_impedance::runtime::MeasurementBuffer> joint_samples_;

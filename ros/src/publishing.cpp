@@ -8,7 +8,7 @@
 #include <std_msgs/Float64MultiArray.h>
 #include <tf2_msgs/TFMessage.h>
 
-#include <cartesian_impedance/runtime/status_reports.hpp>
+#include <cartesian_impedance/node/status_reports.hpp>
 
 #include "node.hpp"
 
@@ -30,7 +30,7 @@ void prepare_array(std_msgs::Float64MultiArray& message, int size) {
 // One TransformStamped per joint of `links` for which `pick(joint)` holds, frames prefixed.
 template <typename Pick>
 tf2_msgs::TFMessage transform_message(const ci::LinkTransforms& links,
-                                      const ci::runtime::NodeSettings& settings, Pick pick) {
+                                      const ci::node::NodeSettings& settings, Pick pick) {
   tf2_msgs::TFMessage message;
   for (const ci::LinkJoint& joint : links.joints()) {
     if (!pick(joint)) continue;
@@ -82,10 +82,10 @@ void CartesianImpedanceNode::publisher_thread() {
   prepare_array(torque_message, model_->num_joints());
   sensor_msgs::JointState joint_message;
   joint_message.name = model_->joint_names();
-  ci::runtime::run_publisher(
-      ci::runtime::publisher_options(settings_), stop_, *control_thread_, *loop_,
+  ci::node::run_publisher(
+      ci::node::publisher_options(settings_), stop_, *control_thread_, *loop_,
       joint_samples_ ? &*joint_samples_ : nullptr,
-      [&](const ci::runtime::PublisherSample& sample) {
+      [&](const ci::node::PublisherSample& sample) {
         const ci::LoopState& state = sample.state;
         const ros::Time stamp = ros::Time::now();
         fill_state_message(state, model_->joint_names(), sample.measured, state_message);
@@ -108,8 +108,8 @@ void CartesianImpedanceNode::publisher_thread() {
           tf_publisher_.publish(tf_message);
         }
       },
-      [](const ci::runtime::ReportLine& line) {
-        if (line.level == ci::runtime::ReportLine::Level::info) {
+      [](const ci::node::ReportLine& line) {
+        if (line.level == ci::node::ReportLine::Level::info) {
           ROS_INFO("%s", line.text.c_str());
         } else {
           ROS_WARN("%s", line.text.c_str());

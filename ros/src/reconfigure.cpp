@@ -5,7 +5,7 @@
 
 #include <algorithm>
 
-#include <cartesian_impedance/math.hpp>
+#include <cartesian_impedance/core/math.hpp>
 
 #include "node.hpp"
 

@@ -6,8 +6,8 @@
 #include <utility>
 #include <vector>
 
-#include <cartesian_impedance/error.hpp>
-#include <cartesian_impedance/parameter_tree.hpp>
+#include <cartesian_impedance/core/error.hpp>
+#include <cartesian_impedance/core/parameter_tree.hpp>
 
 // The ROS 1 adapter of the shared node configuration (runtime/node_settings.hpp): XmlRpc values
 // -> ParameterValue, located by their ROS names, then decode_node_configuration(). Only
@@ -79,7 +79,7 @@ class Converter {
 // Whether the node reads the top-level key `key`: a setting or a parameter group (nested, or
 // dotted as "stiffness.translation").
 bool is_read(const std::string& key) {
-  const auto& settings = ci::runtime::node_setting_names();
+  const auto& settings = ci::node::node_setting_names();
   return key == kTfTimeout.name ||
          std::find(settings.begin(), settings.end(), key) != settings.end() ||
          ci::is_parameter_group(key.substr(0, key.find('.')));
@@ -106,7 +106,7 @@ NodeConfiguration configuration_from_xmlrpc(XmlRpcValue& private_namespace,
   std::vector<std::string> shell_keys(std::begin(kReconfigureNamespaces),
                                       std::end(kReconfigureNamespaces));
   shell_keys.emplace_back(kTfTimeout.name);
-  NodeConfiguration configuration{ci::runtime::decode_node_configuration(
+  NodeConfiguration configuration{ci::node::decode_node_configuration(
       tree, [&](std::string_view key) { return converter.location(std::string(key)); }, shell_keys,
       "ROS parameters in " + namespace_name)};
   for (std::string& key : configuration.unknown_keys) key = converter.full(key);

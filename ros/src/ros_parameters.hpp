@@ -13,19 +13,19 @@
 
 #include <string>
 
-#include <cartesian_impedance/runtime/node_settings.hpp>
+#include <cartesian_impedance/node/node_settings.hpp>
 
 namespace cartesian_impedance_ros {
 
-using cartesian_impedance::runtime::Mode;
-using cartesian_impedance::runtime::NodeSettings;
-using cartesian_impedance::runtime::tf_frame;
-using cartesian_impedance::runtime::to_string;
+using cartesian_impedance::node::Mode;
+using cartesian_impedance::node::NodeSettings;
+using cartesian_impedance::node::tf_frame;
+using cartesian_impedance::node::to_string;
 
 /// The shells' common configuration (settings, controller parameters, unknown keys) plus what
 /// only this node reads. unknown_keys are full ROS names ("/arm/controller/stifness"); the
 /// node's dynamic_reconfigure namespaces are not among them.
-struct NodeConfiguration : cartesian_impedance::runtime::NodeConfiguration {
+struct NodeConfiguration : cartesian_impedance::node::NodeConfiguration {
   double tf_timeout = 0.1;  ///< [s] longest wait for a tf2 transform in a callback
 };
 

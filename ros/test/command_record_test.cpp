@@ -7,9 +7,9 @@
 #include <variant>
 #include <vector>
 
-#include <cartesian_impedance/command.hpp>
-#include <cartesian_impedance/config.hpp>
-#include <cartesian_impedance/error.hpp>
+#include <cartesian_impedance/config/yaml.hpp>
+#include <cartesian_impedance/core/command.hpp>
+#include <cartesian_impedance/core/error.hpp>
 
 #include "command_record.hpp"
 #include "conversions.hpp"

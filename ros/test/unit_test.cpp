@@ -16,10 +16,10 @@
 #include <tuple>
 #include <vector>
 
-#include <cartesian_impedance/config.hpp>
-#include <cartesian_impedance/control_loop.hpp>
-#include <cartesian_impedance/error.hpp>
-#include <cartesian_impedance/parameter_tree.hpp>
+#include <cartesian_impedance/config/yaml.hpp>
+#include <cartesian_impedance/core/error.hpp>
+#include <cartesian_impedance/core/parameter_tree.hpp>
+#include <cartesian_impedance/loop/control_loop.hpp>
 
 #include "conversions.hpp"
 #include "ros_parameters.hpp"
@@ -296,7 +296,7 @@ TEST(RosParameters, ErrorsNameParameterValueAndRange) {
 TEST(RosParameters, EngineIsASimModeSettingForTheUrdf) {
   XmlRpcValue root = required_settings();
   EXPECT_EQ(cir::configuration_from_xmlrpc(root, kNamespace).settings.engine,
-            ci::runtime::SimEngine::mujoco);
+            ci::sim::Engine::mujoco);
   root["engine"] = std::string("mujoco");
   EXPECT_EQ(error_of(root), "");
   root["engine"] = std::string("dart");  // DART simulates the URDF: not with an MJCF
@@ -306,8 +306,8 @@ TEST(RosParameters, EngineIsASimModeSettingForTheUrdf) {
                                 "or use engine 'mujoco'");
   root["mjcf_path"] = std::string("");
   const cir::NodeSettings settings = cir::configuration_from_xmlrpc(root, kNamespace).settings;
-  EXPECT_EQ(settings.engine, ci::runtime::SimEngine::dart);
-  EXPECT_STREQ(ci::runtime::to_string(settings.engine), "dart");
+  EXPECT_EQ(settings.engine, ci::sim::Engine::dart);
+  EXPECT_STREQ(ci::sim::engine_name(settings.engine), "dart");
   root["engine"] = std::string("bullet");
   EXPECT_EQ(error_of(root),
             "ROS parameter " + kNamespace +
@@ -423,7 +423,7 @@ TEST(RosParameters, PerJointValuesAreCheckedAgainstTheModel) {
 // ---- joint states ---------------------------------------------------------------------------
 
 TEST(JointStateMapper, ReordersAndIgnoresOtherJoints) {
-  const ci::runtime::JointStateMapper mapper({"a", "b", "c"});
+  const ci::node::JointStateMapper mapper({"a", "b", "c"});
   sensor_msgs::JointState message;
   message.name = {"finger", "c", "a", "b"};
   message.position = {9, 3, 1, 2};
@@ -447,7 +447,7 @@ TEST(JointStateMapper, ReordersAndIgnoresOtherJoints) {
 }
 
 TEST(JointStateMapper, RejectsIncompleteMessages) {
-  const ci::runtime::JointStateMapper mapper({"a", "b", "c"});
+  const ci::node::JointStateMapper mapper({"a", "b", "c"});
   cir::JointSample sample;
   sensor_msgs::JointState message;
   message.name = {"a", "b"};
@@ -471,7 +471,7 @@ TEST(JointStateMapper, RejectsIncompleteMessages) {
 }
 
 TEST(JointStateMapper, PassesNonFiniteValuesOnToTheController) {
-  const ci::runtime::JointStateMapper mapper({"a"});
+  const ci::node::JointStateMapper mapper({"a"});
   sensor_msgs::JointState message;
   message.name = {"a"};
   message.position = {std::numeric_limits<double>::quiet_NaN()};
@@ -675,7 +675,7 @@ TEST(Fuzz, HostileMessagesAreAcceptedOrRejectedWithErrorAndTheCycleStaysSafe) {
   const ci::JointVector ready =
       (ci::JointVector(7) << 0, -M_PI / 4, 0, -3 * M_PI / 4, 0, M_PI / 2, M_PI / 4).finished();
   loop.start(ready, ci::JointVector::Zero(7));
-  const ci::runtime::JointStateMapper mapper(model.joint_names());
+  const ci::node::JointStateMapper mapper(model.joint_names());
   std::mt19937 rng(20261123);
   int accepted = 0, rejected = 0;
   const int kMessages = 4000;

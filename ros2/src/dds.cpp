@@ -4,7 +4,7 @@
 #include <cstdlib>
 #include <cstring>
 
-#include <cartesian_impedance/error.hpp>
+#include <cartesian_impedance/core/error.hpp>
 
 namespace cartesian_impedance_ros2 {
 

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include <cartesian_impedance/error.hpp>
+#include <cartesian_impedance/core/error.hpp>
 
 #include "arguments.hpp"
 #include "log.hpp"

@@ -6,8 +6,8 @@
 #include <string_view>
 #include <unordered_map>
 
-#include <cartesian_impedance/error.hpp>
-#include <cartesian_impedance/runtime/state_message.hpp>
+#include <cartesian_impedance/core/error.hpp>
+#include <cartesian_impedance/node/state_message.hpp>
 
 namespace cartesian_impedance_ros2 {
 
@@ -131,8 +131,8 @@ ci::JointTrajectory trajectory_from_message(const JointTrajectoryMessage& messag
   return trajectory;
 }
 
-ci::runtime::JointStateView joint_state_view(const JointStateMessage& message) {
-  ci::runtime::JointStateView view;
+ci::node::JointStateView joint_state_view(const JointStateMessage& message) {
+  ci::node::JointStateView view;
   view.names.reserve(message.name._length);
   for (std::uint32_t i = 0; i < message.name._length; ++i) {
     view.names.push_back(text(message.name._buffer[i]));
@@ -187,7 +187,7 @@ struct OutgoingMessages::Storage {
     field._length = field._maximum = static_cast<std::uint32_t>(name_pointers.size());
     field._release = false;
   }
-  // The interface runtime::fill_state_message() writes through.
+  // The interface node::fill_state_message() writes through.
   void names(dds_sequence_string& field, const std::vector<std::string>&) { names_of(field); }
 };
 
@@ -214,15 +214,15 @@ void OutgoingMessages::fill(const ci::LoopState& state,
   // This project's full state.
   full_.header.stamp = stamp;
   out.text(full_.header.frame_id, base_frame_);
-  ci::runtime::fill_state_message(state, joint_names_, measured, full_, out);
-  ci::runtime::fill_timing(timing, full_);
+  ci::node::fill_state_message(state, joint_names_, measured, full_, out);
+  ci::node::fill_timing(timing, full_);
   full_.joint_state.header.stamp = stamp;
   out.text(full_.joint_state.header.frame_id, "");
 
   // The published controller's state, field for field.
   published_.header = full_.header;
-  ci::runtime::fill_pose(controller.pose, published_.current_pose);
-  ci::runtime::fill_pose(controller.filtered.pose, published_.reference_pose);
+  ci::node::fill_pose(controller.pose, published_.current_pose);
+  ci::node::fill_pose(controller.filtered.pose, published_.reference_pose);
   // Its pose error: the translation, and the rotation as a quaternion.
   const Eigen::Vector3d rotation = controller.pose_error.tail<3>();
   const double angle = rotation.norm();
@@ -232,12 +232,11 @@ void OutgoingMessages::fill(const ci::LoopState& state,
   ci::Pose error;
   error.position = controller.pose_error.head<3>();
   error.orientation = error_rotation;
-  ci::runtime::fill_pose(error, published_.pose_error);
+  ci::node::fill_pose(error, published_.pose_error);
   published_.joint_state = full_.joint_state;
   out.array(published_.commanded_torques, controller.tau);
-  ci::runtime::fill_wrench(controller.filtered.stiffness.diagonal(),
-                           published_.cartesian_stiffness);
-  ci::runtime::fill_wrench(controller.damping.diagonal(), published_.cartesian_damping);
+  ci::node::fill_wrench(controller.filtered.stiffness.diagonal(), published_.cartesian_stiffness);
+  ci::node::fill_wrench(controller.damping.diagonal(), published_.cartesian_damping);
   // One number for the whole nullspace, as the published controller has it: the first joint's.
   const double nullspace_stiffness = controller.filtered.nullspace_stiffness.size() > 0
                                          ? controller.filtered.nullspace_stiffness[0]
@@ -246,7 +245,7 @@ void OutgoingMessages::fill(const ci::LoopState& state,
   published_.nullspace_damping = 2.0 * controller.filtered.nullspace_damping_ratio *
                                  std::sqrt(std::max(0.0, nullspace_stiffness));
   out.array(published_.nullspace_config, controller.filtered.nullspace_q);
-  ci::runtime::fill_wrench(controller.wrench_base, published_.commanded_wrench);
+  ci::node::fill_wrench(controller.wrench_base, published_.commanded_wrench);
   published_.cartesian_velocity = 0.0;
   if (state.q.size() == static_cast<Eigen::Index>(joint_names_.size()) &&
       workspace_.compute(state.q, state.dq, kinematics_)) {

@@ -12,13 +12,13 @@
 #include <string_view>
 #include <vector>
 
-#include <cartesian_impedance/command.hpp>
-#include <cartesian_impedance/control_loop.hpp>
-#include <cartesian_impedance/link_transforms.hpp>
-#include <cartesian_impedance/robot_model.hpp>
+#include <cartesian_impedance/core/command.hpp>
+#include <cartesian_impedance/core/trajectory.hpp>
+#include <cartesian_impedance/loop/control_loop.hpp>
+#include <cartesian_impedance/model/link_transforms.hpp>
+#include <cartesian_impedance/model/robot_model.hpp>
+#include <cartesian_impedance/node/joint_states.hpp>
 #include <cartesian_impedance/runtime/control_thread.hpp>
-#include <cartesian_impedance/runtime/joint_states.hpp>
-#include <cartesian_impedance/trajectory.hpp>
 
 #include "ros2_messages.h"
 
@@ -76,8 +76,8 @@ std::vector<cartesian_impedance::Command> config_from_message(const ControllerCo
 /// Velocities are used if every point has them.
 /// @throws cartesian_impedance::Error if some points have velocities and others not.
 cartesian_impedance::JointTrajectory trajectory_from_message(const JointTrajectoryMessage& message);
-/// Views of a JointState's arrays for runtime::JointStateMapper.
-cartesian_impedance::runtime::JointStateView joint_state_view(const JointStateMessage& message);
+/// Views of a JointState's arrays for node::JointStateMapper.
+cartesian_impedance::node::JointStateView joint_state_view(const JointStateMessage& message);
 
 /// builtin_interfaces/Time of a wall-clock instant (ROS 2 stamps are system time).
 builtin_interfaces_msg_dds__Time_ stamp_now();

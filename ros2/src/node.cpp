@@ -7,8 +7,9 @@
 #include <map>
 #include <vector>
 
-#include <cartesian_impedance/error.hpp>
-#include <cartesian_impedance/runtime/status_reports.hpp>
+#include <cartesian_impedance/core/error.hpp>
+#include <cartesian_impedance/node/status_reports.hpp>
+#include <cartesian_impedance/node/temporary_file.hpp>
 
 #include "log.hpp"
 
@@ -16,13 +17,12 @@ namespace cartesian_impedance_ros2 {
 
 namespace ci = cartesian_impedance;
 using Clock = std::chrono::steady_clock;
-using ci::runtime::Mode;
+using ci::node::Mode;
 
 namespace {
 
-void log_line(const ci::runtime::ReportLine& line) {
-  log(line.level == ci::runtime::ReportLine::Level::info ? LogLevel::info : LogLevel::warn,
-      line.text);
+void log_line(const ci::node::ReportLine& line) {
+  log(line.level == ci::node::ReportLine::Level::info ? LogLevel::info : LogLevel::warn, line.text);
 }
 
 // The engines' URDF loaders read a file: urdf_path itself, or robot_description's text in a
@@ -32,7 +32,7 @@ ci::sim::Simulation simulate_urdf(const Ros2Configuration& configuration,
   if (configuration.urdf_source != "robot_description") {
     return ci::sim::Simulation::from_urdf_file(configuration.urdf_source, options);
   }
-  const ci::runtime::TemporaryFile file(configuration.urdf, ".urdf");
+  const ci::node::TemporaryFile file(configuration.urdf, ".urdf");
   return ci::sim::Simulation::from_urdf_file(file.path(), options);
 }
 
@@ -46,7 +46,7 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
   frames_ = {settings_.base_link, settings_.tip_link, settings_.tf_prefix};
   model_.emplace(ci::RobotModel::from_urdf_string(configuration_.urdf, settings_.base_link,
                                                   settings_.tip_link));
-  ci::runtime::check_start_q(configuration_.common, *model_);
+  ci::node::check_start_q(configuration_.common, *model_);
   // The command thread waits up to 0.1 s for room in a full inbox (the cycle drains 8 commands
   // per step), so a burst is delayed rather than lost.
   ci::LoopCapacity capacity;
@@ -80,7 +80,7 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
     options.gravity_compensation = !configuration_.common.parameters.dynamics.gravity_compensation;
     options.start_q = Eigen::Map<const Eigen::VectorXd>(
         settings_.start_q.data(), static_cast<Eigen::Index>(settings_.start_q.size()));
-    options.engine = ci::sim::engine_from_name(to_string(settings_.engine));
+    options.engine = settings_.engine;
     // Without an MJCF, the engine simulates the URDF itself.
     simulation_.emplace(settings_.mjcf_path.empty()
                             ? simulate_urdf(configuration_, options)
@@ -145,8 +145,9 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
   log(LogLevel::info,
       arguments_.fully_qualified_name() + ": " + settings_.base_link + " -> " + settings_.tip_link +
           ", " + std::to_string(n) + " joints (" + joints + "), mode " + to_string(settings_.mode) +
-          (settings_.mode == Mode::sim ? std::string(", engine ") + to_string(settings_.engine)
-                                       : std::string()) +
+          (settings_.mode == Mode::sim
+               ? std::string(", engine ") + ci::sim::engine_name(settings_.engine)
+               : std::string()) +
           ", " + ci::format_number(settings_.control_rate) + " Hz control, " +
           ci::format_number(settings_.publish_rate) + " Hz state" +
           (settings_.mode == Mode::sim && settings_.mjcf_path.empty() ? " (the URDF simulated)"
@@ -320,10 +321,10 @@ void Node::publisher_thread() {
   std::optional<TransformArray> moving;
   std::vector<Eigen::Isometry3d> transforms;
   if (links_) moving.emplace(*links_, settings_.tf_prefix, true);
-  ci::runtime::run_publisher(
-      ci::runtime::publisher_options(settings_), stop_, *control_thread_, *loop_,
+  ci::node::run_publisher(
+      ci::node::publisher_options(settings_), stop_, *control_thread_, *loop_,
       joint_samples_ ? &*joint_samples_ : nullptr,
-      [&](const ci::runtime::PublisherSample& sample) {
+      [&](const ci::node::PublisherSample& sample) {
         messages.fill(sample.state, sample.timing.statistics(), sample.measured);
         state_writer_.write(messages.published_state());
         full_state_writer_.write(messages.full_state());

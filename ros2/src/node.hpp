@@ -23,10 +23,10 @@
 #include <string>
 #include <thread>
 
-#include <cartesian_impedance/control_loop.hpp>
-#include <cartesian_impedance/robot_model.hpp>
+#include <cartesian_impedance/loop/control_loop.hpp>
+#include <cartesian_impedance/model/robot_model.hpp>
+#include <cartesian_impedance/node/joint_states.hpp>
 #include <cartesian_impedance/runtime/control_thread.hpp>
-#include <cartesian_impedance/runtime/joint_states.hpp>
 #include <cartesian_impedance/runtime/robot_io.hpp>
 #include <cartesian_impedance/sim/closed_loop_runner.hpp>
 #include <cartesian_impedance/sim/simulation.hpp>
@@ -66,15 +66,15 @@ class Node {
 
   RosArguments arguments_;
   Ros2Configuration configuration_;
-  const cartesian_impedance::runtime::NodeSettings& settings_ = configuration_.common.settings;
+  const cartesian_impedance::node::NodeSettings& settings_ = configuration_.common.settings;
   Frames frames_;
 
   std::optional<cartesian_impedance::RobotModel> model_;
   std::optional<cartesian_impedance::LinkTransforms> links_;  // set if publish_tf
   std::unique_ptr<cartesian_impedance::ControlLoop> loop_;
-  std::optional<cartesian_impedance::sim::Simulation> simulation_;              // sim mode
-  std::optional<cartesian_impedance::sim::ClosedLoopRunner> runner_;            // sim mode
-  std::optional<cartesian_impedance::runtime::JointStateMapper> joint_mapper_;  // topics mode
+  std::optional<cartesian_impedance::sim::Simulation> simulation_;           // sim mode
+  std::optional<cartesian_impedance::sim::ClosedLoopRunner> runner_;         // sim mode
+  std::optional<cartesian_impedance::node::JointStateMapper> joint_mapper_;  // topics mode
   std::optional<cartesian_impedance::runtime::MeasurementBuffer> joint_samples_;
   std::optional<cartesian_impedance::runtime::TorqueOutbox> torques_;
   std::optional<cartesian_impedance::runtime::ControlThread> control_thread_;

@@ -5,9 +5,9 @@
 #include <sstream>
 #include <utility>
 
-#include <cartesian_impedance/config.hpp>
-#include <cartesian_impedance/error.hpp>
-#include <cartesian_impedance/parameter_tree.hpp>
+#include <cartesian_impedance/config/yaml.hpp>
+#include <cartesian_impedance/core/error.hpp>
+#include <cartesian_impedance/core/parameter_tree.hpp>
 
 namespace cartesian_impedance_ros2 {
 namespace {
@@ -190,7 +190,7 @@ Ros2Configuration read_configuration(const RosArguments& arguments) {
   }
 
   const ParameterValue tree = ParameterValue::map(std::move(common));
-  configuration.common = ci::runtime::decode_node_configuration(
+  configuration.common = ci::node::decode_node_configuration(
       tree, [&](std::string_view key) { return flat.location_of(key, node); }, kShellKeys,
       "ROS 2 parameters of " + node);
 

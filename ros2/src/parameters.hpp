@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include <cartesian_impedance/runtime/node_settings.hpp>
+#include <cartesian_impedance/node/node_settings.hpp>
 
 #include "arguments.hpp"
 #include "dds.hpp"
@@ -22,7 +22,7 @@ namespace cartesian_impedance_ros2 {
 
 /// The ROS 2 node's configuration.
 struct Ros2Configuration {
-  cartesian_impedance::runtime::NodeConfiguration common;
+  cartesian_impedance::node::NodeConfiguration common;
   std::string urdf;         ///< the robot's URDF (from urdf_path or robot_description)
   std::string urdf_source;  ///< where it came from, for messages
   /// topics mode: the ros2_control JointGroupEffortController whose `commands` topic takes the

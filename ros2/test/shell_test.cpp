@@ -7,8 +7,9 @@
 #include <iterator>
 #include <string>
 
-#include <cartesian_impedance/error.hpp>
-#include <cartesian_impedance/parameter_tree.hpp>
+#include <cartesian_impedance/core/error.hpp>
+#include <cartesian_impedance/core/parameter_tree.hpp>
+#include <cartesian_impedance/node/temporary_file.hpp>
 
 #include "arguments.hpp"
 #include "messages.hpp"
@@ -85,7 +86,7 @@ TEST(Ros2Parameters, FilesMatchTheNodeAndLaterValuesWin) {
   const Ros2Configuration c = read_configuration(left);
   EXPECT_EQ(c.common.parameters.stiffness.translation, Eigen::Vector3d(100, 200, 300));
   EXPECT_EQ(c.common.parameters.stiffness.rotation, Eigen::Vector3d(1, 2, 3));
-  EXPECT_EQ(c.common.settings.mode, ci::runtime::Mode::topics);
+  EXPECT_EQ(c.common.settings.mode, ci::node::Mode::topics);
   EXPECT_NE(c.urdf.find("panda_joint7"), std::string::npos);
   // Another node's entry does not apply; /** does.
   const Ros2Configuration other = read_configuration(parse({"--ros-args", "--params-file", file}));
@@ -101,7 +102,7 @@ TEST(Ros2Parameters, ParametersFileLiesUnderAndPathsAreRelativeToTheFile) {
                                  "    parameters_file: ../../../config/panda.yaml\n"
                                  "    nullspace: {damping_ratio: 0.5}\n");
   const Ros2Configuration c = read_configuration(parse({"--ros-args", "--params-file", file}));
-  EXPECT_EQ(c.common.settings.mode, ci::runtime::Mode::sim);
+  EXPECT_EQ(c.common.settings.mode, ci::node::Mode::sim);
   EXPECT_NE(c.common.settings.mjcf_path.find("models/panda/panda.xml"), std::string::npos);
   EXPECT_EQ(c.common.parameters.nullspace.damping_ratio, 0.5);  // from the params file
   EXPECT_EQ(c.common.parameters.nullspace.stiffness[4], 5.0);   // from config/panda.yaml
@@ -158,13 +159,13 @@ TEST(Ros2Parameters, StartConfigurationAndTransformSettings) {
                                                    "-1.5708, -1.5708, 0]\n"
                                                    "    tf_prefix: arm/\n    publish_tf: false\n");
   const Ros2Configuration c = read_configuration(parse({"--ros-args", "--params-file", file}));
-  EXPECT_EQ(c.common.settings.mode, ci::runtime::Mode::sim);
+  EXPECT_EQ(c.common.settings.mode, ci::node::Mode::sim);
   EXPECT_TRUE(c.common.settings.mjcf_path.empty());  // the URDF is simulated
   EXPECT_EQ(c.common.settings.start_q,
             (std::vector<double>{3.1416, -1.5708, 1.5708, -1.5708, -1.5708, 0}));
   EXPECT_EQ(c.common.settings.tf_prefix, "arm/");
   EXPECT_FALSE(c.common.settings.publish_tf);
-  EXPECT_EQ(ci::runtime::tf_frame(c.common.settings, "tool0"), "arm/tool0");
+  EXPECT_EQ(ci::node::tf_frame(c.common.settings, "tool0"), "arm/tool0");
   EXPECT_NE(c.common.start_q_location.find("start.yaml:6"), std::string::npos)
       << c.common.start_q_location;
   const Ros2Configuration defaults =
@@ -174,11 +175,11 @@ TEST(Ros2Parameters, StartConfigurationAndTransformSettings) {
   EXPECT_EQ(defaults.common.settings.tf_prefix, "");
   // One value per joint of the chain, each within its limits, checked once the model is loaded.
   const ci::RobotModel ur5e = ci::RobotModel::from_urdf_string(c.urdf, "base_link", "tool0");
-  EXPECT_NO_THROW(ci::runtime::check_start_q(c.common, ur5e));
-  const auto check = [](const ci::runtime::NodeConfiguration& configuration,
+  EXPECT_NO_THROW(ci::node::check_start_q(c.common, ur5e));
+  const auto check = [](const ci::node::NodeConfiguration& configuration,
                         const ci::RobotModel& model) {
     try {
-      ci::runtime::check_start_q(configuration, model);
+      ci::node::check_start_q(configuration, model);
     } catch (const ci::ParameterError& error) {
       return std::string(error.what());
     }
@@ -190,7 +191,7 @@ TEST(Ros2Parameters, StartConfigurationAndTransformSettings) {
               testing::EndsWith("start.yaml:6: start_q has 6 values; expected one per joint of the "
                                 "chain base_link -> wrist_2_link (5: shoulder_pan_joint, "
                                 "shoulder_lift_joint, elbow_joint, wrist_1_joint, wrist_2_joint)"));
-  ci::runtime::NodeConfiguration outside = c.common;
+  ci::node::NodeConfiguration outside = c.common;
   outside.settings.start_q[2] = 7.0;
   EXPECT_THAT(check(outside, ur5e),
               testing::EndsWith("start.yaml:6: start_q[2] = 7 rad for joint 'elbow_joint' is "
@@ -228,10 +229,10 @@ TEST(Ros2Parameters, EngineIsASimModeSettingForTheUrdf) {
                           "    tip_link: tool0\n";
   const Ros2Configuration dart = read_configuration(
       parse({"--ros-args", "--params-file", write("engine.yaml", sim + "    engine: dart\n")}));
-  EXPECT_EQ(dart.common.settings.engine, ci::runtime::SimEngine::dart);
+  EXPECT_EQ(dart.common.settings.engine, ci::sim::Engine::dart);
   const Ros2Configuration defaults =
       read_configuration(parse({"--ros-args", "--params-file", write("engine.yaml", sim)}));
-  EXPECT_EQ(defaults.common.settings.engine, ci::runtime::SimEngine::mujoco);
+  EXPECT_EQ(defaults.common.settings.engine, ci::sim::Engine::mujoco);
 
   const auto message = [&](const std::vector<std::string>& extra) {
     std::vector<std::string> args = {"--ros-args", "--params-file", write("engine.yaml", sim)};
@@ -259,8 +260,8 @@ TEST(Ros2Parameters, EngineIsASimModeSettingForTheUrdf) {
 TEST(Ros2Parameters, TemporaryFileHoldsTheTextUntilDestroyed) {
   std::string first_path;
   {
-    const ci::runtime::TemporaryFile first("<robot name='a'/>", ".urdf");
-    const ci::runtime::TemporaryFile second("<robot name='b'/>", ".urdf");
+    const ci::node::TemporaryFile first("<robot name='a'/>", ".urdf");
+    const ci::node::TemporaryFile second("<robot name='b'/>", ".urdf");
     first_path = first.path();
     EXPECT_NE(first.path(), second.path());
     EXPECT_THAT(first.path(), testing::EndsWith(".urdf"));

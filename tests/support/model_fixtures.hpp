@@ -12,7 +12,7 @@
 #include <random>
 #include <string>
 
-#include "cartesian_impedance/robot_model.hpp"
+#include "cartesian_impedance/model/robot_model.hpp"
 
 namespace model_fixtures {
 

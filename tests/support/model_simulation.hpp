@@ -7,7 +7,7 @@
 // tests of the control loop without MuJoCo; the MuJoCo simulation in sim/ is the independent
 // check.
 
-#include "cartesian_impedance/robot_model.hpp"
+#include "cartesian_impedance/model/robot_model.hpp"
 
 namespace model_simulation {
 

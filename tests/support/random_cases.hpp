@@ -4,7 +4,7 @@
 #include <Eigen/Dense>
 #include <random>
 
-#include "cartesian_impedance/types.hpp"
+#include "cartesian_impedance/core/types.hpp"
 
 namespace random_cases {
 

@@ -8,7 +8,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "cartesian_impedance/parameters.hpp"
+#include "cartesian_impedance/core/parameters.hpp"
 
 namespace reference {
 

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <string>
 
-#include "cartesian_impedance/robot_model.hpp"
+#include "cartesian_impedance/model/robot_model.hpp"
 
 namespace robots {
 

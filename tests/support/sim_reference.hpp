@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "cartesian_impedance/error.hpp"
-#include "cartesian_impedance/types.hpp"
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/core/types.hpp"
 
 namespace sim_test {
 

@@ -16,9 +16,9 @@
 #include <variant>
 #include <vector>
 
-#include "cartesian_impedance/controller.hpp"
-#include "cartesian_impedance/error.hpp"
-#include "cartesian_impedance/parameters.hpp"
+#include "cartesian_impedance/core/controller.hpp"
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/core/parameters.hpp"
 
 namespace validation_harness {
 

@@ -29,7 +29,7 @@
 #include <Eigen/Dense>
 #include <cstddef>
 
-#include "cartesian_impedance/controller.hpp"
+#include "cartesian_impedance/core/controller.hpp"
 
 namespace cartesian_impedance_controller {
 
@@ -140,7 +140,9 @@ class CartesianImpedanceController {
   void apply_damping_rule();
   void update_filter_steps();
   void filter_step(Impedance& next) const noexcept;
-  cartesian_impedance::Status step(const cartesian_impedance::RobotState& measured) noexcept;
+  // One cycle at `measured`; `measurement_checked`: q and dq were checked already.
+  cartesian_impedance::Status step(const cartesian_impedance::RobotState& measured,
+                                   bool measurement_checked = false) noexcept;
 
   int n_joints_ = 7;
   cartesian_impedance::CartesianImpedanceController controller_;

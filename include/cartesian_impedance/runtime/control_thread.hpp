@@ -23,7 +23,7 @@
 #include <string>
 #include <thread>
 
-#include "cartesian_impedance/control_loop.hpp"
+#include "cartesian_impedance/loop/control_loop.hpp"
 #include "cartesian_impedance/runtime/robot_io.hpp"
 #include "cartesian_impedance/runtime/timing.hpp"
 

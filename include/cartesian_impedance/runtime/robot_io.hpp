@@ -12,8 +12,8 @@
 #include <chrono>
 #include <cstdint>
 
-#include "cartesian_impedance/mailbox.hpp"
-#include "cartesian_impedance/types.hpp"
+#include "cartesian_impedance/core/mailbox.hpp"
+#include "cartesian_impedance/core/types.hpp"
 
 namespace cartesian_impedance::runtime {
 

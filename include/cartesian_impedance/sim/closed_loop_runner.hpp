@@ -17,7 +17,7 @@
 #include <utility>
 #include <vector>
 
-#include "cartesian_impedance/control_loop.hpp"
+#include "cartesian_impedance/loop/control_loop.hpp"
 #include "cartesian_impedance/runtime/control_thread.hpp"
 #include "cartesian_impedance/sim/simulation.hpp"
 

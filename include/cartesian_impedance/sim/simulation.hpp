@@ -20,25 +20,11 @@
 #include <string>
 #include <vector>
 
-#include "cartesian_impedance/types.hpp"
+#include "cartesian_impedance/core/types.hpp"
+#include "cartesian_impedance/sim/engine.hpp"
 
 namespace cartesian_impedance::sim {
 
-/// The physics engine that integrates a Simulation.
-enum class Engine {
-  /// MuJoCo 2.2: soft contacts, implicit joint damping; MJCF and URDF files.
-  mujoco,
-  /// DART 6.12 (Lee et al. 2018, the simulator of the published controller): articulated-body
-  /// dynamics, hard contacts and joint friction solved as a complementarity problem; URDF files
-  /// only. The DART build option must be on (engine_available()).
-  dart,
-};
-
-/// "mujoco" or "dart".
-const char* engine_name(Engine engine) noexcept;
-/// The engine of that name ("mujoco", "dart").
-/// @throw Error naming the value and the known engines for any other name.
-Engine engine_from_name(const std::string& name);
 /// Whether this build can simulate with `engine` (MuJoCo always; DART if it was built with
 /// CARTESIAN_IMPEDANCE_BUILD_DART). If not and `reason` is given, it receives why.
 bool engine_available(Engine engine, std::string* reason = nullptr);

@@ -1,0 +1,264 @@
+#pragma once
+/// @file
+/// The Cartesian impedance control law with nullspace joint impedance and a commanded wrench:
+///
+///   tau = J^T (-K e - D (J dq - v_ref)) + N tau_0 + J^T F [+ g(q)],
+///   tau_0 = -K_ns (q - q_d) - D_ns (dq - dq_d),   N = I - J^T (J J^T + lambda^2 I)^-1 J,
+///   D = L (2 Z^1/2 sqrt(L^-1 K L^-T) Z^1/2) L^T,  Lambda = L L^T = (J M^-1 J^T + lambda^2 I)^-1,
+///
+/// so that each mode of the end effector's mass-spring system has the damping ratio zeta (Z =
+/// diag(zeta); dynamics.inertia_shaped_damping, the default). With it off, D = 2 Z^1/2 sqrt(K)
+/// Z^1/2 (the published controller's damping factor, every mass 1). D never falls below
+/// minimum_damping; N may be the dynamically consistent I - J^T Lambda J M^-1. Every commanded
+/// quantity is low-pass filtered and saturated to user limits, the pose error is clipped, and the
+/// torque is limited in magnitude and rate. math.hpp holds each formula on its own.
+///
+/// Setters validate and throw `Error` (a rejected command changes nothing); `update` is noexcept,
+/// allocates nothing, takes no lock and does no I/O. One controller serves one robot; it is not
+/// thread-safe (see the control loop for hand-off between threads).
+
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "cartesian_impedance/core/command.hpp"
+#include "cartesian_impedance/core/command_setters.hpp"
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/core/math.hpp"
+#include "cartesian_impedance/core/parameters.hpp"
+#include "cartesian_impedance/core/types.hpp"
+
+namespace cartesian_impedance {
+
+/// Outcome of one control cycle. Every status but ok and not_started is a cycle that failed
+/// closed: the torque ramps toward zero (toward g(q) with dynamics.gravity_compensation) within
+/// the rate limit, ControllerState::fault names the input, and the next good cycle resumes.
+enum class Status {
+  ok,                   ///< torque computed from the law
+  not_started,          ///< start() has not been called; torque is zero
+  invalid_dt,           ///< dt not finite or outside plausibility.dt
+  invalid_robot_state,  ///< q, dq, pose or Jacobian wrongly sized, not finite or implausible
+  numerical_error,      ///< a term of the law could not be evaluated (the fault names it)
+  missing_dynamics,     ///< an option needs robot.mass or robot.gravity, which were not given
+  model_error,          ///< the robot model could not be evaluated at the measured q
+};
+
+/// "ok", "not_started", ...
+const char* to_string(Status status) noexcept;
+
+/// The quantities the law is evaluated with: either as commanded or after filtering.
+struct Targets {
+  Pose pose;                         ///< reference pose T_base_ref
+  Matrix6d stiffness;                ///< K in the stiffness frame [N/m, Nm/rad]
+  Vector6d damping_ratio;            ///< zeta per axis of the stiffness frame [-]
+  JointVector nullspace_q;           ///< nullspace target q_d [rad]
+  JointVector nullspace_stiffness;   ///< K_ns per joint [Nm/rad]
+  double nullspace_damping_ratio{};  ///< zeta_ns [-]
+  Vector6d wrench;                   ///< F in the wrench frame [N, Nm]
+  /// Velocity feed-forward of a tracked reference (not filtered; zero unless track() is used):
+  Vector6d twist;            ///< reference twist [m/s; rad/s], base frame
+  JointVector nullspace_dq;  ///< nullspace target velocity [rad/s]
+};
+
+/// Which limits shaped the commands and the last cycle. A command saturation flag says whether
+/// the last command of that quantity was saturated (new parameters re-command them all); the
+/// others describe the last cycle.
+struct ActiveLimits {
+  bool stiffness_saturated = false;
+  bool damping_ratio_saturated = false;
+  bool nullspace_stiffness_saturated = false;
+  bool wrench_saturated = false;
+  bool translation_error_clipped = false;
+  bool rotation_error_clipped = false;
+  bool joint_torque_saturated = false;
+  bool torque_rate_limited = false;
+  /// limits.joint_torque was lowered below the torque being commanded: the bound in force
+  /// (ControllerState::joint_torque_limit) is ramping down to it at the torque-rate limit.
+  bool joint_torque_limit_ramping = false;
+};
+
+/// Snapshot written by every update().
+struct ControllerState {
+  Status status = Status::not_started;
+  Pose pose;            ///< measured end-effector pose T_base_ee
+  Vector6d pose_error;  ///< e = [p - p_d; log(R R_d^T)], base frame, after clipping [m; rad]
+  Targets commanded;    ///< targets as last commanded (after validation and saturation)
+  Targets filtered;     ///< targets the law used this cycle
+  Matrix6d damping;     ///< D the law used, in the stiffness frame
+  Frame stiffness_frame = Frame::base;  ///< frame of the stiffness and damping targets
+  Frame wrench_frame = Frame::base;     ///< frame of the wrench targets
+  Vector6d wrench_base;                 ///< filtered F in the base frame
+  JointVector tau_cartesian;            ///< J^T (-K e - D J dq) [Nm]
+  JointVector tau_nullspace;            ///< N tau_0 [Nm]
+  JointVector tau_wrench;               ///< J^T F [Nm]
+  JointVector tau_gravity;              ///< g(q) if dynamics.gravity_compensation, else 0 [Nm]
+  JointVector tau;                      ///< commanded torque after torque and rate limits [Nm]
+  /// Torque bound in force per joint [Nm]: limits.joint_torque, or above it while ramping down
+  /// to a lowered limit (|tau| never exceeds this, and this never falls faster than the rate).
+  JointVector joint_torque_limit;
+  ActiveLimits limits;
+  /// Why the last cycle failed closed (empty when status is ok): the input ("dq", index 4, ...),
+  /// or the term of the law that could not be evaluated ("damping", "tau_nullspace", ...).
+  Fault fault;
+
+  /// Filtered K and the damping D the law used, in the base frame (rotated on request; the cycle
+  /// itself works in the stiffness frame).
+  Matrix6d stiffness_base() const noexcept;
+  Matrix6d damping_base() const noexcept;
+};
+
+/// The impedance of one cycle as its caller schedules it: every quantity the law uses, with the
+/// damping given explicitly instead of derived from damping ratios. See
+/// CartesianImpedanceController::schedule().
+struct ScheduledImpedance {
+  Pose reference;                   ///< reference pose T_base_ref (unit quaternion)
+  Matrix6d stiffness;               ///< K in the stiffness frame [N/m, Nm/rad], symmetric PSD
+  Matrix6d damping;                 ///< D in the stiffness frame [N s/m, Nm s/rad], symmetric PSD
+  JointVector nullspace_q;          ///< nullspace target q_d [rad or m]
+  JointVector nullspace_stiffness;  ///< K_ns per joint [Nm/rad]
+  JointVector nullspace_damping;    ///< D_ns per joint [Nm s/rad]
+  Vector6d wrench;                  ///< F in the wrench frame [N; Nm]
+};
+
+class CartesianImpedanceController : public CommandSetters<CartesianImpedanceController> {
+ public:
+  /// @throws Error if num_joints is outside [1, kMaxJoints] or the parameters are invalid.
+  explicit CartesianImpedanceController(int num_joints, const Parameters& parameters = {});
+  ~CartesianImpedanceController();
+  CartesianImpedanceController(const CartesianImpedanceController& other);
+  CartesianImpedanceController& operator=(const CartesianImpedanceController& other);
+  CartesianImpedanceController(CartesianImpedanceController&& other) noexcept;
+  CartesianImpedanceController& operator=(CartesianImpedanceController&& other) noexcept;
+
+  int num_joints() const noexcept { return num_joints_; }
+
+  /// Current configuration. The diagonal setters keep it up to date, so a read-modify-write
+  /// through set_parameters() preserves them.
+  const Parameters& parameters() const noexcept { return parameters_; }
+
+  /// Starts (or restarts) from the measured state: reference pose = current pose, nullspace
+  /// target = current q, filtered stiffness and damping = commanded, filtered wrench = 0 (it
+  /// ramps in through its filter), previous torque = `tau_previous` (zero if not given), so the
+  /// first commands are continuous with what the robot already receives.
+  /// @throws Error if `robot` is wrongly sized or not finite.
+  void start(const RobotState& robot);
+  void start(const RobotState& robot, const Eigen::Ref<const Eigen::VectorXd>& tau_previous);
+  bool started() const noexcept { return started_; }
+
+  // set_parameters(), set_reference_pose(), set_stiffness(), ... and start_teaching() come from
+  // CommandSetters: each validates its command (throwing Error, changing nothing) and applies it.
+
+  /// Validates and applies any command (see command.hpp); the setters are this.
+  /// @throws Error naming the field, value and valid range; nothing changes then.
+  void apply(const Command& command);
+  /// Applies a validated command: noexcept and allocation-free, so a control loop can apply
+  /// commands handed over from other threads inside its cycle. Returns false (and changes
+  /// nothing) if the command was validated for a different joint count.
+  bool apply(const ValidCommand& command) noexcept;
+
+  /// Drives the reference directly, bypassing the pose and nullspace filters, for a caller that
+  /// already produces a smooth reference (trajectory execution): reference pose and twist
+  /// [m/s; rad/s] in the base frame, nullspace target and its velocity. The twist and joint
+  /// velocity are feed-forward: the damping acts on J dq - twist and dq - dq_desired. noexcept,
+  /// no allocation; the caller guarantees finite values of the right size.
+  void track(const Pose& pose_base, const Vector6d& twist_base, const JointVector& q_desired,
+             const JointVector& dq_desired) noexcept;
+  /// Ends tracking: the reference stays where it is, the feed-forward velocities become zero.
+  void stop_tracking() noexcept;
+
+  /// Sets the commanded and filtered impedance of the next cycles directly, bypassing the
+  /// filters, the saturation of commands and the damping rule: for a caller that schedules K and
+  /// D itself (a learned variable-impedance policy, or the compatibility API with the published
+  /// controller's filter semantics). The law, the minimum damping, the pose-error clipping, the
+  /// torque and rate limits and the fail-closed checks still apply. The explicit damping holds
+  /// until the next command other than a reference pose or nullspace target. noexcept, no
+  /// allocation; the caller guarantees finite values of the right sizes and a unit quaternion.
+  void schedule(const ScheduledImpedance& impedance) noexcept;
+  /// True while a schedule() is in force (no command has replaced it).
+  bool scheduled() const noexcept { return scheduled_; }
+
+  /// One control cycle: filters the targets with the elapsed `dt` [s], evaluates the law at the
+  /// measured `robot` state and applies the limits. The result is torque() and state(). Never
+  /// throws and never allocates. It fails closed (a status other than ok, state().fault naming
+  /// the input, the torque ramping toward zero within the rate limit) on a dt that is not finite
+  /// or outside plausibility.dt, and on a robot state that is wrongly sized, not finite, has a
+  /// non-unit orientation or a joint faster than plausibility.joint_velocity.
+  Status update(const RobotState& robot, double dt) noexcept;
+
+  /// update() for a caller that has checked q and dq itself with checks::measurement() against
+  /// joint_velocity_bound() (the control loop does, with the joint limits besides): the measurement
+  /// is not checked twice in one cycle; the rest of the robot state is.
+  Status update_measured(const RobotState& robot, double dt) noexcept;
+
+  /// plausibility.joint_velocity per joint [rad/s or m/s].
+  const JointVector& joint_velocity_bound() const noexcept { return joint_velocity_bound_; }
+
+  /// A cycle without a usable measurement, for a caller that found the fault itself (the control
+  /// loop: a position outside the joint limits, a model that could not be evaluated): ramps the
+  /// torque toward zero (or g) within the rate limit over `dt` [s] (the last valid dt if `dt` is
+  /// not plausible) and reports `status` and `fault`. noexcept, no allocation.
+  Status fail_closed(Status status, const Fault& fault, double dt) noexcept;
+
+  /// Commanded joint torque of the last update() [Nm].
+  const JointVector& torque() const noexcept { return state_.tau; }
+  /// Snapshot of the last update().
+  const ControllerState& state() const noexcept { return state_; }
+
+ private:
+  friend class CommandSetters<CartesianImpedanceController>;
+  void submit_command(const Command& command) { apply(command); }
+
+  struct FilterGains {
+    double dt = -1.0;
+    double pose = 1.0, stiffness = 1.0, nullspace = 1.0, wrench = 1.0;
+  };
+  /// Which commanded quantities a command set anew (their saturation flags are set afresh).
+  struct Commanded {
+    static constexpr unsigned none = 0, stiffness = 1, damping_ratio = 2, nullspace_stiffness = 4,
+                              wrench = 8, everything = 15;
+  };
+  struct Law;  // the law's per-cycle workspace: its kernels and scratch space (src/core/law.hpp)
+
+  // Commands (controller.cpp).
+  void apply_saturation(Targets& commanded, ActiveLimits& limits,
+                        unsigned commanded_now) const noexcept;
+  void commit(const Parameters& parameters, Targets commanded, unsigned commanded_now) noexcept;
+  void refresh_damping_mode() noexcept;
+  void change_frames(Frame stiffness_frame, Frame wrench_frame) noexcept;
+  // The cycle (controller.cpp).
+  Status cycle(const RobotState& robot, double dt, const Fault& input_fault) noexcept;
+  void update_gains(double dt) noexcept;
+  void filter_targets() noexcept;
+  // The law, one function per term (law.cpp); a term that cannot be evaluated returns false and
+  // names its cause in `fault`.
+  bool evaluate_law(const RobotState& robot, Fault& fault) noexcept;
+  void measure_pose(const RobotState& robot) noexcept;
+  bool compute_damping(const RobotState& robot, Fault& fault) noexcept;
+  void spring_damper(const RobotState& robot) noexcept;
+  bool nullspace(const RobotState& robot, Fault& fault) noexcept;
+  void commanded_wrench(const RobotState& robot) noexcept;
+  void gravity(const RobotState& robot) noexcept;
+  void limit_torque(double dt) noexcept;
+
+  int num_joints_;
+  Parameters parameters_;
+  JointVector joint_torque_limit_;
+  JointVector joint_torque_rate_limit_;
+  JointVector joint_velocity_bound_;
+  bool started_ = false;
+  FilterGains gains_;
+  double last_valid_dt_ = 1e-3;
+  ControllerState state_;
+  JointVector tau_previous_;  // the torque of the last cycle, after the limits
+  // The filter blends commanded and filtered K, so K stays diagonal while both are: the law then
+  // takes the diagonal route.
+  bool stiffness_diagonal_ = true;
+  // Set by schedule(): the damping then comes from the caller, not from the damping ratios.
+  bool scheduled_ = false;
+  bool scheduled_damping_diagonal_ = true;
+  Matrix6d scheduled_damping_;
+  JointVector scheduled_nullspace_damping_;
+  std::unique_ptr<Law> law_;
+};
+
+}  // namespace cartesian_impedance

@@ -1,0 +1,210 @@
+#pragma once
+/// @file
+/// Every configurable quantity of the controller, declared once. The plain structs hold the
+/// values; `parameter_table()` describes each field (name, unit, valid range, description) and is
+/// what validation, the YAML loader, the bindings and the README table are built from.
+
+#include <string>
+#include <string_view>
+#include <variant>
+#include <vector>
+
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/core/types.hpp"
+
+namespace cartesian_impedance {
+
+/// Closed interval [min, max] used for saturation limits and plausibility bounds.
+struct Range {
+  double min = 0.0;
+  double max = 0.0;
+};
+
+/// First-order filter of a commanded quantity: after `time` seconds, `fraction` of a step has been
+/// applied, whatever the control rate. `time = 0` switches the filter off (steps apply at once).
+struct FilterSettings {
+  double time = 0.2;       ///< [s]
+  double fraction = 0.95;  ///< [-] in (0, 1]
+};
+
+struct StiffnessParameters {
+  Eigen::Vector3d translation = Eigen::Vector3d::Constant(500.0);  ///< [N/m]
+  Eigen::Vector3d rotation = Eigen::Vector3d::Constant(50.0);      ///< [Nm/rad]
+  Frame frame = Frame::base;
+};
+
+/// Damping ratio zeta per axis: 1 is critical damping of the end effector's own mass-spring
+/// system (d = 2 zeta sqrt(m k) per mode, with the task-space inertia) unless
+/// dynamics.inertia_shaped_damping is off, which gives the published controller's unit-mass
+/// "damping factor" D = 2 zeta sqrt(K).
+struct DampingRatioParameters {
+  Eigen::Vector3d translation = Eigen::Vector3d::Ones();  ///< [-]
+  Eigen::Vector3d rotation = Eigen::Vector3d::Ones();     ///< [-]
+};
+
+struct NullspaceParameters {
+  /// Joint stiffness [Nm/rad]: one value for every joint, or one per joint.
+  JointVector stiffness = JointVector::Constant(1, 10.0);
+  double damping_ratio = 1.0;  ///< [-], D_ns = 2 zeta sqrt(K_ns)
+  /// lambda of the damped pseudo-inverse in N = I - J^T (J J^T + lambda^2 I)^-1 J; 0 is exact.
+  double pseudo_inverse_damping = 0.01;
+};
+
+/// Damping that stays when the stiffness is low or zero (teaching), so a soft arm does not coast.
+/// The Cartesian damping's diagonal and the nullspace damping never fall below these.
+struct MinimumDampingParameters {
+  double translation = 30.0;  ///< [N s/m]
+  double rotation = 1.0;      ///< [Nm s/rad]
+  double nullspace = 0.5;     ///< [Nm s/rad] per joint
+};
+
+/// Options that need a dynamics model; the control loop provides M(q) and g(q) for them.
+struct DynamicsParameters {
+  /// Add g(q) to the command, for robots that do not compensate gravity themselves.
+  bool gravity_compensation = false;
+  /// Damping ratios relative to the task-space inertia Lambda (d = 2 zeta sqrt(m k) per mode,
+  /// so zeta = 1 is critical damping). Off: the published controller's D = 2 zeta sqrt(K),
+  /// which takes every mass as 1 kg (1 kg m^2) and overshoots on a real arm.
+  bool inertia_shaped_damping = true;
+  /// Use the dynamically consistent projector N = I - J^T Lambda J M^-1.
+  bool dynamically_consistent_nullspace = false;
+  /// Reflected rotor inertia per joint [kg m^2 or kg], added to the diagonal of M(q): a URDF
+  /// does not carry it, but on a geared arm it is a large part of what the wrist joints feel.
+  /// One value for every joint, or one per joint.
+  JointVector armature = JointVector::Zero(1);
+};
+
+/// Nullspace torques that push joints away from their position limits.
+struct JointLimitAvoidanceParameters {
+  double margin = 0.1;      ///< [rad or m] distance from a limit where the push starts
+  double stiffness = 20.0;  ///< [Nm/rad] spring pushing out of the margin; 0 switches it off
+};
+
+/// What a measurement and the cycle's time step may be. Outside these the input is not
+/// believed: the cycle fails closed (status and fault say which input; the torque ramps toward
+/// zero, or gravity, within the rate limit) and recovers with the next plausible input.
+struct PlausibilityParameters {
+  Range dt{1e-5, 0.02};  ///< [s] time step of a cycle
+  /// Largest believable joint speed [rad/s or m/s], one value or one per joint.
+  JointVector joint_velocity = JointVector::Constant(1, 10.0);
+  /// How far a measured position may lie outside the URDF's limits [rad or m].
+  double joint_position_margin = 0.2;
+};
+
+/// Execution of joint trajectories.
+struct TrajectoryParameters {
+  double goal_tolerance = 0.01;      ///< [rad or m] per joint, to report a trajectory finished
+  double goal_time_tolerance = 1.0;  ///< [s] after the end before an unreached goal aborts
+};
+
+struct WrenchParameters {
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();   ///< [N]
+  Eigen::Vector3d torque = Eigen::Vector3d::Zero();  ///< [Nm]
+  Frame frame = Frame::base;
+};
+
+struct FilterParameters {
+  FilterSettings pose;       ///< reference pose (position linearly, orientation by slerp)
+  FilterSettings stiffness;  ///< Cartesian stiffness and damping ratio
+  FilterSettings nullspace;  ///< nullspace target, stiffness and damping ratio
+  FilterSettings wrench;     ///< commanded wrench
+};
+
+struct CartesianRanges {
+  Range translation;
+  Range rotation;
+};
+
+struct WrenchLimits {
+  double force = 0.0;   ///< [N] largest norm of the commanded force
+  double torque = 0.0;  ///< [Nm] largest norm of the commanded torque
+};
+
+struct PoseErrorLimits {
+  double translation = 0.0;  ///< [m] largest norm of the translation error
+  double rotation = 0.0;     ///< [rad] largest norm of the rotation error
+};
+
+struct LimitParameters {
+  CartesianRanges stiffness{{0.0, 5000.0}, {0.0, 500.0}};  ///< [N/m], [Nm/rad]
+  Range damping_ratio{0.0, 10.0};                          ///< [-]
+  Range nullspace_stiffness{0.0, 500.0};                   ///< [Nm/rad]
+  WrenchLimits wrench{100.0, 20.0};
+  PoseErrorLimits pose_error{0.1, 0.5};
+  /// Absolute commanded torque per joint [Nm]: one value for every joint, or one per joint.
+  JointVector joint_torque = JointVector::Constant(1, 100.0);
+  /// Rate of change of the commanded torque per joint [Nm/s]: one value, or one per joint.
+  JointVector joint_torque_rate = JointVector::Constant(1, 1000.0);
+};
+
+/// The complete configuration. Defaults are the values of a default-constructed object.
+struct Parameters {
+  /// Its name as a command (command.hpp), which replaces the whole configuration.
+  static constexpr const char* kName = "parameters";
+  StiffnessParameters stiffness;
+  DampingRatioParameters damping_ratio;
+  MinimumDampingParameters minimum_damping;
+  NullspaceParameters nullspace;
+  WrenchParameters wrench;
+  FilterParameters filter;
+  LimitParameters limits;
+  DynamicsParameters dynamics;
+  JointLimitAvoidanceParameters joint_limit_avoidance;
+  TrajectoryParameters trajectory;
+  PlausibilityParameters plausibility;
+};
+
+/// Pointer to the storage of one parameter inside a Parameters object.
+using ParameterField = std::variant<double*, Eigen::Vector3d*, JointVector*, Frame*, bool*>;
+
+/// Description of one parameter: the single definition everything else is served from.
+struct ParameterInfo {
+  std::string_view name;         ///< dotted path, as in YAML: "stiffness.translation"
+  std::string_view unit;         ///< SI unit, "-" if dimensionless, "" for frames and switches
+  double min;                    ///< smallest valid value of each element
+  double max;                    ///< largest valid value of each element
+  bool min_exclusive;            ///< true if `min` itself is not valid
+  std::string_view description;  ///< one line for docs and help texts
+  ParameterField (*field)(Parameters&);
+
+  /// The field inside `parameters` this row describes.
+  ParameterField in(Parameters& parameters) const { return field(parameters); }
+  /// "[0, inf)", "(0, 1]", ...
+  std::string range_text() const;
+  /// Throws Error naming `element_name` if `value` is not finite or outside the range (its fault:
+  /// the element, the value and the bound it broke).
+  void check(std::string_view element_name, double value) const;
+};
+
+/// Every parameter, in documentation order.
+const std::vector<ParameterInfo>& parameter_table();
+
+/// The row called `name`; throws Error naming the key if there is none.
+const ParameterInfo& parameter_info(std::string_view name);
+
+/// The row called `name` (a dotted path); nullptr if there is none.
+const ParameterInfo* find_parameter(std::string_view name);
+
+/// True if `path` is a group of parameters: "limits", "limits.stiffness", not a row itself.
+bool is_parameter_group(std::string_view path);
+
+/// Throws Error (naming field, value and range) unless every value is finite and in range, every
+/// per-joint field has 1 or `num_joints` entries (any count up to kMaxJoints if num_joints is 0),
+/// and every limit has min <= max.
+void validate(const Parameters& parameters, int num_joints = 0);
+
+/// Text of a parameter's value: "0.2", "[500, 500, 500]", "base".
+std::string value_text(const Parameters& parameters, const ParameterInfo& info);
+
+/// "base" / "end_effector".
+std::string_view frame_name(Frame frame);
+/// Inverse of frame_name(); throws Error naming `field` for anything else.
+Frame frame_from_name(std::string_view field, std::string_view name);
+
+/// The parameter table as Markdown (name, unit, default, range, description), as in the README.
+std::string parameter_table_markdown();
+
+/// Expands a per-joint field (1 or n entries) to n entries.
+JointVector per_joint(const JointVector& values, int num_joints);
+
+}  // namespace cartesian_impedance

@@ -1,0 +1,475 @@
+#include "cartesian_impedance/core/controller.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <initializer_list>
+#include <string>
+
+#include "cartesian_impedance/core/checks.hpp"
+#include "law.hpp"
+
+namespace cartesian_impedance {
+namespace {
+
+bool clamp_each(Eigen::Ref<Eigen::VectorXd> values, const Range& range) {
+  bool clamped = false;
+  for (Eigen::Index i = 0; i < values.size(); ++i) {
+    const double value = std::clamp(values[i], range.min, range.max);
+    clamped |= value != values[i];
+    values[i] = value;
+  }
+  return clamped;
+}
+
+// Diagonal stiffness/damping from the [translation; rotation] halves of the parameters.
+Vector6d stacked(const Eigen::Vector3d& translation, const Eigen::Vector3d& rotation) {
+  Vector6d result;
+  result << translation, rotation;
+  return result;
+}
+
+}  // namespace
+
+const char* to_string(Status status) noexcept {
+  switch (status) {
+    case Status::ok:
+      return "ok";
+    case Status::not_started:
+      return "not_started";
+    case Status::invalid_dt:
+      return "invalid_dt";
+    case Status::invalid_robot_state:
+      return "invalid_robot_state";
+    case Status::numerical_error:
+      return "numerical_error";
+    case Status::missing_dynamics:
+      return "missing_dynamics";
+    case Status::model_error:
+      return "model_error";
+  }
+  return "unknown";
+}
+
+namespace {
+Matrix6d in_base(const Matrix6d& matrix, Frame frame, const Eigen::Quaterniond& orientation) {
+  if (frame == Frame::base) return matrix;
+  const Matrix6d rotation6 = block_rotation(orientation.toRotationMatrix());
+  return rotation6 * matrix * rotation6.transpose();
+}
+}  // namespace
+
+Matrix6d ControllerState::stiffness_base() const noexcept {
+  return in_base(filtered.stiffness, stiffness_frame, pose.orientation);
+}
+
+Matrix6d ControllerState::damping_base() const noexcept {
+  return in_base(damping, stiffness_frame, pose.orientation);
+}
+
+CartesianImpedanceController::CartesianImpedanceController(int num_joints,
+                                                           const Parameters& parameters)
+    : num_joints_(num_joints) {
+  if (num_joints < 1 || num_joints > kMaxJoints) {
+    throw Error("num_joints = " + std::to_string(num_joints) + " is outside [1, " +
+                std::to_string(kMaxJoints) + "]");
+  }
+  const Eigen::Index n = num_joints;
+  Targets& commanded = state_.commanded;
+  commanded.stiffness.setZero();
+  commanded.damping_ratio.setZero();
+  commanded.nullspace_q = JointVector::Zero(n);
+  commanded.nullspace_stiffness = JointVector::Zero(n);
+  commanded.wrench.setZero();
+  commanded.twist.setZero();
+  commanded.nullspace_dq = JointVector::Zero(n);
+  state_.filtered = commanded;
+  state_.pose_error.setZero();
+  state_.wrench_base.setZero();
+  state_.tau_cartesian = JointVector::Zero(n);
+  state_.tau_nullspace = JointVector::Zero(n);
+  state_.tau_wrench = JointVector::Zero(n);
+  state_.tau_gravity = JointVector::Zero(n);
+  state_.tau = JointVector::Zero(n);
+  state_.joint_torque_limit = JointVector::Zero(n);
+  tau_previous_ = JointVector::Zero(n);
+  scheduled_nullspace_damping_ = JointVector::Zero(n);
+  scheduled_damping_.setZero();
+  state_.damping.setZero();
+  law_ = std::make_unique<Law>(num_joints);
+  set_parameters(parameters);
+}
+
+CartesianImpedanceController::~CartesianImpedanceController() = default;
+
+// The law's workspace is copied with the rest: a copy continues exactly where the original is.
+CartesianImpedanceController::CartesianImpedanceController(
+    const CartesianImpedanceController& other)
+    : num_joints_(other.num_joints_),
+      parameters_(other.parameters_),
+      joint_torque_limit_(other.joint_torque_limit_),
+      joint_torque_rate_limit_(other.joint_torque_rate_limit_),
+      joint_velocity_bound_(other.joint_velocity_bound_),
+      started_(other.started_),
+      gains_(other.gains_),
+      last_valid_dt_(other.last_valid_dt_),
+      state_(other.state_),
+      tau_previous_(other.tau_previous_),
+      stiffness_diagonal_(other.stiffness_diagonal_),
+      scheduled_(other.scheduled_),
+      scheduled_damping_diagonal_(other.scheduled_damping_diagonal_),
+      scheduled_damping_(other.scheduled_damping_),
+      scheduled_nullspace_damping_(other.scheduled_nullspace_damping_),
+      law_(std::make_unique<Law>(*other.law_)) {}
+
+CartesianImpedanceController& CartesianImpedanceController::operator=(
+    const CartesianImpedanceController& other) {
+  if (this != &other) *this = CartesianImpedanceController(other);
+  return *this;
+}
+
+CartesianImpedanceController::CartesianImpedanceController(
+    CartesianImpedanceController&& other) noexcept = default;
+CartesianImpedanceController& CartesianImpedanceController::operator=(
+    CartesianImpedanceController&& other) noexcept = default;
+
+void CartesianImpedanceController::apply_saturation(Targets& commanded, ActiveLimits& limits,
+                                                    unsigned commanded_now) const noexcept {
+  // Every commanded value is brought within the (possibly new) limits. A quantity's flag says
+  // whether its last command was saturated: it is set afresh for the quantities just commanded
+  // and otherwise only raised, never cleared by an unrelated command.
+  const LimitParameters& l = parameters_.limits;
+  auto update = [commanded_now](bool& flag, bool saturated, unsigned quantity) {
+    flag = (commanded_now & quantity) != 0 ? saturated : (flag || saturated);
+  };
+  update(limits.stiffness_saturated,
+         saturate_stiffness(commanded.stiffness, l.stiffness.translation.min,
+                            l.stiffness.translation.max, l.stiffness.rotation.min,
+                            l.stiffness.rotation.max),
+         Commanded::stiffness);
+  Eigen::Matrix<double, 1, 1> nullspace_zeta(commanded.nullspace_damping_ratio);
+  const bool cartesian_zeta = clamp_each(commanded.damping_ratio, l.damping_ratio);
+  const bool nullspace_zeta_clamped = clamp_each(nullspace_zeta, l.damping_ratio);
+  commanded.nullspace_damping_ratio = nullspace_zeta[0];
+  update(limits.damping_ratio_saturated, cartesian_zeta || nullspace_zeta_clamped,
+         Commanded::damping_ratio);
+  update(limits.nullspace_stiffness_saturated,
+         clamp_each(commanded.nullspace_stiffness, l.nullspace_stiffness),
+         Commanded::nullspace_stiffness);
+  const bool force_clipped = clip_norm(commanded.wrench.head<3>(), l.wrench.force);
+  const bool torque_clipped = clip_norm(commanded.wrench.tail<3>(), l.wrench.torque);
+  update(limits.wrench_saturated, force_clipped || torque_clipped, Commanded::wrench);
+}
+
+void CartesianImpedanceController::change_frames(Frame stiffness_frame,
+                                                 Frame wrench_frame) noexcept {
+  // The filtered values live in the frame they were commanded in; when the frame changes they
+  // are re-expressed in the new one (with the last measured orientation) so the filter carries
+  // on from where the robot is instead of jumping.
+  if (!started_) return;
+  const Eigen::Matrix3d rotation = state_.pose.orientation.toRotationMatrix();
+  const Matrix6d rotation6 = block_rotation(rotation);
+  Targets& filtered = state_.filtered;
+  if (stiffness_frame != parameters_.stiffness.frame) {
+    filtered.stiffness = stiffness_frame == Frame::base
+                             ? Matrix6d(rotation6 * filtered.stiffness * rotation6.transpose())
+                             : Matrix6d(rotation6.transpose() * filtered.stiffness * rotation6);
+  }
+  if (wrench_frame != parameters_.wrench.frame) {
+    const Vector6d wrench = filtered.wrench;
+    if (wrench_frame == Frame::base) {
+      filtered.wrench.head<3>().noalias() = rotation * wrench.head<3>();
+      filtered.wrench.tail<3>().noalias() = rotation * wrench.tail<3>();
+    } else {
+      filtered.wrench.head<3>().noalias() = rotation.transpose() * wrench.head<3>();
+      filtered.wrench.tail<3>().noalias() = rotation.transpose() * wrench.tail<3>();
+    }
+  }
+}
+
+void CartesianImpedanceController::commit(const Parameters& parameters, Targets commanded,
+                                          unsigned commanded_now) noexcept {
+  // Callers have validated everything; from here on nothing can fail, so a rejected command
+  // never leaves a half-applied change behind. A command of the impedance ends a schedule().
+  scheduled_ = false;
+  change_frames(parameters.stiffness.frame, parameters.wrench.frame);
+  parameters_ = parameters;
+  state_.stiffness_frame = parameters.stiffness.frame;
+  state_.wrench_frame = parameters.wrench.frame;
+  apply_saturation(commanded, state_.limits, commanded_now);
+  state_.commanded = commanded;
+  if (!started_) state_.filtered = state_.commanded;
+  refresh_damping_mode();
+  joint_torque_limit_ = per_joint(parameters.limits.joint_torque, num_joints_);
+  joint_torque_rate_limit_ = per_joint(parameters.limits.joint_torque_rate, num_joints_);
+  joint_velocity_bound_ = per_joint(parameters.plausibility.joint_velocity, num_joints_);
+  // A raised bound holds at once (the rate limit keeps the torque continuous); a lowered one
+  // ramps down from the torque being commanded (limit_torque()), so that neither the rate limit
+  // nor the bound in force is ever exceeded.
+  if (started_) {
+    state_.joint_torque_limit =
+        joint_torque_limit_.cwiseMax(state_.joint_torque_limit.cwiseMin(tau_previous_.cwiseAbs()));
+  } else {
+    state_.joint_torque_limit = joint_torque_limit_;
+  }
+  gains_.dt = -1.0;
+}
+
+void CartesianImpedanceController::refresh_damping_mode() noexcept {
+  stiffness_diagonal_ =
+      is_diagonal(state_.commanded.stiffness) && is_diagonal(state_.filtered.stiffness);
+  if (stiffness_diagonal_) law_->damping_frame.setZero();
+  law_->forget_damping();
+}
+
+void CartesianImpedanceController::start(const RobotState& robot) {
+  start(robot, Eigen::VectorXd::Zero(num_joints_));
+}
+
+void CartesianImpedanceController::start(const RobotState& robot,
+                                         const Eigen::Ref<const Eigen::VectorXd>& tau_previous) {
+  // The checks of every cycle, thrown instead of failing closed.
+  checks::raise(checks::robot_state(robot, num_joints_, &joint_velocity_bound_), "robot.");
+  checks::size("tau_previous", tau_previous.size(), num_joints_);
+  checks::finite_vector("tau_previous", tau_previous, "Nm");
+  const Pose pose{robot.pose.position, robot.pose.orientation.normalized()};
+  Targets& commanded = state_.commanded;
+  commanded.pose = pose;
+  commanded.nullspace_q = robot.q;
+  commanded.twist.setZero();
+  commanded.nullspace_dq.setZero();
+  state_.filtered = commanded;
+  state_.filtered.wrench.setZero();
+  refresh_damping_mode();
+  state_.pose = pose;
+  state_.tau = tau_previous;
+  tau_previous_ = tau_previous;
+  state_.joint_torque_limit = joint_torque_limit_.cwiseMax(tau_previous_.cwiseAbs());
+  state_.limits.joint_torque_limit_ramping =
+      (state_.joint_torque_limit.array() > joint_torque_limit_.array()).any();
+  state_.fault = Fault{};
+  state_.tau_cartesian.setZero();
+  state_.tau_nullspace.setZero();
+  state_.tau_wrench.setZero();
+  state_.status = Status::ok;
+  const Range& plausible = parameters_.plausibility.dt;
+  last_valid_dt_ = std::clamp(1e-3, plausible.min, plausible.max);
+  gains_.dt = -1.0;
+  started_ = true;
+}
+
+void CartesianImpedanceController::apply(const Command& command) {
+  apply(validate_command(command, num_joints_));
+}
+
+bool CartesianImpedanceController::apply(const ValidCommand& valid) noexcept {
+  if (valid.num_joints() != 0 && valid.num_joints() != num_joints_) return false;
+  // The reference pose and nullspace target are filtered toward directly; every other command
+  // also changes the configuration (parameters() keeps what was commanded) and is saturated.
+  const auto change = [this](unsigned quantities, const auto& edit) noexcept {
+    Parameters parameters = parameters_;
+    Targets commanded = state_.commanded;
+    edit(parameters, commanded);
+    commit(parameters, commanded, quantities);
+  };
+  std::visit(
+      Overloaded{
+          [this](const ReferencePose& c) { state_.commanded.pose = c.pose_base; },
+          [this](const NullspaceTarget& c) { state_.commanded.nullspace_q = c.q_desired; },
+          [&](const Stiffness& c) {
+            change(Commanded::stiffness, [&](Parameters& parameters, Targets& commanded) {
+              // parameters() keeps the diagonal; a full matrix lives in the commanded targets.
+              parameters.stiffness.translation = c.stiffness.diagonal().head<3>();
+              parameters.stiffness.rotation = c.stiffness.diagonal().tail<3>();
+              parameters.stiffness.frame = c.frame.value_or(parameters_.stiffness.frame);
+              commanded.stiffness = c.stiffness;
+            });
+          },
+          [&](const DampingRatio& c) {
+            change(Commanded::damping_ratio, [&](Parameters& parameters, Targets& commanded) {
+              parameters.damping_ratio.translation = c.ratio.head<3>();
+              parameters.damping_ratio.rotation = c.ratio.tail<3>();
+              commanded.damping_ratio = c.ratio;
+            });
+          },
+          [&](const NullspaceStiffness& c) {
+            change(Commanded::nullspace_stiffness, [&](Parameters& parameters, Targets& commanded) {
+              parameters.nullspace.stiffness = c.stiffness;
+              commanded.nullspace_stiffness = per_joint(c.stiffness, num_joints_);
+            });
+          },
+          [&](const NullspaceDampingRatio& c) {
+            change(Commanded::damping_ratio, [&](Parameters& parameters, Targets& commanded) {
+              parameters.nullspace.damping_ratio = c.ratio;
+              commanded.nullspace_damping_ratio = c.ratio;
+            });
+          },
+          [&](const Wrench& c) {
+            change(Commanded::wrench, [&](Parameters& parameters, Targets& commanded) {
+              parameters.wrench.force = c.wrench.head<3>();
+              parameters.wrench.torque = c.wrench.tail<3>();
+              parameters.wrench.frame = c.frame.value_or(parameters_.wrench.frame);
+              commanded.wrench = c.wrench;
+            });
+          },
+          [&](const Parameters& c) {
+            change(Commanded::everything, [&](Parameters& parameters, Targets& commanded) {
+              parameters = c;
+              commanded.stiffness =
+                  stacked(parameters.stiffness.translation, parameters.stiffness.rotation)
+                      .asDiagonal();
+              commanded.damping_ratio =
+                  stacked(parameters.damping_ratio.translation, parameters.damping_ratio.rotation);
+              commanded.nullspace_stiffness =
+                  per_joint(parameters.nullspace.stiffness, num_joints_);
+              commanded.nullspace_damping_ratio = parameters.nullspace.damping_ratio;
+              commanded.wrench << parameters.wrench.force, parameters.wrench.torque;
+            });
+          },
+      },
+      valid.command());
+  return true;
+}
+
+void CartesianImpedanceController::update_gains(double dt) noexcept {
+  if (dt == gains_.dt) return;
+  const FilterParameters& filter = parameters_.filter;
+  gains_.dt = dt;
+  gains_.pose = filter_gain(dt, filter.pose.time, filter.pose.fraction);
+  gains_.stiffness = filter_gain(dt, filter.stiffness.time, filter.stiffness.fraction);
+  gains_.nullspace = filter_gain(dt, filter.nullspace.time, filter.nullspace.fraction);
+  gains_.wrench = filter_gain(dt, filter.wrench.time, filter.wrench.fraction);
+}
+
+void CartesianImpedanceController::filter_targets() noexcept {
+  // a_{k+1} = (1 - a) a_k + a a_d, written in this form so that a = 1 lands exactly on a_d.
+  const Targets& commanded = state_.commanded;
+  Targets& filtered = state_.filtered;
+  const double a_pose = gains_.pose;
+  filtered.pose.position =
+      (1.0 - a_pose) * filtered.pose.position + a_pose * commanded.pose.position;
+  filtered.pose.orientation =
+      filtered.pose.orientation.slerp(a_pose, commanded.pose.orientation).normalized();
+  const double a_stiffness = gains_.stiffness;
+  if (stiffness_diagonal_) {
+    filtered.stiffness.diagonal() = (1.0 - a_stiffness) * filtered.stiffness.diagonal() +
+                                    a_stiffness * commanded.stiffness.diagonal();
+  } else {
+    filtered.stiffness =
+        (1.0 - a_stiffness) * filtered.stiffness + a_stiffness * commanded.stiffness;
+  }
+  filtered.damping_ratio =
+      (1.0 - a_stiffness) * filtered.damping_ratio + a_stiffness * commanded.damping_ratio;
+  const double a_nullspace = gains_.nullspace;
+  filtered.nullspace_q =
+      (1.0 - a_nullspace) * filtered.nullspace_q + a_nullspace * commanded.nullspace_q;
+  filtered.nullspace_stiffness = (1.0 - a_nullspace) * filtered.nullspace_stiffness +
+                                 a_nullspace * commanded.nullspace_stiffness;
+  filtered.nullspace_damping_ratio = (1.0 - a_nullspace) * filtered.nullspace_damping_ratio +
+                                     a_nullspace * commanded.nullspace_damping_ratio;
+  filtered.twist = commanded.twist;
+  filtered.nullspace_dq = commanded.nullspace_dq;
+  const double a_wrench = gains_.wrench;
+  filtered.wrench = (1.0 - a_wrench) * filtered.wrench + a_wrench * commanded.wrench;
+}
+
+void CartesianImpedanceController::track(const Pose& pose_base, const Vector6d& twist_base,
+                                         const JointVector& q_desired,
+                                         const JointVector& dq_desired) noexcept {
+  for (Targets* targets : {&state_.commanded, &state_.filtered}) {
+    targets->pose = pose_base;
+    targets->twist = twist_base;
+    targets->nullspace_q = q_desired;
+    targets->nullspace_dq = dq_desired;
+  }
+}
+
+void CartesianImpedanceController::schedule(const ScheduledImpedance& impedance) noexcept {
+  for (Targets* targets : {&state_.commanded, &state_.filtered}) {
+    targets->pose = impedance.reference;
+    targets->stiffness = impedance.stiffness;
+    targets->nullspace_q = impedance.nullspace_q;
+    targets->nullspace_stiffness = impedance.nullspace_stiffness;
+    targets->wrench = impedance.wrench;
+  }
+  scheduled_damping_ = impedance.damping;
+  scheduled_damping_diagonal_ = is_diagonal(impedance.damping);
+  scheduled_nullspace_damping_ = impedance.nullspace_damping;
+  scheduled_ = true;
+  refresh_damping_mode();
+}
+
+void CartesianImpedanceController::stop_tracking() noexcept {
+  state_.commanded.twist.setZero();
+  state_.commanded.nullspace_dq.setZero();
+}
+
+Status CartesianImpedanceController::fail_closed(Status status, const Fault& fault,
+                                                 double dt) noexcept {
+  // No trustworthy law output: ramp the last command as fast as the rate limit allows toward
+  // zero, or toward the last gravity torque when the law compensates gravity (zero would drop
+  // the arm).
+  if (!started_) {
+    state_.tau.setZero();
+    state_.status = Status::not_started;
+    return state_.status;
+  }
+  const Range& plausible = parameters_.plausibility.dt;
+  if (!(dt >= plausible.min && dt <= plausible.max)) dt = last_valid_dt_;
+  state_.tau = state_.tau_gravity;
+  state_.tau_cartesian.setZero();
+  state_.tau_nullspace.setZero();
+  state_.tau_wrench.setZero();
+  limit_torque(dt);
+  state_.status = status;
+  state_.fault = fault;
+  return status;
+}
+
+Status CartesianImpedanceController::update(const RobotState& robot, double dt) noexcept {
+  return cycle(robot, dt, checks::robot_state(robot, num_joints_, &joint_velocity_bound_));
+}
+
+Status CartesianImpedanceController::update_measured(const RobotState& robot, double dt) noexcept {
+  return cycle(robot, dt, checks::kinematics(robot, num_joints_));
+}
+
+Status CartesianImpedanceController::cycle(const RobotState& robot, double dt,
+                                           const Fault& input_fault) noexcept {
+  if (!started_) {
+    state_.tau.setZero();
+    state_.status = Status::not_started;
+    return state_.status;
+  }
+  if (const Fault fault = checks::time_step(dt, parameters_.plausibility.dt)) {
+    return fail_closed(Status::invalid_dt, fault, dt);
+  }
+  if (input_fault) return fail_closed(Status::invalid_robot_state, input_fault, dt);
+  const DynamicsParameters& dynamics = parameters_.dynamics;
+  if ((dynamics.inertia_shaped_damping || dynamics.dynamically_consistent_nullspace) &&
+      robot.mass.rows() != num_joints_) {
+    return fail_closed(
+        Status::missing_dynamics,
+        Fault{"mass", -1, static_cast<double>(robot.mass.rows()),
+              "is missing (dynamics options need M(q))", 0.0, false, "", Fault::Form::statement},
+        dt);
+  }
+  if (dynamics.gravity_compensation && robot.gravity.size() != num_joints_) {
+    return fail_closed(Status::missing_dynamics,
+                       Fault{"gravity", -1, static_cast<double>(robot.gravity.size()),
+                             "is missing (dynamics.gravity_compensation needs g(q))", 0.0, false,
+                             "", Fault::Form::statement},
+                       dt);
+  }
+  last_valid_dt_ = dt;
+
+  update_gains(dt);
+  filter_targets();
+  Fault fault;
+  if (!evaluate_law(robot, fault)) return fail_closed(Status::numerical_error, fault, dt);
+  limit_torque(dt);
+  state_.status = Status::ok;
+  state_.fault = Fault{};
+  return state_.status;
+}
+
+}  // namespace cartesian_impedance

@@ -1,0 +1,33 @@
+#pragma once
+// The control law's per-cycle workspace, private to the core: what CartesianImpedanceController's
+// law functions (law.cpp) share within a cycle and carry from one cycle to the next. Sized once at
+// construction; copying a controller copies it.
+
+#include "cartesian_impedance/core/controller.hpp"
+#include "kernels.hpp"
+
+namespace cartesian_impedance {
+
+struct CartesianImpedanceController::Law {
+  explicit Law(int num_joints);
+
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();  // R_base_ee of the cycle
+  bool damping_diagonal = true;  // this cycle's D is diagonal (the cheap route)
+  Matrix6d damping_frame;        // D before the minimum damping, in the stiffness frame
+  // The filtered K and zeta the (full, unit-mass) damping was last computed for: it is only
+  // recomputed while they move.
+  Matrix6d damping_computed_for_stiffness;
+  Vector6d damping_computed_for_ratio;
+  InertiaShapedDamping inertia_damping;  // tracks the square root's axes from cycle to cycle
+  NullspaceProjector projector;
+  JointVector nullspace_damping;  // D_ns of the cycle
+  JointVector tau_0;              // the nullspace torque before the projection
+  JointVector max_step;           // rate limit * dt per joint
+
+  // The damping must be computed anew at the next cycle (K, zeta or the mode changed).
+  void forget_damping() noexcept {
+    damping_computed_for_stiffness.setConstant(std::numeric_limits<double>::quiet_NaN());
+  }
+};
+
+}  // namespace cartesian_impedance

@@ -1,0 +1,365 @@
+#include "cartesian_impedance/core/parameters.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <sstream>
+
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/core/parameter_tree.hpp"
+
+namespace cartesian_impedance {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+template <typename T>
+ParameterField field_of(T* pointer) {
+  return ParameterField(pointer);
+}
+
+// Largest values that still mean something for an arm. Beyond them a value is a typo or an
+// attack, and some (a filter time of 1e308, a torque limit of 5e-324) would switch the controller
+// off without a word, so every range is closed on both sides. Stiffness and force bounds are ten
+// to a hundred times what torque-controlled arms use (Panda: 3000 N/m, 300 Nm/rad), and keep
+// every product in the law far from overflow.
+constexpr double kMaxTranslationalStiffness = 1e5;  // [N/m]
+constexpr double kMaxRotationalStiffness = 1e4;     // [Nm/rad]
+constexpr double kMaxJointStiffness = 1e4;          // [Nm/rad]
+constexpr double kMaxDampingRatio = 10.0;           // [-]
+constexpr double kMaxForce = 1e4;                   // [N]
+constexpr double kMaxTorque = 1e3;                  // [Nm]
+constexpr double kMaxJointTorque = 1e4;             // [Nm]
+// A filter must take effect: a time constant time / -ln(1 - fraction) of at most 30 s / ln 2.
+constexpr double kMaxFilterTime = 30.0;     // [s]
+constexpr double kMinFilterFraction = 0.5;  // [-]
+
+std::vector<ParameterInfo> make_table() {
+  // Valid ranges here are what is physically meaningful; user limits (limits.*) then saturate
+  // commands inside these ranges.
+  return {
+      {"stiffness.translation", "N/m", 0, kMaxTranslationalStiffness, false,
+       "Cartesian translational stiffness along x, y, z of the stiffness frame",
+       [](Parameters& p) { return field_of(&p.stiffness.translation); }},
+      {"stiffness.rotation", "Nm/rad", 0, kMaxRotationalStiffness, false,
+       "Cartesian rotational stiffness about x, y, z of the stiffness frame",
+       [](Parameters& p) { return field_of(&p.stiffness.rotation); }},
+      {"stiffness.frame", "", 0, 0, false,
+       "frame the stiffness is expressed in: base or end_effector",
+       [](Parameters& p) { return field_of(&p.stiffness.frame); }},
+      {"damping_ratio.translation", "-", 0, kMaxDampingRatio, false,
+       "damping ratio zeta per translational axis; 1 is critical damping (see "
+       "dynamics.inertia_shaped_damping)",
+       [](Parameters& p) { return field_of(&p.damping_ratio.translation); }},
+      {"damping_ratio.rotation", "-", 0, kMaxDampingRatio, false,
+       "damping ratio zeta per rotational axis",
+       [](Parameters& p) { return field_of(&p.damping_ratio.rotation); }},
+      {"minimum_damping.translation", "N s/m", 0, 1000, false,
+       "smallest translational damping, so that low or zero stiffness (teaching) stays damped: "
+       "after a release the arm coasts about (task-space mass / this) x its speed",
+       [](Parameters& p) { return field_of(&p.minimum_damping.translation); }},
+      {"minimum_damping.rotation", "Nm s/rad", 0, 100, false, "smallest rotational damping",
+       [](Parameters& p) { return field_of(&p.minimum_damping.rotation); }},
+      {"minimum_damping.nullspace", "Nm s/rad", 0, 100, false,
+       "smallest nullspace damping per joint",
+       [](Parameters& p) { return field_of(&p.minimum_damping.nullspace); }},
+      {"nullspace.stiffness", "Nm/rad", 0, kMaxJointStiffness, false,
+       "joint stiffness toward the nullspace target (one value or one per joint)",
+       [](Parameters& p) { return field_of(&p.nullspace.stiffness); }},
+      {"nullspace.damping_ratio", "-", 0, kMaxDampingRatio, false,
+       "nullspace damping ratio, D_ns = 2 zeta sqrt(K_ns)",
+       [](Parameters& p) { return field_of(&p.nullspace.damping_ratio); }},
+      // lambda enters as lambda^2 next to J J^T, whose entries are squared lever arms (m^2): at
+      // 1 the projector no longer removes anything an arm's Jacobian can do.
+      {"nullspace.pseudo_inverse_damping", "-", 0, 1, false,
+       "lambda in N = I - J^T (J J^T + lambda^2 I)^-1 J; 0 gives the exact projector",
+       [](Parameters& p) { return field_of(&p.nullspace.pseudo_inverse_damping); }},
+      {"wrench.force", "N", -kMaxForce, kMaxForce, false,
+       "commanded force on the environment, x, y, z",
+       [](Parameters& p) { return field_of(&p.wrench.force); }},
+      {"wrench.torque", "Nm", -kMaxTorque, kMaxTorque, false,
+       "commanded torque on the environment, x, y, z",
+       [](Parameters& p) { return field_of(&p.wrench.torque); }},
+      {"wrench.frame", "", 0, 0, false, "frame the wrench is expressed in: base or end_effector",
+       [](Parameters& p) { return field_of(&p.wrench.frame); }},
+      {"filter.pose.time", "s", 0, kMaxFilterTime, false,
+       "time after which filter.pose.fraction of a reference pose step is applied; 0 = no filter",
+       [](Parameters& p) { return field_of(&p.filter.pose.time); }},
+      {"filter.pose.fraction", "-", kMinFilterFraction, 1, false,
+       "fraction of a step applied after the time",
+       [](Parameters& p) { return field_of(&p.filter.pose.fraction); }},
+      {"filter.stiffness.time", "s", 0, kMaxFilterTime, false,
+       "filter time of stiffness and damping ratio changes; 0 = no filter",
+       [](Parameters& p) { return field_of(&p.filter.stiffness.time); }},
+      {"filter.stiffness.fraction", "-", kMinFilterFraction, 1, false,
+       "fraction of a step applied after the time",
+       [](Parameters& p) { return field_of(&p.filter.stiffness.fraction); }},
+      {"filter.nullspace.time", "s", 0, kMaxFilterTime, false,
+       "filter time of nullspace target, stiffness and damping changes; 0 = no filter",
+       [](Parameters& p) { return field_of(&p.filter.nullspace.time); }},
+      {"filter.nullspace.fraction", "-", kMinFilterFraction, 1, false,
+       "fraction of a step applied after the time",
+       [](Parameters& p) { return field_of(&p.filter.nullspace.fraction); }},
+      {"filter.wrench.time", "s", 0, kMaxFilterTime, false,
+       "filter time of commanded wrench changes; 0 = no filter",
+       [](Parameters& p) { return field_of(&p.filter.wrench.time); }},
+      {"filter.wrench.fraction", "-", kMinFilterFraction, 1, false,
+       "fraction of a step applied after the time",
+       [](Parameters& p) { return field_of(&p.filter.wrench.fraction); }},
+      {"limits.stiffness.translation.min", "N/m", 0, kMaxTranslationalStiffness, false,
+       "smallest translational stiffness a command is saturated to",
+       [](Parameters& p) { return field_of(&p.limits.stiffness.translation.min); }},
+      {"limits.stiffness.translation.max", "N/m", 0, kMaxTranslationalStiffness, false,
+       "largest translational stiffness a command is saturated to",
+       [](Parameters& p) { return field_of(&p.limits.stiffness.translation.max); }},
+      {"limits.stiffness.rotation.min", "Nm/rad", 0, kMaxRotationalStiffness, false,
+       "smallest rotational stiffness a command is saturated to",
+       [](Parameters& p) { return field_of(&p.limits.stiffness.rotation.min); }},
+      {"limits.stiffness.rotation.max", "Nm/rad", 0, kMaxRotationalStiffness, false,
+       "largest rotational stiffness a command is saturated to",
+       [](Parameters& p) { return field_of(&p.limits.stiffness.rotation.max); }},
+      {"limits.damping_ratio.min", "-", 0, kMaxDampingRatio, false,
+       "smallest damping ratio (Cartesian and nullspace) a command is saturated to",
+       [](Parameters& p) { return field_of(&p.limits.damping_ratio.min); }},
+      {"limits.damping_ratio.max", "-", 0, kMaxDampingRatio, false,
+       "largest damping ratio (Cartesian and nullspace) a command is saturated to",
+       [](Parameters& p) { return field_of(&p.limits.damping_ratio.max); }},
+      {"limits.nullspace_stiffness.min", "Nm/rad", 0, kMaxJointStiffness, false,
+       "smallest nullspace stiffness a command is saturated to",
+       [](Parameters& p) { return field_of(&p.limits.nullspace_stiffness.min); }},
+      {"limits.nullspace_stiffness.max", "Nm/rad", 0, kMaxJointStiffness, false,
+       "largest nullspace stiffness a command is saturated to",
+       [](Parameters& p) { return field_of(&p.limits.nullspace_stiffness.max); }},
+      {"limits.wrench.force", "N", 0, kMaxForce, false,
+       "largest norm of the commanded force; longer vectors are scaled down, keeping direction",
+       [](Parameters& p) { return field_of(&p.limits.wrench.force); }},
+      {"limits.wrench.torque", "Nm", 0, kMaxTorque, false,
+       "largest norm of the commanded torque; longer vectors are scaled down, keeping direction",
+       [](Parameters& p) { return field_of(&p.limits.wrench.torque); }},
+      // Below a centimetre (a hundredth of a radian) the spring could not even hold the arm's
+      // own friction: the clip would switch the spring off.
+      {"limits.pose_error.translation", "m", 0.01, 10, false,
+       "translation error norm is clipped to this, so a far reference cannot pull violently",
+       [](Parameters& p) { return field_of(&p.limits.pose_error.translation); }},
+      {"limits.pose_error.rotation", "rad", 0.01, M_PI, false,
+       "rotation error norm is clipped to this",
+       [](Parameters& p) { return field_of(&p.limits.pose_error.rotation); }},
+      {"limits.joint_torque", "Nm", 0.1, kMaxJointTorque, false,
+       "absolute commanded torque per joint (one value or one per joint); lowered while running, "
+       "the bound ramps down at the torque-rate limit",
+       [](Parameters& p) { return field_of(&p.limits.joint_torque); }},
+      {"limits.joint_torque_rate", "Nm/s", 1, 1e6, false,
+       "rate of change of the commanded torque, per joint (one value or one per joint)",
+       [](Parameters& p) { return field_of(&p.limits.joint_torque_rate); }},
+      {"dynamics.gravity_compensation", "", 0, 0, false,
+       "add g(q) to the command, for robots that do not compensate gravity themselves "
+       "(needs the model: the control loop provides it)",
+       [](Parameters& p) { return field_of(&p.dynamics.gravity_compensation); }},
+      {"dynamics.inertia_shaped_damping", "", 0, 0, false,
+       "damping ratios relative to the task-space inertia, d = 2 zeta sqrt(m k) per mode (needs "
+       "the model); false: the published controller's unit-mass D = 2 zeta sqrt(K)",
+       [](Parameters& p) { return field_of(&p.dynamics.inertia_shaped_damping); }},
+      {"dynamics.dynamically_consistent_nullspace", "", 0, 0, false,
+       "project the nullspace torque with N = I - J^T Lambda J M^-1 (needs the model)",
+       [](Parameters& p) { return field_of(&p.dynamics.dynamically_consistent_nullspace); }},
+      {"dynamics.armature", "kg m^2", 0, 100, false,
+       "reflected rotor inertia per joint, added to the model's M(q) (a URDF has none); one "
+       "value or one per joint",
+       [](Parameters& p) { return field_of(&p.dynamics.armature); }},
+      {"joint_limit_avoidance.margin", "rad", 0, 1, false,
+       "distance from a joint's position limit where the nullspace push away from it starts",
+       [](Parameters& p) { return field_of(&p.joint_limit_avoidance.margin); }},
+      {"joint_limit_avoidance.stiffness", "Nm/rad", 0, kMaxJointStiffness, false,
+       "stiffness of that push (inside the margin, in the nullspace); 0 switches it off",
+       [](Parameters& p) { return field_of(&p.joint_limit_avoidance.stiffness); }},
+      {"trajectory.goal_tolerance", "rad", 1e-4, 1, false,
+       "every joint within this of the last point reports a trajectory finished",
+       [](Parameters& p) { return field_of(&p.trajectory.goal_tolerance); }},
+      {"trajectory.goal_time_tolerance", "s", 0, 60, false,
+       "time after the last point within which the goal must be reached, else aborted",
+       [](Parameters& p) { return field_of(&p.trajectory.goal_time_tolerance); }},
+      {"plausibility.dt.min", "s", 1e-6, 1, false,
+       "shortest believable cycle time step; a shorter dt fails the cycle closed (invalid_dt)",
+       [](Parameters& p) { return field_of(&p.plausibility.dt.min); }},
+      {"plausibility.dt.max", "s", 1e-6, 1, false,
+       "longest believable cycle time step; a longer dt fails the cycle closed (invalid_dt)",
+       [](Parameters& p) { return field_of(&p.plausibility.dt.max); }},
+      {"plausibility.joint_velocity", "rad/s", 0.1, 100, false,
+       "fastest believable measured joint speed (one value or one per joint); faster fails the "
+       "cycle closed (invalid_robot_state)",
+       [](Parameters& p) { return field_of(&p.plausibility.joint_velocity); }},
+      {"plausibility.joint_position_margin", "rad", 0, 10, false,
+       "how far a measured position may lie outside the URDF's limits before the cycle fails "
+       "closed (checked by the control loop, which knows the limits)",
+       [](Parameters& p) { return field_of(&p.plausibility.joint_position_margin); }},
+  };
+}
+
+std::string element_name(std::string_view base, const char* suffix) {
+  std::string name(base);
+  name += suffix;
+  return name;
+}
+
+constexpr const char* kAxisSuffix[3] = {".x", ".y", ".z"};
+
+std::string with_unit(double value, std::string_view unit) {
+  std::string text = format_number(value);
+  if (!unit.empty() && unit != "-") text += " " + std::string(unit);
+  return text;
+}
+
+void check_ranges(const Range& range, std::string_view name, std::string_view unit) {
+  if (range.min > range.max) {
+    throw Error(std::string(name) + ".min = " + with_unit(range.min, unit) + " is greater than " +
+                std::string(name) + ".max = " + with_unit(range.max, unit));
+  }
+}
+
+}  // namespace
+
+std::string ParameterInfo::range_text() const {
+  std::string text = min_exclusive ? "(" : "[";
+  text += format_number(min) + ", " + format_number(max);
+  text += std::isinf(max) ? ")" : "]";
+  if (std::isinf(min)) text[0] = '(';
+  return text;
+}
+
+void ParameterInfo::check(std::string_view element, double value) const {
+  const bool below = min_exclusive ? !(value > min) : !(value >= min);
+  if (!std::isfinite(value) || below || value > max) {
+    std::string message = std::string(element) + " = " + with_unit(value, unit);
+    message += std::isfinite(value) ? " is outside " + range_text()
+                                    : " is not finite (valid: " + range_text() + ")";
+    const std::string input(element), unit_text(unit);
+    const bool above = value > max;
+    throw Error(Fault{input.c_str(), -1, value,
+                      !std::isfinite(value) ? "is not finite"
+                      : above               ? "is above"
+                                            : "is below",
+                      above ? max : min, std::isfinite(value), unit_text.c_str()},
+                message);
+  }
+}
+
+const std::vector<ParameterInfo>& parameter_table() {
+  static const std::vector<ParameterInfo> table = make_table();
+  return table;
+}
+
+const ParameterInfo* find_parameter(std::string_view name) {
+  for (const ParameterInfo& info : parameter_table()) {
+    if (info.name == name) return &info;
+  }
+  return nullptr;
+}
+
+bool is_parameter_group(std::string_view path) {
+  for (const ParameterInfo& info : parameter_table()) {
+    if (info.name.size() > path.size() && info.name[path.size()] == '.' &&
+        info.name.substr(0, path.size()) == path) {
+      return true;
+    }
+  }
+  return false;
+}
+
+const ParameterInfo& parameter_info(std::string_view name) {
+  if (const ParameterInfo* info = find_parameter(name)) return *info;
+  throw unknown_parameter(name);
+}
+
+std::string_view frame_name(Frame frame) {
+  return frame == Frame::base ? "base" : "end_effector";
+}
+
+Frame frame_from_name(std::string_view field, std::string_view name) {
+  return decode_frame(ParameterValue::string(std::string(name)), field);
+}
+
+JointVector per_joint(const JointVector& values, int num_joints) {
+  if (values.size() == num_joints) return values;
+  return JointVector::Constant(num_joints, values.size() > 0 ? values[0] : 0.0);
+}
+
+void validate(const Parameters& parameters, int num_joints) {
+  // The table only hands out mutable pointers; reading through them changes nothing.
+  Parameters& p = const_cast<Parameters&>(parameters);
+  for (const ParameterInfo& info : parameter_table()) {
+    const ParameterField field = info.in(p);
+    if (auto* value = std::get_if<double*>(&field)) {
+      info.check(info.name, **value);
+    } else if (auto* vector = std::get_if<Eigen::Vector3d*>(&field)) {
+      for (int i = 0; i < 3; ++i)
+        info.check(element_name(info.name, kAxisSuffix[i]), (**vector)[i]);
+    } else if (auto* joints = std::get_if<JointVector*>(&field)) {
+      const JointVector& values = **joints;
+      const bool size_ok = num_joints > 0 ? (values.size() == 1 || values.size() == num_joints)
+                                          : (values.size() >= 1 && values.size() <= kMaxJoints);
+      if (!size_ok) {
+        throw Error(std::string(info.name) + " has " + std::to_string(values.size()) +
+                    " values; expected 1 (all joints) or " +
+                    (num_joints > 0 ? std::to_string(num_joints) + " (one per joint)"
+                                    : "one per joint, at most " + std::to_string(kMaxJoints)));
+      }
+      for (Eigen::Index i = 0; i < values.size(); ++i) {
+        info.check(std::string(info.name) + "[" + std::to_string(i) + "]", values[i]);
+      }
+    }
+  }
+  const LimitParameters& limits = parameters.limits;
+  check_ranges(limits.stiffness.translation, "limits.stiffness.translation", "N/m");
+  check_ranges(limits.stiffness.rotation, "limits.stiffness.rotation", "Nm/rad");
+  check_ranges(limits.damping_ratio, "limits.damping_ratio", "");
+  check_ranges(limits.nullspace_stiffness, "limits.nullspace_stiffness", "Nm/rad");
+  check_ranges(parameters.plausibility.dt, "plausibility.dt", "s");
+}
+
+std::string value_text(const Parameters& parameters, const ParameterInfo& info) {
+  const ParameterField field = info.in(const_cast<Parameters&>(parameters));
+  std::ostringstream text;
+  if (auto* value = std::get_if<double*>(&field)) {
+    text << format_number(**value);
+  } else if (auto* vector = std::get_if<Eigen::Vector3d*>(&field)) {
+    text << "[" << format_number((**vector)[0]) << ", " << format_number((**vector)[1]) << ", "
+         << format_number((**vector)[2]) << "]";
+  } else if (auto* joints = std::get_if<JointVector*>(&field)) {
+    const JointVector& values = **joints;
+    if (values.size() == 1) {
+      text << format_number(values[0]);
+    } else {
+      text << "[";
+      for (Eigen::Index i = 0; i < values.size(); ++i) {
+        text << (i ? ", " : "") << format_number(values[i]);
+      }
+      text << "]";
+    }
+  } else if (auto* frame = std::get_if<Frame*>(&field)) {
+    text << frame_name(**frame);
+  } else if (auto* flag = std::get_if<bool*>(&field)) {
+    text << (**flag ? "true" : "false");
+  }
+  return text.str();
+}
+
+std::string parameter_table_markdown() {
+  const Parameters defaults;
+  std::ostringstream text;
+  text << "| name | unit | default | valid range | description |\n";
+  text << "|---|---|---|---|---|\n";
+  for (const ParameterInfo& info : parameter_table()) {
+    const ParameterField field = info.in(const_cast<Parameters&>(defaults));
+    const bool is_frame = std::holds_alternative<Frame*>(field);
+    const bool is_switch = std::holds_alternative<bool*>(field);
+    text << "| `" << info.name << "` | " << (info.unit.empty() ? "" : info.unit) << " | "
+         << value_text(defaults, info) << " | "
+         << (is_frame    ? "base, end_effector"
+             : is_switch ? "true, false"
+                         : info.range_text())
+         << " | " << info.description << " |\n";
+  }
+  return text.str();
+}
+
+}  // namespace cartesian_impedance

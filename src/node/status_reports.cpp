@@ -1,0 +1,93 @@
+#include "cartesian_impedance/node/status_reports.hpp"
+
+#include <thread>
+#include <utility>
+
+#include "cartesian_impedance/core/parameters.hpp"
+
+namespace cartesian_impedance::node {
+
+StatusReporter::StatusReporter(double period, double measurement_timeout, std::string measurements,
+                               std::chrono::steady_clock::duration summary_interval)
+    : period_(period),
+      measurement_timeout_(measurement_timeout),
+      measurements_(std::move(measurements)),
+      interval_(summary_interval) {}
+
+std::vector<ReportLine> StatusReporter::update(const LoopState& state,
+                                               const runtime::ControlThreadSnapshot& timing) {
+  using Level = ReportLine::Level;
+  std::vector<ReportLine> lines;
+  const Status status = state.controller.status;
+  if (status != status_) {
+    if (status == Status::ok) {
+      lines.push_back({Level::info, "controller status: ok"});
+    } else {
+      lines.push_back({Level::warning, std::string("controller status: ") + to_string(status)});
+    }
+    status_ = status;
+  }
+  if (timing.stale != stale_) {
+    if (timing.stale) {
+      lines.push_back({Level::warning, "no " + measurements_ + " for more than " +
+                                           format_number(measurement_timeout_) +
+                                           " s: torque ramps toward zero"});
+    } else {
+      lines.push_back({Level::info, measurements_ + " are back"});
+    }
+    stale_ = timing.stale;
+  }
+  // Overruns: one line per window with any, counted from the thread's snapshots.
+  const auto now = std::chrono::steady_clock::now();
+  if (!window_began_) window_began_ = now;  // the first window: since start
+  if (now - *window_began_ < interval_) return lines;
+  const runtime::ControlThreadStatistics window = timing.since(window_start_);
+  if (window.overruns > 0) {
+    const double seconds = std::chrono::duration<double>(now - *window_began_).count();
+    lines.push_back({Level::warning, runtime::overrun_summary(window, period_, seconds)});
+  }
+  window_began_ = now;
+  window_start_ = timing;
+  return lines;
+}
+
+PublisherOptions publisher_options(const NodeSettings& settings) {
+  PublisherOptions options;
+  options.rate = settings.publish_rate;
+  options.measurement_timeout = settings.joint_states_timeout;
+  return options;
+}
+
+void run_publisher(const PublisherOptions& options, const std::atomic<bool>& stop,
+                   const runtime::ControlThread& thread, const ControlLoop& loop,
+                   const runtime::MeasurementBuffer* measurements,
+                   const std::function<void(const PublisherSample&)>& publish,
+                   const std::function<void(const ReportLine&)>& log) {
+  using Clock = std::chrono::steady_clock;
+  const auto period = std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(1.0 / options.rate));
+  StatusReporter reporter(1.0 / thread.options().rate, options.measurement_timeout,
+                          options.measurements);
+  PublisherSample sample;
+  runtime::JointMeasurement measured;
+  Clock::time_point next = Clock::now();
+  while (!stop) {
+    next += period;
+    if (thread.running()) {
+      sample.state = loop.latest_state();
+      sample.measured = nullptr;
+      if (measurements != nullptr) {
+        measurements->read(measured);
+        sample.measured = &measured;
+      }
+      sample.timing = thread.snapshot();
+      publish(sample);
+      for (const ReportLine& line : reporter.update(sample.state, sample.timing)) log(line);
+    }
+    const Clock::time_point now = Clock::now();
+    if (now - next > period) next = now;
+    std::this_thread::sleep_until(next);
+  }
+}
+
+}  // namespace cartesian_impedance::node

@@ -1,0 +1,148 @@
+#pragma once
+// Internal to the sim target: what Simulation holds behind its pointer, and the helpers the
+// sources share. Not installed.
+
+#include <mujoco/mujoco.h>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/sim/simulation.hpp"
+#include "renderer.hpp"
+
+namespace cartesian_impedance::sim {
+namespace detail {
+
+struct ModelDeleter {
+  void operator()(mjModel* model) const noexcept { mj_deleteModel(model); }
+};
+struct DataDeleter {
+  void operator()(mjData* data) const noexcept { mj_deleteData(data); }
+};
+using ModelPtr = std::unique_ptr<mjModel, ModelDeleter>;
+using DataPtr = std::unique_ptr<mjData, DataDeleter>;
+
+/// While alive, a fatal MuJoCo error (mju_error, whose default handler ends the process) throws
+/// Error instead. MuJoCo's own Python bindings do the same. Not thread-safe: the handler is a
+/// process-wide pointer.
+class MujocoErrorTrap {
+ public:
+  MujocoErrorTrap() noexcept;
+  ~MujocoErrorTrap();
+  MujocoErrorTrap(const MujocoErrorTrap&) = delete;
+  MujocoErrorTrap& operator=(const MujocoErrorTrap&) = delete;
+
+ private:
+  void (*previous_)(const char*);
+};
+
+/// What a scene is made of, for an engine that loads URDF files itself (DART): the robots with
+/// their prefixes and bases, and the boxes. Names match the MuJoCo scene built from the same.
+struct UrdfScene {
+  std::vector<SceneRobot> robots;
+  std::vector<Box> boxes;
+};
+
+/// Compiles `path` (looked up in `vfs` first when given) and builds the simulation.
+/// `kind` ("MJCF", "URDF", "scene") only shapes error messages. `urdf_scene` describes the same
+/// scene from its URDF files (nullptr for an MJCF model, which only MuJoCo can simulate).
+Simulation load_simulation(const std::string& path, const mjVFS* vfs, const std::string& kind,
+                           SimulationOptions options, const UrdfScene* urdf_scene = nullptr);
+
+/// A MuJoCo virtual file system holding one document (about 2 MB: kept off the stack).
+class VirtualFile {
+ public:
+  VirtualFile(const std::string& name, const std::string& content);
+  ~VirtualFile();
+  VirtualFile(const VirtualFile&) = delete;
+  VirtualFile& operator=(const VirtualFile&) = delete;
+  const mjVFS* vfs() const noexcept { return vfs_.get(); }
+
+ private:
+  std::unique_ptr<mjVFS> vfs_;
+};
+
+/// What a URDF lacks for a simulation, filled in by mjcf_from_urdf() where the URDF gives none.
+struct UrdfImportOptions {
+  double armature = 0.1;  ///< [kg m^2] reflected rotor inertia per joint
+  double damping = 0.5;   ///< [N m s/rad] joint damping
+};
+
+/// MJCF text of the robot in `urdf_path` with every link kept as a body (fixed joints too),
+/// armature and damping on each joint, non-colliding arm geoms, a floor, lights and a sky.
+std::string mjcf_from_urdf(const std::string& urdf_path, const UrdfImportOptions& options);
+
+/// "a, b, c" of every named object of `type` (mjtObj), "(none)" if there is none.
+std::string list_names(const mjModel* model, int type);
+
+/// A physics engine other than MuJoCo's own. The MuJoCo model and data of Simulation::Impl
+/// still hold the scene: the engine writes its state into `data` (qpos, qvel, time) after each
+/// step, so names, kinematics and rendering work unchanged.
+class Physics {
+ public:
+  virtual ~Physics() = default;
+  virtual Engine engine() const noexcept = 0;
+  /// Takes over qpos and qvel of every joint from `impl.data`; no contacts until the next step.
+  virtual void set_state(const Simulation::Impl& impl) = 0;
+  /// Applies the commanded torque, gravity compensation and pushes of `impl`, advances by one
+  /// timestep and writes the new state into impl.data (qpos, qvel, time).
+  virtual void step(Simulation::Impl& impl) noexcept = 0;
+  /// Pose of MuJoCo body `body` (an id) in the world.
+  virtual Pose body_pose(int body) const = 0;
+  /// Contact wrench on the bodies whose MuJoCo weld id is `weld`, torque about `origin`.
+  virtual Vector6d contact_wrench(int weld, const Eigen::Vector3d& origin) const = 0;
+};
+
+/// DART behind the scene of `impl` (whose joints, armature, damping and friction it copies).
+/// @throw Error naming the engine if DART is not built in or cannot load or build the scene.
+std::unique_ptr<Physics> make_dart_physics(const UrdfScene& scene, const Simulation::Impl& impl);
+
+}  // namespace detail
+
+/// An active push: a world-frame wrench at a point fixed in a body.
+struct Push {
+  int body = 0;
+  int site = -1;  // point of application: this site's origin, or the body's origin if -1
+  Vector6d wrench_world = Vector6d::Zero();
+  double end_time = 0.0;  // active while time < end_time - timestep / 2
+};
+
+struct Simulation::Impl {
+  detail::ModelPtr model;
+  detail::DataPtr data;
+  std::string source;  // file the model came from, for messages
+  std::string model_name;
+  SimulationOptions options;
+  int keyframe_id = -1;  // -1: default qpos
+
+  std::vector<std::string> joint_names;
+  std::vector<int> joint_ids;     // MuJoCo joint id per exchanged joint
+  std::vector<int> qpos_address;  // index into qpos
+  std::vector<int> dof_address;   // index into qvel, qfrc_*
+  std::vector<int> actuator_ids;  // -1: torque through qfrc_applied
+  JointVector ctrl_per_torque;    // ctrl = tau * ctrl_per_torque for actuated joints
+
+  JointVector q, dq;
+  JointVector tau;                   // applied commanded torque (after clipping)
+  JointVector tau_lower, tau_upper;  // joint torque range
+
+  std::vector<Push> pushes;
+  bool gravity_on = false;  // compensation requested and gravity enabled in the model
+  mutable bool kinematics_current = true;  // xpos, site_xpos, ... belong to the current qpos
+
+  std::unique_ptr<detail::Physics> physics;  // null: MuJoCo integrates
+
+  mutable std::unique_ptr<detail::Renderer> renderer;  // created by the first render_png()
+  mutable detail::DataPtr ghost_data;  // kinematics of a render's ghost, made when first needed
+
+  void reset();
+  void read_state() noexcept;
+  void apply_inputs() noexcept;   // needs kinematics and subtree_com of the current qpos
+  void expire_pushes() noexcept;  // drops the pushes that end before the next step
+  void update_kinematics() const noexcept;
+  int find_body(const std::string& name) const;  // throws Error naming the body
+};
+
+}  // namespace cartesian_impedance::sim
