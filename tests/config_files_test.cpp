@@ -9,12 +9,17 @@
 #include <fstream>
 #include <memory>
 #include <optional>
+#include <random>
 #include <set>
 #include <sstream>
 #include <string>
 #include <string_view>
 #include <utility>
 #include <vector>
+
+#include <yaml-cpp/yaml.h>
+
+#include <map>
 
 #include "cartesian_impedance/config/yaml.hpp"
 #include "cartesian_impedance/core/controller.hpp"
@@ -98,6 +103,101 @@ TEST(ConfigFiles, PandaLoadsAndRunsASevenJointController) {
 
 TEST(ConfigFiles, Iiwa14LoadsAndRunsASevenJointController) {
   expect_example_file("config/iiwa14.yaml", joints({320, 320, 176, 176, 110, 40, 40}));
+}
+
+// Every number of a YAML document by its dotted key (list elements as key[i]), as written.
+void collect_numbers(const YAML::Node& node, const std::string& key,
+                     std::map<std::string, std::string>& numbers) {
+  if (node.IsMap()) {
+    for (const auto& member : node) {
+      const std::string name = member.first.as<std::string>();
+      collect_numbers(member.second, key.empty() ? name : key + "." + name, numbers);
+    }
+  } else if (node.IsSequence()) {
+    for (std::size_t i = 0; i < node.size(); ++i) {
+      collect_numbers(node[i], key + "[" + std::to_string(i) + "]", numbers);
+    }
+  } else if (node.IsScalar()) {
+    const std::string& text = node.Scalar();
+    char* end = nullptr;
+    std::strtod(text.c_str(), &end);
+    if (!text.empty() && end == text.c_str() + text.size()) numbers[key] = text;
+  }
+}
+
+std::map<std::string, std::string> numbers_of(const std::string& yaml) {
+  std::map<std::string, std::string> numbers;
+  collect_numbers(YAML::Load(yaml), "", numbers);
+  return numbers;
+}
+
+// A number as a person writes it, without a redundant fraction: "1.0" -> "1", "0.50" -> "0.5".
+std::string without_trailing_zeros(std::string text) {
+  if (text.find('.') == std::string::npos || text.find_first_of("eE") != std::string::npos) {
+    return text;
+  }
+  while (text.back() == '0') text.pop_back();
+  if (text.back() == '.') text.pop_back();
+  return text;
+}
+
+// Written back, every shipped configuration shows the numbers its author wrote (0.2, not
+// 0.20000000000000001), each the shortest text that reads back as the same double, and reads
+// back to the same parameters.
+TEST(ConfigFiles, WrittenBackKeepTheNumbersAsWritten) {
+  for (const char* relative :
+       {"config/panda.yaml", "config/iiwa14.yaml", "config/ur5e.yaml", "config/planar3.yaml"}) {
+    SCOPED_TRACE(relative);
+    std::ifstream file(source_path(relative));
+    std::stringstream text;
+    text << file.rdbuf();
+    const std::map<std::string, std::string> given = numbers_of(text.str());
+    ASSERT_GT(given.size(), 20u);
+    const std::string written = ci::parameters_to_yaml(ci::load_parameters(source_path(relative)));
+    const std::map<std::string, std::string> numbers = numbers_of(written);
+    for (const auto& [key, user_text] : given) {
+      // A value given once for all axes or joints is written once per axis or joint.
+      const auto found = numbers.find(key);
+      if (found != numbers.end()) {
+        EXPECT_EQ(found->second, without_trailing_zeros(user_text)) << key;
+      } else {
+        ASSERT_EQ(numbers.count(key + "[0]"), 1u) << key << " is not in\n" << written;
+        for (int i = 0; numbers.count(key + "[" + std::to_string(i) + "]") != 0; ++i) {
+          EXPECT_EQ(numbers.at(key + "[" + std::to_string(i) + "]"),
+                    without_trailing_zeros(user_text))
+              << key << "[" << i << "]";
+        }
+      }
+    }
+    for (const auto& [key, written_text] : numbers) {
+      EXPECT_EQ(ci::format_exact(std::strtod(written_text.c_str(), nullptr)), written_text) << key;
+    }
+    EXPECT_EQ(ci::parameters_to_yaml(ci::parameters_from_yaml(written)), written);
+  }
+}
+
+// The two number formats: messages round to 10 significant digits; files write the shortest text
+// that reads back exactly.
+TEST(Numbers, MessagesRoundAndFilesKeepEveryBit) {
+  EXPECT_EQ(ci::format_number(0.1 + 0.2), "0.3");
+  EXPECT_EQ(ci::format_number(2.0 * M_PI), "6.283185307");
+  EXPECT_EQ(ci::format_number(1e9), "1000000000");
+  EXPECT_EQ(ci::format_number(std::nan("")), "nan");
+  EXPECT_EQ(ci::format_number(-HUGE_VAL), "-inf");
+  EXPECT_EQ(ci::format_exact(0.2), "0.2");
+  EXPECT_EQ(ci::format_exact(0.1 + 0.2), "0.30000000000000004");
+  EXPECT_EQ(ci::format_exact(0.00001), "0.00001");
+  EXPECT_EQ(ci::format_exact(5000.0), "5000");
+  EXPECT_EQ(ci::format_exact(1e-12), "1e-12");
+  EXPECT_EQ(ci::format_exact(-0.0698), "-0.0698");
+  std::mt19937_64 rng(28);
+  std::uniform_real_distribution<double> exponent(-30.0, 30.0), mantissa(-1.0, 1.0);
+  for (int i = 0; i < 10000; ++i) {
+    const double value = mantissa(rng) * std::pow(10.0, exponent(rng));
+    const std::string text = ci::format_exact(value);
+    EXPECT_EQ(std::strtod(text.c_str(), nullptr), value) << text;
+    EXPECT_LE(text.size(), 24u) << text;
+  }
 }
 
 // ---------------------------------------------------------------------------------------------

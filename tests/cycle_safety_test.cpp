@@ -132,6 +132,45 @@ TEST(CycleSafety, InvalidDtRampsTorqueToZeroAtTheLastValidRate) {
   }
 }
 
+// A term of the law that cannot be evaluated fails the cycle closed and names the term, not only
+// "tau is not finite": the damping (an indefinite M(q) cannot shape it), the dynamically
+// consistent projection (nor project), a spring-damper torque that overflows.
+TEST(CycleSafety, ALawTermThatCannotBeEvaluatedNamesItself) {
+  {
+    Rig rig = make_running_rig();
+    ci::RobotState robot = rig.robot;
+    robot.mass = -robot.mass;
+    EXPECT_EQ(rig.controller.update(robot, kDt), ci::Status::numerical_error);
+    EXPECT_STREQ(rig.controller.state().fault.input, "damping");
+    EXPECT_NE(ci::to_string(rig.controller.state().fault).find("positive definite"),
+              std::string::npos);
+    EXPECT_TRUE(rig.controller.torque().allFinite());
+  }
+  {
+    Rig rig = make_running_rig();
+    ci::Parameters p = rig.controller.parameters();
+    p.dynamics.inertia_shaped_damping = false;
+    p.dynamics.dynamically_consistent_nullspace = true;
+    rig.controller.set_parameters(p);
+    ASSERT_EQ(rig.controller.update(rig.robot, kDt), ci::Status::ok);
+    ci::RobotState robot = rig.robot;
+    robot.mass = -robot.mass;
+    EXPECT_EQ(rig.controller.update(robot, kDt), ci::Status::numerical_error);
+    EXPECT_STREQ(rig.controller.state().fault.input, "nullspace");
+  }
+  {
+    Rig rig = make_running_rig();
+    ci::Parameters p = rig.controller.parameters();
+    p.dynamics.inertia_shaped_damping = false;
+    rig.controller.set_parameters(p);
+    ci::RobotState robot = rig.robot;
+    robot.jacobian *= 1e300;  // finite, but J^T D J dq is not
+    EXPECT_EQ(rig.controller.update(robot, kDt), ci::Status::numerical_error);
+    EXPECT_STREQ(rig.controller.state().fault.input, "tau_cartesian");
+    EXPECT_TRUE(rig.controller.torque().allFinite());
+  }
+}
+
 TEST(CycleSafety, OneBadCycleThenValidInputIsOkAgain) {
   Rig rig = make_running_rig();
   const ci::JointVector before = rig.controller.torque();

@@ -310,6 +310,43 @@ TEST(FailClosed, FaultTextNamesInputValueAndBound) {
   EXPECT_EQ(ci::to_string(ci::Fault{}), "");
 }
 
+// One check serves both ways: the measurement that makes a cycle fail closed makes start() throw
+// an Error that carries the same fault as data (field, index, value, bound), also when copied.
+TEST(FailClosed, TheCycleAndStartReportTheSameFaultOfAMeasurement) {
+  Pulling rig;
+  ci::JointVector dq = rig.sim.dq;
+  dq[5] = 50.0;  // beyond the default plausibility.joint_velocity
+  rig.loop.step(rig.sim.q, dq, kDt);
+  const ci::Fault cycle = rig.loop.state().controller.fault;
+  ASSERT_TRUE(cycle);
+  ci::ControlLoop fresh(rig.model, Pulling::parameters());
+  try {
+    fresh.start(rig.sim.q, dq);
+    FAIL() << "start() accepted a joint velocity the cycle refuses";
+  } catch (const ci::Error& thrown) {
+    const ci::Error error = thrown;  // the copy keeps its own fault
+    EXPECT_STREQ(error.fault().input, cycle.input);
+    EXPECT_EQ(error.fault().index, 5);
+    EXPECT_EQ(error.fault().value, 50.0);
+    EXPECT_TRUE(error.fault().has_bound);
+    EXPECT_EQ(error.fault().bound, cycle.bound);
+    EXPECT_STREQ(error.fault().reason, cycle.reason);
+    EXPECT_EQ(std::string(error.what()), ci::to_string(cycle));
+  }
+  EXPECT_FALSE(fresh.started());
+  // A command's error carries its field too.
+  try {
+    rig.loop.set_stiffness((ci::Vector6d() << -5, 500, 500, 50, 50, 50).finished());
+    FAIL() << "a negative stiffness was accepted";
+  } catch (const ci::Error& error) {
+    EXPECT_STREQ(error.fault().input, "stiffness.translation.x");
+    EXPECT_EQ(error.fault().value, -5.0);
+    EXPECT_EQ(error.fault().bound, 0.0);
+  }
+  // Errors that are not about one value carry no fault.
+  EXPECT_FALSE(ci::Error("file 'x' cannot be read").fault());
+}
+
 // Finding 10: the ROS node dropped commands when the inbox was full. A sender may now wait for
 // room (LoopCapacity::send_timeout) in its own thread while the cycle drains the inbox; a loop
 // that does not step makes it throw QueueFull, which a caller can tell from a bad command.

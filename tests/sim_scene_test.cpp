@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <mujoco/mujoco.h>
 #include <png.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -304,6 +305,8 @@ PngInfo read_png(const std::string& path) {
   image.format = PNG_FORMAT_RGB;
   std::vector<unsigned char> pixels(PNG_IMAGE_SIZE(image));
   if (png_image_finish_read(&image, nullptr, pixels.data(), 0, nullptr) == 0) return info;
+  // The pixels must be the picture the header describes (at() indexes them by its size).
+  if (image.width != info.width || image.height != info.height) return PngInfo{};
   for (std::size_t i = 0; i + 2 < pixels.size(); i += 3) {
     info.colours.insert((std::uint32_t{pixels[i]} << 16) | (std::uint32_t{pixels[i + 1]} << 8) |
                         pixels[i + 2]);
@@ -314,7 +317,11 @@ PngInfo read_png(const std::string& path) {
 
 PngInfo render(const sim::Simulation& s, const sim::RenderOverlay& overlay, int width = 320,
                int height = 240) {
-  const std::string path = ::testing::TempDir() + "sim_scene_test_render.png";
+  // One file per test and process: ctest runs these tests in parallel processes, which must not
+  // read each other's half-written pictures.
+  const std::string path = ::testing::TempDir() + "sim_scene_test_render_" +
+                           ::testing::UnitTest::GetInstance()->current_test_info()->name() + "_" +
+                           std::to_string(::getpid()) + ".png";
   s.render_png(path, width, height, overlay);
   PngInfo info = read_png(path);
   std::remove(path.c_str());

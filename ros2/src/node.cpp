@@ -237,29 +237,38 @@ template <typename Convert>
 void Node::send(const char* topic, Convert&& convert) {
   // One warning per kind of mistake and second, with the count of those not shown, so that a
   // flood of bad samples cannot flood the log.
-  struct Throttle {
-    Clock::time_point last{};
-    int suppressed = 0;
-  };
   static thread_local std::map<std::string, Throttle> throttles;
+  // Keyed by topic and the rejected field (the error's fault), so that a different mistake is
+  // reported at once; errors without a field share their topic's key. The fields are the
+  // parameter table's and the commands' (a bounded set); the cap only guards against a bug.
+  constexpr std::size_t kMaxKeys = 256;
+  const auto throttle_for = [&](const std::string& field) -> Throttle& {
+    if (throttles.size() >= kMaxKeys && throttles.count(std::string(topic) + " " + field) == 0) {
+      throttles.clear();
+    }
+    return throttles[std::string(topic) + " " + field];
+  };
   try {
     convert();
+  } catch (const ci::Error& error) {
+    report(topic, error.what(), throttle_for(error.fault().input));
   } catch (const std::exception& error) {
-    // Per topic and field (the message up to " = "): a different mistake is reported at once.
-    const std::string what = error.what();
-    Throttle& throttle = throttles[std::string(topic) + " " + what.substr(0, what.find(" = "))];
-    const Clock::time_point now = Clock::now();
-    if (now - throttle.last < std::chrono::seconds(1)) {
-      ++throttle.suppressed;
-      return;
-    }
-    std::string text = std::string(topic) + " rejected: " + error.what();
-    if (throttle.suppressed > 0) {
-      text += " (and " + std::to_string(throttle.suppressed) + " more in the last second)";
-    }
-    log(LogLevel::warn, text);
-    throttle = {now, 0};
+    report(topic, error.what(), throttle_for(""));
   }
+}
+
+void Node::report(const char* topic, const char* what, Throttle& throttle) {
+  const Clock::time_point now = Clock::now();
+  if (now - throttle.last < std::chrono::seconds(1)) {
+    ++throttle.suppressed;
+    return;
+  }
+  std::string text = std::string(topic) + " rejected: " + what;
+  if (throttle.suppressed > 0) {
+    text += " (and " + std::to_string(throttle.suppressed) + " more in the last second)";
+  }
+  log(LogLevel::warn, text);
+  throttle = {now, 0};
 }
 
 void Node::take_commands() {

@@ -18,6 +18,7 @@
 ///   (tf_static) and robot_description are written once, transient local, at construction.
 
 #include <atomic>
+#include <chrono>
 #include <memory>
 #include <optional>
 #include <string>
@@ -61,8 +62,15 @@ class Node {
   /// Takes every waiting sample of every command topic and sends what converts and validates.
   void take_commands();
   /// Sends commands from one sample to the loop as one (all or none); logs a rejection.
+  // Runs `convert` (which sends a command); a rejected command is logged, throttled per topic
+  // and rejected field.
   template <typename Convert>
   void send(const char* topic, Convert&& convert);
+  struct Throttle {
+    std::chrono::steady_clock::time_point last{};
+    int suppressed = 0;
+  };
+  static void report(const char* topic, const char* what, Throttle& throttle);
 
   RosArguments arguments_;
   Ros2Configuration configuration_;

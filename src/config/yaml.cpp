@@ -177,7 +177,13 @@ void emit(YAML::Emitter& out, const ParameterValue& value) {
       out << YAML::Null;
       break;
     case ParameterValue::Kind::number:
-      out << value.as_number();
+      // The shortest text that reads back as the same double: what the user wrote (0.2), not
+      // yaml-cpp's 17 digits (0.20000000000000001). Infinities keep YAML's own spelling (.inf).
+      if (std::isfinite(value.as_number())) {
+        out << format_exact(value.as_number());
+      } else {
+        out << value.as_number();
+      }
       break;
     case ParameterValue::Kind::boolean:
       out << value.as_boolean();
@@ -321,7 +327,6 @@ void save_parameters(const std::string& path, const Parameters& parameters) {
 
 std::string parameters_to_yaml(const Parameters& parameters) {
   YAML::Emitter out;
-  out.SetDoublePrecision(17);
   emit(out, encode_parameters(parameters));
   return std::string(out.c_str()) + "\n";
 }

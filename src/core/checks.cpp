@@ -38,14 +38,23 @@ Fault count(const char* input, Eigen::Index size, Eigen::Index expected,
   return size == expected ? Fault{} : size_fault(input, size, expected, counted);
 }
 
-Fault measurement(const Eigen::Ref<const Eigen::VectorXd>& q,
-                  const Eigen::Ref<const Eigen::VectorXd>& dq, int num_joints,
-                  const MeasurementBounds& bounds) noexcept {
+namespace {
+
+// measurement() for any vector type: the cycle's JointVector without the cost of a Ref.
+template <typename Vector>
+Fault check_measurement(const Vector& q, const Vector& dq, int num_joints,
+                        const MeasurementBounds& bounds) noexcept {
   if (q.size() != num_joints) return size_fault("q", q.size(), num_joints);
   if (dq.size() != num_joints) return size_fault("dq", dq.size(), num_joints);
+  // One sum checks finiteness in the common case; only a failing one looks for the element.
+  if (!std::isfinite(q.sum() + dq.sum())) {
+    for (int i = 0; i < num_joints; ++i) {
+      if (!std::isfinite(q[i])) return Fault{"q", i, q[i], kNotFinite};
+      if (!std::isfinite(dq[i])) return Fault{"dq", i, dq[i], kNotFinite};
+    }
+    return Fault{"robot state", -1, q.sum() + dq.sum(), "overflows"};
+  }
   for (int i = 0; i < num_joints; ++i) {
-    if (!std::isfinite(q[i])) return Fault{"q", i, q[i], kNotFinite};
-    if (!std::isfinite(dq[i])) return Fault{"dq", i, dq[i], kNotFinite};
     if (bounds.lower != nullptr && q[i] < (*bounds.lower)[i] - bounds.margin) {
       return Fault{"q",
                    i,
@@ -70,6 +79,19 @@ Fault measurement(const Eigen::Ref<const Eigen::VectorXd>& q,
     }
   }
   return Fault{};
+}
+
+}  // namespace
+
+Fault measurement(const Eigen::Ref<const Eigen::VectorXd>& q,
+                  const Eigen::Ref<const Eigen::VectorXd>& dq, int num_joints,
+                  const MeasurementBounds& bounds) noexcept {
+  return check_measurement(q, dq, num_joints, bounds);
+}
+
+Fault measurement(const JointVector& q, const JointVector& dq, int num_joints,
+                  const MeasurementBounds& bounds) noexcept {
+  return check_measurement(q, dq, num_joints, bounds);
 }
 
 Fault kinematics(const RobotState& robot, int num_joints) noexcept {
@@ -124,7 +146,7 @@ Fault kinematics(const RobotState& robot, int num_joints) noexcept {
 Fault robot_state(const RobotState& robot, int num_joints, const JointVector* speed) noexcept {
   MeasurementBounds bounds;
   bounds.speed = speed;
-  if (const Fault fault = measurement(robot.q, robot.dq, num_joints, bounds)) return fault;
+  if (const Fault fault = check_measurement(robot.q, robot.dq, num_joints, bounds)) return fault;
   return kinematics(robot, num_joints);
 }
 

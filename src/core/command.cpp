@@ -5,26 +5,18 @@
 #include <cmath>
 
 #include "cartesian_impedance/core/checks.hpp"
+#include "cartesian_impedance/core/math.hpp"
 
 namespace cartesian_impedance {
 
 namespace {
-
-bool off_diagonal_zero(const Matrix6d& matrix) {
-  for (int row = 0; row < 6; ++row) {
-    for (int col = 0; col < 6; ++col) {
-      if (row != col && matrix(row, col) != 0.0) return false;
-    }
-  }
-  return true;
-}
 
 // A diagonal stiffness is checked axis by axis against its parameter rows (the messages a user
 // of set_stiffness() expects); a full one element by element, then for symmetry and
 // positive semi-definiteness.
 void check_stiffness(Stiffness& command) {
   Matrix6d& stiffness = command.stiffness;
-  if (off_diagonal_zero(stiffness)) {
+  if (is_diagonal(stiffness)) {
     checks::axes(parameter_info("stiffness.translation"), stiffness.diagonal().head<3>());
     checks::axes(parameter_info("stiffness.rotation"), stiffness.diagonal().tail<3>());
     return;

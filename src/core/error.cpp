@@ -26,13 +26,16 @@ std::string format_number(double value) {
 }
 
 std::string format_exact(double value) {
-  for (const int digits : {15, 16}) {
-    std::string text = significant(value, digits);
-    double read = 0.0;
-    std::from_chars(text.data(), text.data() + text.size(), read);
-    if (read == value) return text;
-  }
-  return significant(value, 17);
+  if (!std::isfinite(value)) return significant(value, 1);
+  // to_chars without a precision writes the shortest text that reads back exactly; in fixed
+  // notation where people write numbers so (0.00001, 5000), else in scientific (1e-12).
+  const double magnitude = std::abs(value);
+  const bool fixed = magnitude == 0.0 || (magnitude >= 1e-5 && magnitude < 1e16);
+  char buffer[32];
+  const auto written =
+      std::to_chars(buffer, buffer + sizeof(buffer), value,
+                    fixed ? std::chars_format::fixed : std::chars_format::scientific);
+  return std::string(buffer, written.ptr);
 }
 
 namespace {

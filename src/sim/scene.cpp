@@ -7,6 +7,7 @@
 #include <optional>
 #include <sstream>
 
+#include "cartesian_impedance/core/checks.hpp"
 #include "cartesian_impedance/sim/simulation.hpp"
 #include "simulation_impl.hpp"
 
@@ -19,16 +20,6 @@ struct VfsDeleter {
     delete vfs;
   }
 };
-
-void check_finite(const Eigen::Ref<const Eigen::VectorXd>& value, const std::string& field) {
-  for (Eigen::Index i = 0; i < value.size(); ++i) {
-    if (!std::isfinite(value[i])) {
-      std::ostringstream message;
-      message << field << "[" << i << "] = " << value[i] << " is not a finite number";
-      throw Error(message.str());
-    }
-  }
-}
 
 // Name of the document's root element: skips the XML declaration, comments and a DOCTYPE.
 std::string root_element(const std::string& document) {
@@ -69,14 +60,14 @@ Simulation make_scene(const std::string& robot_mjcf, const std::vector<Box>& box
   for (std::size_t i = 0; i < boxes.size(); ++i) {
     const Box& box = boxes[i];
     const std::string field = "boxes[" + std::to_string(i) + "]";
-    check_finite(box.center, field + ".center");
-    check_finite(box.half_size, field + ".half_size");
-    check_finite(box.orientation.coeffs(), field + ".orientation");
+    checks::finite_vector(field + ".center", box.center);
+    checks::finite_vector(field + ".half_size", box.half_size);
+    checks::finite_vector(field + ".orientation", box.orientation.coeffs());
     for (int k = 0; k < 3; ++k) {
       if (!(box.half_size[k] > 0.0)) {
-        std::ostringstream message;
-        message << field << ".half_size[" << k << "] = " << box.half_size[k] << " m is not > 0";
-        throw Error(message.str());
+        const std::string input = field + ".half_size";
+        const Fault fault{input.c_str(), k, box.half_size[k], "is not > 0", 0.0, false, "m"};
+        throw Error(fault, to_string(fault));
       }
     }
     if (box.orientation.norm() < 1e-9) {

@@ -1,5 +1,7 @@
 #include "cartesian_impedance/sim/simulation.hpp"
 
+#include "cartesian_impedance/core/checks.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -25,19 +27,6 @@ namespace {
 std::string trim(std::string text) {
   while (!text.empty() && (text.back() == '\n' || text.back() == ' ')) text.pop_back();
   return text;
-}
-
-// The shortest of 15 or 17 significant digits that reads back as the same double: -0.0698, not
-// -0.069800000000000001, yet exact.
-std::string format_value(double value) {
-  for (const int digits : {15, 17}) {
-    std::ostringstream out;
-    out.imbue(std::locale::classic());
-    out.precision(digits);
-    out << value;
-    if (digits == 17 || std::strtod(out.str().c_str(), nullptr) == value) return out.str();
-  }
-  return {};
 }
 
 const char* joint_type_name(int type) {
@@ -113,7 +102,7 @@ Simulation load_simulation(const std::string& path, const mjVFS* vfs, const std:
                 " is not an engine (mujoco, dart)");
   }
   if (!std::isfinite(options.timestep) || options.timestep <= 0.0) {
-    throw Error("SimulationOptions.timestep = " + format_value(options.timestep) +
+    throw Error("SimulationOptions.timestep = " + format_number(options.timestep) +
                 " s is not a positive finite number");
   }
   if (vfs == nullptr) {
@@ -264,7 +253,7 @@ Simulation load_simulation(const std::string& path, const mjVFS* vfs, const std:
       const double value = armature[armature.size() == 1 ? 0 : i];
       if (!std::isfinite(value) || value < 0.0) {
         throw Error("SimulationOptions.armature[" + std::to_string(i) +
-                    "] = " + format_value(value) + " for joint '" + impl->joint_names[i] +
+                    "] = " + format_number(value) + " for joint '" + impl->joint_names[i] +
                     "' is not a finite value >= 0");
       }
       model->dof_armature[impl->dof_address[i]] = value;
@@ -283,9 +272,9 @@ Simulation load_simulation(const std::string& path, const mjVFS* vfs, const std:
       if (!std::isfinite(start[i]) ||
           (model->jnt_limited[joint] && (start[i] < low || start[i] > high))) {
         throw Error("SimulationOptions.start_q[" + std::to_string(i) + "] = " +
-                    format_value(start[i]) + " for joint '" + impl->joint_names[i] + "' is " +
-                    (std::isfinite(start[i]) ? "outside its range [" + format_value(low) + ", " +
-                                                   format_value(high) + "]"
+                    format_number(start[i]) + " for joint '" + impl->joint_names[i] + "' is " +
+                    (std::isfinite(start[i]) ? "outside its range [" + format_number(low) + ", " +
+                                                   format_number(high) + "]"
                                              : std::string("not finite")));
       }
     }
@@ -494,27 +483,22 @@ Engine Simulation::engine() const noexcept {
 
 namespace {
 
+// One value per joint, each finite: the core's checks, with the joint's name added.
 void check_joint_vector(const JointVector& value, int expected_size, const char* what,
                         const std::vector<std::string>& joint_names) {
-  if (value.size() != expected_size) {
-    throw Error(std::string(what) + " has " + std::to_string(value.size()) + " entries; expected " +
-                std::to_string(expected_size) + " (one per joint)");
+  if (const Fault size = checks::count(what, value.size(), expected_size, "entries")) {
+    throw Error(size, to_string(size) + " (one per joint)");
   }
   for (int i = 0; i < expected_size; ++i) {
     if (!std::isfinite(value[i])) {
-      throw Error(std::string(what) + "[" + std::to_string(i) + "] (" + joint_names[i] +
-                  ") = " + detail::format_value(value[i]) + " is not a finite number");
+      const Fault fault{what, i, value[i], "is not finite"};
+      throw Error(fault, to_string(fault) + " (joint '" + joint_names[i] + "')");
     }
   }
 }
 
 void check_finite(const Eigen::Ref<const Eigen::VectorXd>& value, const std::string& field) {
-  for (Eigen::Index i = 0; i < value.size(); ++i) {
-    if (!std::isfinite(value[i])) {
-      throw Error(field + "[" + std::to_string(i) + "] = " + detail::format_value(value[i]) +
-                  " is not a finite number");
-    }
-  }
+  checks::finite_vector(field, value);
 }
 
 }  // namespace
@@ -576,12 +560,12 @@ void Simulation::push(const std::string& body_or_site, const Vector6d& wrench_wo
   for (int i = 0; i < 6; ++i) {
     if (!std::isfinite(wrench_world[i])) {
       throw Error("push wrench_world[" + std::to_string(i) +
-                  "] = " + detail::format_value(wrench_world[i]) + (i < 3 ? " N" : " Nm") +
+                  "] = " + format_number(wrench_world[i]) + (i < 3 ? " N" : " Nm") +
                   " is not a finite number");
     }
   }
   if (std::isnan(duration) || duration <= 0.0) {
-    throw Error("push duration = " + detail::format_value(duration) +
+    throw Error("push duration = " + format_number(duration) +
                 " s is not > 0 (use infinity for a push until clear_pushes())");
   }
   Push push;

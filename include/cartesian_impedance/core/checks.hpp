@@ -42,6 +42,9 @@ struct MeasurementBounds {
 Fault measurement(const Eigen::Ref<const Eigen::VectorXd>& q,
                   const Eigen::Ref<const Eigen::VectorXd>& dq, int num_joints,
                   const MeasurementBounds& bounds = {}) noexcept;
+/// The same for the cycle's own vectors (no Ref to bind).
+Fault measurement(const JointVector& q, const JointVector& dq, int num_joints,
+                  const MeasurementBounds& bounds = {}) noexcept;
 
 /// What the law reads of a RobotState besides q and dq: a 6 x n Jacobian, a finite pose with a
 /// unit quaternion (within kQuaternionNormTolerance), and the optional terms (mass, gravity,

@@ -15,9 +15,9 @@ namespace cartesian_impedance {
 /// C++ locales.
 std::string format_number(double value);
 
-/// A number as the library writes it to files: the shortest of 15, 16 or 17 significant digits
-/// that reads back as the same double (0.2, not 0.20000000000000001; 1000000000, not 1e+09).
-/// Independent of the locales, like format_number().
+/// A number as the library writes it to files: the shortest text that reads back as the same
+/// double (0.2, not 0.20000000000000001), in fixed notation from 1e-5 to 1e16 (0.00001,
+/// 1000000000) and in scientific notation beyond (1e-12). Independent of the locales.
 std::string format_exact(double value);
 
 /// One input that is wrong, without allocating: a plain value the control cycle can fill and
