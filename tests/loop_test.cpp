@@ -231,6 +231,100 @@ TEST(TrajectoryBuffer, DerivedVelocitiesDoNotOvershoot) {
   }
 }
 
+// The path between the waypoints keeps the limits too. A velocity above the joint's limit is
+// refused where it is given; positions that need more than it (2.5 rad in 0.3 s: the cubic with
+// zero end velocities peaks at 1.5 x 2.5 / 0.3 = 12.5 rad/s) are refused naming the segment and
+// the speed; a via velocity that makes the cubic overshoot the position limits is refused even
+// without a speed limit.
+TEST(TrajectoryBuffer, ThePathBetweenWaypointsKeepsPositionAndSpeedLimits) {
+  const std::vector<std::string> names = {"a"};
+  const ci::TrajectoryLimits limits{ci::JointVector::Constant(1, -2.9),
+                                    ci::JointVector::Constant(1, 2.9),
+                                    ci::JointVector::Constant(1, 2.175)};
+  ci::TrajectoryBuffer buffer(1, 10);
+  auto message = [&](const ci::JointTrajectory& t, const ci::TrajectoryLimits& l,
+                     const ci::TrajectoryStartState* start = nullptr) -> std::string {
+    try {
+      buffer.assign(t, names, l, start);
+    } catch (const ci::Error& e) {
+      return e.what();
+    }
+    return "accepted";
+  };
+  ci::JointTrajectory t{{"a"}, {1.0, 2.0, 3.0}, {{0.0}, {0.5}, {1.0}}, {{0.0}, {1000.0}, {0.0}}};
+  EXPECT_EQ(
+      message(t, limits),
+      "trajectory point 1, joint 'a': velocity 1000 is beyond its velocity limit 2.175 (URDF)");
+  // Without a speed limit the same velocity would swing the path 160 rad past the limits.
+  ci::TrajectoryLimits unlimited = limits;
+  unlimited.velocity.setConstant(INFINITY);
+  EXPECT_NE(message(t, unlimited)
+                .find("segment from point 0 to point 1, joint 'a': the "
+                      "interpolated position reaches"),
+            std::string::npos)
+      << message(t, unlimited);
+  t.velocities.clear();
+  t.times = {1.0, 1.3};
+  t.positions = {{0.0}, {2.5}};
+  const std::string fast = message(t, limits);
+  EXPECT_NE(fast.find("segment from point 0 to point 1, joint 'a': the interpolated speed "
+                      "reaches 12.5, beyond its velocity limit 2.175"),
+            std::string::npos)
+      << fast;
+  t.times = {1.0, 3.0};  // 1.5 x 2.5 / 2 = 1.875 rad/s
+  EXPECT_EQ(message(t, limits), "accepted");
+  // The first segment runs from the start state, when it is known.
+  const ci::TrajectoryStartState start{ci::JointVector::Constant(1, -2.0),
+                                       ci::JointVector::Zero(1)};
+  t.times = {1.0};
+  t.positions = {{2.0}};  // 4 rad in 1 s from the start: 6 rad/s at its peak
+  EXPECT_EQ(message(t, limits), "accepted");
+  EXPECT_NE(message(t, limits, &start).find("segment from the start state to point 0"),
+            std::string::npos)
+      << message(t, limits, &start);
+}
+
+// The extremes found on each cubic are those of the path sample() produces: seeded random
+// segments with random end velocities are accepted with limits 0.1 % above the sampled peak
+// speed and excursion, and refused with limits 1 % below either.
+TEST(TrajectoryBuffer, SegmentExtremesAreThoseOfTheSampledPath) {
+  std::mt19937 rng(32);
+  std::uniform_real_distribution<double> position(-1.0, 1.0), velocity(-3.0, 3.0),
+      duration(0.05, 2.0);
+  const std::vector<std::string> names = {"a"};
+  ci::TrajectoryBuffer buffer(1, 4);
+  for (int trial = 0; trial < 200; ++trial) {
+    const double h = duration(rng);
+    ci::JointTrajectory t{{"a"},
+                          {0.5, 0.5 + h},
+                          {{position(rng)}, {position(rng)}},
+                          {{velocity(rng)}, {velocity(rng)}}};
+    const ci::TrajectoryLimits wide{ci::JointVector::Constant(1, -1e6),
+                                    ci::JointVector::Constant(1, 1e6),
+                                    ci::JointVector::Constant(1, 1e6)};
+    buffer.assign(t, names, wide);
+    buffer.begin(ci::JointVector::Zero(1), ci::JointVector::Zero(1));
+    double speed = 0.0, lowest = INFINITY, highest = -INFINITY;
+    ci::JointVector q(1), dq(1);
+    for (int i = 0; i <= 20000; ++i) {
+      buffer.sample(0.5 + h * i / 20000.0, q, dq);
+      speed = std::max(speed, std::abs(dq[0]));
+      lowest = std::min(lowest, q[0]);
+      highest = std::max(highest, q[0]);
+    }
+    const double reach = std::max(std::abs(lowest), std::abs(highest));
+    auto limits = [&](double speed_limit, double position_limit) {
+      return ci::TrajectoryLimits{ci::JointVector::Constant(1, -position_limit),
+                                  ci::JointVector::Constant(1, position_limit),
+                                  ci::JointVector::Constant(1, speed_limit)};
+    };
+    SCOPED_TRACE("trial " + std::to_string(trial));
+    EXPECT_NO_THROW(buffer.assign(t, names, limits(1.001 * speed, 1.001 * reach)));
+    EXPECT_THROW(buffer.assign(t, names, limits(0.99 * speed, 1.001 * reach)), ci::Error);
+    EXPECT_THROW(buffer.assign(t, names, limits(1.001 * speed, 0.99 * reach)), ci::Error);
+  }
+}
+
 // ---- the loop
 // ------------------------------------------------------------------------------------
 
@@ -443,6 +537,44 @@ TEST(ControlLoop, TrajectoryOutsideLimitsIsRejectedAtTheSender) {
   } catch (const ci::Error& e) {
     EXPECT_NE(std::string(e.what()).find("panda_joint4"), std::string::npos) << e.what();
   }
+}
+
+// The Panda's URDF gives joint 2 a velocity limit of 2.175 rad/s. A via point at 1000 rad/s, or
+// positions that need more (2.5 rad in 0.3 s from where the arm is), are refused at the sender
+// naming the joint and the limit, and nothing starts.
+TEST(ControlLoop, TrajectoryFasterThanTheUrdfAllowsIsRejectedAtTheSender) {
+  const ci::RobotModel model = panda();
+  ASSERT_DOUBLE_EQ(model.limits().velocity[1], 2.175);
+  ci::ControlLoop loop(model);
+  model_simulation::Simulation sim(model, panda_ready());
+  loop.start(sim.q, sim.dq);
+  run(loop, sim, 0.01);
+  ci::JointTrajectory via = trajectory_to(model, sim.q, panda_ready(), 2.0, 2);
+  via.velocities.assign(via.positions.size(), std::vector<double>(7, 0.0));
+  via.velocities[0][1] = 1000.0;
+  auto rejected = [&](const ci::JointTrajectory& trajectory) -> std::string {
+    try {
+      loop.execute_trajectory(trajectory);
+    } catch (const ci::Error& e) {
+      return e.what();
+    }
+    return "accepted";
+  };
+  const std::string via_message = rejected(via);
+  EXPECT_NE(via_message.find("joint 'panda_joint2': velocity 1000 is beyond its velocity limit "
+                             "2.175"),
+            std::string::npos)
+      << via_message;
+  ci::JointVector far = panda_ready();
+  far[1] += 1.25;  // joint 2's range is [-1.7628, 1.7628]; the ready pose is at -0.785
+  const std::string fast_message = rejected(trajectory_to(model, sim.q, far, 0.3, 1));
+  EXPECT_NE(fast_message.find("segment from the start state to point 0, joint 'panda_joint2': "
+                              "the interpolated speed reaches"),
+            std::string::npos)
+      << fast_message;
+  EXPECT_EQ(rejected(trajectory_to(model, sim.q, far, 2.0, 1)), "accepted");
+  run(loop, sim, 0.01);
+  EXPECT_EQ(loop.state().trajectory.state, ci::TrajectoryState::executing);
 }
 
 // ---- model-based options

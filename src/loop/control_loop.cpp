@@ -243,7 +243,14 @@ std::uint64_t ControlLoop::execute_trajectory(const JointTrajectory& trajectory)
   }
   TrajectorySlot& slot = *buffers_[static_cast<std::size_t>(claimed)];
   try {
-    slot.buffer.assign(trajectory, model_.joint_names(), lower_limits_, upper_limits_);
+    // The first segment runs from wherever the arm is when the trajectory begins, which is close
+    // to the state last published (or to the running trajectory's, which tracks it).
+    const LoopState latest = latest_state();
+    const TrajectoryStartState from{latest.q, latest.dq};
+    const bool started = latest.controller.status != Status::not_started;
+    slot.buffer.assign(trajectory, model_.joint_names(),
+                       TrajectoryLimits{lower_limits_, upper_limits_, model_.limits().velocity},
+                       started ? &from : nullptr);
     const TrajectoryStart start{claimed, next_trajectory_id_.fetch_add(1)};
     slot.state.store(Slot::queued, std::memory_order_release);
     enqueue(start);

@@ -21,6 +21,20 @@ struct JointTrajectory {
   std::vector<std::vector<double>> velocities;
 };
 
+/// What a trajectory must keep, per joint of the arm in its order: the position limits on the
+/// whole interpolated path (not only at the waypoints) and the speed limits.
+struct TrajectoryLimits {
+  JointVector lower;     ///< [rad or m]
+  JointVector upper;     ///< [rad or m]
+  JointVector velocity;  ///< |dq| bound [rad/s or m/s]; +inf where there is none
+};
+
+/// The state a trajectory will start from (its first segment runs from here to its first point).
+struct TrajectoryStartState {
+  JointVector q;   ///< [rad or m]
+  JointVector dq;  ///< [rad/s or m/s]
+};
+
 /// A validated trajectory in the arm's joint order, in storage sized once. Point 0 is the state
 /// the trajectory starts from (filled when execution begins), so a new trajectory continues from
 /// where the previous command was, without a jump.
@@ -29,13 +43,21 @@ class TrajectoryBuffer {
   /// Storage for up to `max_points` points (plus the start point) of `num_joints` joints.
   TrajectoryBuffer(int num_joints, int max_points);
 
-  /// Validates `trajectory` for an arm with these joints and position limits, reorders it into
-  /// the arm's joint order and stores it, with the velocities derived if none are given (all but
-  /// that of the first point, which depends on the start state). A point at time 0 is taken as
-  /// the start state, which execution replaces by the actual one.
-  /// @throws Error naming the point, joint and value for: unknown, missing or repeated joint
-  ///         names, wrong sizes, non-finite values, times not strictly increasing or not
-  ///         positive, positions outside [lower, upper], more than max_points points, none at all.
+  /// Validates `trajectory` for an arm with these joints and limits, reorders it into the arm's
+  /// joint order and stores it, with the velocities derived if none are given (all but that of
+  /// the first point, which depends on the start state). A point at time 0 is taken as the start
+  /// state, which execution replaces by the actual one. The path between the points is checked
+  /// too: on every segment the interpolated position stays within the limits and the
+  /// interpolated speed within the velocity limit; the first segment, from the start state to the
+  /// first point, when `start` says where that will be.
+  /// @throws Error naming the point (or segment), joint and value for: unknown, missing or
+  ///         repeated joint names, wrong sizes, non-finite values, times not strictly increasing
+  ///         or not positive, positions outside the limits, a given velocity above the velocity
+  ///         limit, a segment whose interpolation leaves the position limits or exceeds the
+  ///         velocity limit, more than max_points points, none at all.
+  void assign(const JointTrajectory& trajectory, const std::vector<std::string>& joint_names,
+              const TrajectoryLimits& limits, const TrajectoryStartState* start = nullptr);
+  /// assign() with position limits only (no speed limit, the first segment unchecked).
   void assign(const JointTrajectory& trajectory, const std::vector<std::string>& joint_names,
               const JointVector& lower, const JointVector& upper);
 
@@ -53,8 +75,6 @@ class TrajectoryBuffer {
   double duration() const noexcept { return num_points_ > 0 ? times_[num_points_ - 1] : 0.0; }
 
  private:
-  void derive_velocity(int point) noexcept;
-
   int num_joints_;
   int max_points_;
   int num_points_ = 0;
