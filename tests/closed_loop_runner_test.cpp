@@ -147,6 +147,15 @@ TEST(ClosedLoopRunner, RejectsLoopsThatDoNotMatchTheSimulationsJoints) {
   EXPECT_THROW(runner.run(-1), ci::Error);
   EXPECT_THROW(runner.run_for(-0.1), ci::Error);
   EXPECT_THROW(runner.run_for(std::nan("")), ci::Error);
+  // More timesteps than the counter holds: named as such (it used to wrap to a negative count).
+  try {
+    runner.run_for(1e300);
+    ADD_FAILURE() << "1e300 s was accepted";
+  } catch (const ci::Error& error) {
+    EXPECT_EQ(std::string(error.what()),
+              "seconds = 1e+300 is 1e+303 timesteps of 0.001 s, more than the 9e+18 a run can "
+              "count");
+  }
   EXPECT_EQ(runner.run_for(0.0104), 10);  // rounded to whole timesteps
 }
 

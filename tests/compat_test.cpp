@@ -402,6 +402,36 @@ TEST(CompatBadInput, SettersThrowTheLibraryErrorNamingTheArgumentAndChangeNothin
                   {"n_joints = -7"});
 }
 
+// A frequency the torque delta cannot be scaled to is the setFiltering() call's fault, named as
+// such (it used to be reported as setMaxTorqueDelta's, which the caller did not call).
+TEST(CompatBadInput, AFrequencyTheTorqueDeltaCannotFollowNamesSetFiltering) {
+  Compat c;
+  c.setMaxTorqueDelta(5.0);  // 5000 Nm/s at the default 1 kHz
+  try {
+    c.setFiltering(1e6, 0.5, 0.5, 0.5, 0.5);
+    FAIL() << "accepted";
+  } catch (const ci::Error& error) {
+    EXPECT_EQ(std::string(error.what()),
+              "setFiltering: update_frequency = 1000000 Hz with the torque delta of 5 Nm per call "
+              "(setMaxTorqueDelta) is 5000000 Nm/s, outside limits.joint_torque_rate [1, 1000000]");
+  }
+}
+
+// setNumberOfJoints() with the same count mid-run starts over from the torque the robot is
+// receiving: the next call moves from it by at most the torque delta, like every call (it used
+// to drop to the new controller's first torque in one call).
+TEST(CompatBadInput, ResettingTheJointCountKeepsTheTorqueDelta) {
+  Twins twins;
+  twins.a.setStiffness(2000.0, 2000.0, 2000.0, 100.0, 100.0, 100.0, 5.0);
+  twins.step(200);
+  const Eigen::VectorXd before = twins.ta;
+  ASSERT_GT(before.cwiseAbs().maxCoeff(), 2.0);
+  twins.a.setNumberOfJoints(7);
+  twins.step(1);
+  EXPECT_LE((twins.ta - before).cwiseAbs().maxCoeff(), 0.5 + 1e-12)
+      << "before: " << before.transpose() << "\nafter: " << twins.ta.transpose();
+}
+
 TEST(CompatBadInput, ABadMeasurementFailsTheCallClosedAndTheNextGoodOneResumes) {
   Twins twins;
   const Measurement good = twins.stream.at(twins.k);

@@ -108,7 +108,13 @@ void CartesianImpedanceController::setNumberOfJoints(size_t n_joints) {
   const int n = static_cast<int>(n_joints);
   ci::CartesianImpedanceController controller(
       n, native_parameters(max_torque_delta_, update_frequency_));
-  controller.start(ci::make_robot_state(n));
+  // With the same joint count the robot keeps receiving the last torque: the next call moves from
+  // it by at most the torque delta, as every call does (a reset to zero would jump).
+  if (n == n_joints_ && controller_.torque().size() == n) {
+    controller.start(ci::make_robot_state(n), controller_.torque());
+  } else {
+    controller.start(ci::make_robot_state(n));
+  }
   controller_ = controller;
   n_joints_ = n;
   const ci::Pose measured_pose = measured_.pose;
@@ -195,7 +201,7 @@ void CartesianImpedanceController::setFiltering(double update_frequency,
   check_filter_fraction("filter_params_stiffness", filter_params_stiffness);
   check_filter_fraction("filter_params_pose", filter_params_pose);
   check_filter_fraction("filter_params_wrench", filter_params_wrench);
-  reconfigure(max_torque_delta_, update_frequency);
+  reconfigure("setFiltering", max_torque_delta_, update_frequency);
   // As published, fractions below 1e-7 count as 1e-7.
   filter_nullspace_ = std::max(filter_params_nullspace_config, 1e-7);
   filter_stiffness_ = std::max(filter_params_stiffness, 1e-7);
@@ -205,11 +211,11 @@ void CartesianImpedanceController::setFiltering(double update_frequency,
 }
 
 void CartesianImpedanceController::setMaxTorqueDelta(double d) {
-  reconfigure(d, update_frequency_);
+  reconfigure("setMaxTorqueDelta", d, update_frequency_);
 }
 
 void CartesianImpedanceController::setMaxTorqueDelta(double d, double update_frequency) {
-  reconfigure(d, update_frequency);
+  reconfigure("setMaxTorqueDelta", d, update_frequency);
   update_filter_steps();
 }
 
@@ -220,20 +226,29 @@ void CartesianImpedanceController::update_filter_steps() {
   step_wrench_ = published_filter_step(update_frequency_, filter_wrench_);
 }
 
-void CartesianImpedanceController::reconfigure(double max_torque_delta, double update_frequency) {
+void CartesianImpedanceController::reconfigure(const char* caller, double max_torque_delta,
+                                               double update_frequency) {
   if (!(update_frequency >= kMinFrequency && update_frequency <= kMaxFrequency)) {
-    throw ci::Error("update_frequency = " + ci::format_number(update_frequency) +
+    throw ci::Error(std::string(caller) +
+                    ": update_frequency = " + ci::format_number(update_frequency) +
                     " Hz is outside [" + ci::format_number(kMinFrequency) + ", " +
                     ci::format_number(kMaxFrequency) + "]");
   }
-  ci::checks::finite("setMaxTorqueDelta: d", max_torque_delta, "Nm");
+  ci::checks::finite(std::string(caller) + ": d", max_torque_delta, "Nm");
   const ci::ParameterInfo& rate = ci::parameter_info("limits.joint_torque_rate");
   const double rate_value = max_torque_delta * update_frequency;
   if (!(rate_value >= rate.min && rate_value <= rate.max)) {
-    throw ci::Error("setMaxTorqueDelta: d = " + ci::format_number(max_torque_delta) +
-                    " Nm per call at " + ci::format_number(update_frequency) + " Hz is " +
-                    ci::format_number(rate_value) + " Nm/s, outside limits.joint_torque_rate " +
-                    rate.range_text());
+    // Name what the caller gave: the frequency from setFiltering(), the delta (and perhaps the
+    // frequency) from setMaxTorqueDelta().
+    const std::string given =
+        std::string(caller) == "setFiltering"
+            ? "update_frequency = " + ci::format_number(update_frequency) +
+                  " Hz with the torque delta of " + ci::format_number(max_torque_delta) +
+                  " Nm per call (setMaxTorqueDelta)"
+            : "d = " + ci::format_number(max_torque_delta) + " Nm per call at " +
+                  ci::format_number(update_frequency) + " Hz";
+    throw ci::Error(std::string(caller) + ": " + given + " is " + ci::format_number(rate_value) +
+                    " Nm/s, outside limits.joint_torque_rate " + rate.range_text());
   }
   controller_.set_parameters(native_parameters(max_torque_delta, update_frequency));
   max_torque_delta_ = max_torque_delta;

@@ -103,7 +103,15 @@ std::int64_t ClosedLoopRunner::run_for(double seconds, const StepObserver& obser
   if (!(seconds >= 0.0) || !std::isfinite(seconds)) {
     throw Error("seconds = " + format_number(seconds) + " must be finite and >= 0");
   }
-  return run(std::llround(seconds / simulation_.timestep()), observer);
+  // The count of timesteps must fit the step counter (llround of a larger value is undefined).
+  const double steps = seconds / simulation_.timestep();
+  constexpr double kMaxSteps = 9e18;  // below 2^63
+  if (!(steps <= kMaxSteps)) {
+    throw Error("seconds = " + format_number(seconds) + " is " + format_number(steps) +
+                " timesteps of " + format_number(simulation_.timestep()) + " s, more than the " +
+                format_number(kMaxSteps) + " a run can count");
+  }
+  return run(std::llround(steps), observer);
 }
 
 bool ClosedLoopRunner::prepare() {

@@ -136,7 +136,8 @@ class CartesianImpedanceController {
     cartesian_impedance::Vector6d wrench = cartesian_impedance::Vector6d::Zero();
   };
 
-  void reconfigure(double max_torque_delta, double update_frequency);
+  // `caller` names the public setter in messages.
+  void reconfigure(const char* caller, double max_torque_delta, double update_frequency);
   void apply_damping_rule();
   void update_filter_steps();
   void filter_step(Impedance& next) const noexcept;
