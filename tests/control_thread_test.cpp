@@ -479,7 +479,8 @@ TEST(ControlThread, StartsAtTheFirstCompleteFiniteMeasurement) {
   rt::JointMeasurement measured = at_rest(panda_ready());
   measured.q[2] = std::nan("");
   measurements.publish(measured);
-  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  ASSERT_TRUE(eventually([&] { return thread.rejected_starts().count == 1; }));
+  EXPECT_STREQ(thread.rejected_starts().latest->fault().input, "q");
   EXPECT_EQ(thread.state(), rt::ControlThread::State::preparing);
 
   measured.q[2] = 0.1;
@@ -489,25 +490,79 @@ TEST(ControlThread, StartsAtTheFirstCompleteFiniteMeasurement) {
   thread.stop();
 }
 
-TEST(ControlThread, ReportsWhyTheControllerCouldNotStart) {
+// A first measurement the controller cannot start from is what a running cycle fails closed on:
+// the thread rejects it (naming the fault), keeps waiting and starts at the next good one, as the
+// cycle would resume there. Each measurement is tried once.
+TEST(ControlThread, RejectsFirstMeasurementsItCannotStartFromAndStartsAtTheNextGoodOne) {
   const ci::RobotModel model = panda();
   ci::ControlLoop loop(model);
   rt::MeasurementBuffer measurements(7);
   rt::JointMeasurement measured = at_rest(panda_ready());
-  measured.q[3] = 1.0;  // joint 4 of the Panda bends the other way only
+  measured.dq[3] = 50.0;  // [rad/s] beyond plausibility.joint_velocity (10 rad/s)
   measurements.publish(measured);
   rt::ControlThread thread;
   thread.start(loop, measurements, nullptr);
-  ASSERT_TRUE(eventually([&] { return thread.state() == rt::ControlThread::State::failed; }));
-  EXPECT_NE(thread.failure().find("outside the joint's limits"), std::string::npos)
-      << thread.failure();
+  ASSERT_TRUE(eventually([&] { return thread.rejected_starts().count == 1; }));
+  // 20 periods later: still waiting, the same measurement not tried again, nothing stepped.
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_EQ(thread.state(), rt::ControlThread::State::preparing);
   EXPECT_EQ(thread.statistics().cycles, 0u);
-  // A failed thread may be started again.
+  rt::RejectedStarts rejected = thread.rejected_starts();
+  EXPECT_EQ(rejected.count, 1u);
+  ASSERT_TRUE(rejected.latest.has_value());
+  EXPECT_STREQ(rejected.latest->fault().input, "dq");
+  EXPECT_EQ(rejected.latest->fault().index, 3);
+  EXPECT_EQ(rejected.latest->fault().value, 50.0);
+
+  measured.dq[3] = 0.0;
+  measured.q[3] = 1.0;  // joint 4 of the Panda bends the other way only: outside its limits
+  measurements.publish(measured);
+  ASSERT_TRUE(eventually([&] { return thread.rejected_starts().count == 2; }));
+  rejected = thread.rejected_starts();
+  EXPECT_STREQ(rejected.latest->fault().input, "q");
+  EXPECT_NE(std::string(rejected.latest->what()).find("outside the joint's limits"),
+            std::string::npos)
+      << rejected.latest->what();
+  EXPECT_EQ(thread.state(), rt::ControlThread::State::preparing);
+
   measured.q = panda_ready();
   measurements.publish(measured);
+  ASSERT_TRUE(eventually([&] { return thread.running() && loop.latest_state().cycle > 0; }));
+  EXPECT_EQ(loop.latest_state().controller.status, ci::Status::ok);
+  EXPECT_NEAR(loop.latest_state().q[3], panda_ready()[3], 1e-12);
+  EXPECT_EQ(thread.failure(), "");
+  thread.stop();
+  // A new start() counts its own rejections.
+  rt::MeasurementBuffer nothing(7);
+  thread.start(loop, nothing, nullptr);
+  EXPECT_EQ(thread.rejected_starts().count, 0u);
+  EXPECT_FALSE(thread.rejected_starts().latest.has_value());
+  thread.stop();
+}
+
+// Any other exception of prepare() ends the thread in State::failed with its message.
+class FailingCycle : public rt::Cycle {
+ public:
+  bool prepare() override { throw ci::Error("the simulation cannot start"); }
+  rt::Freshness execute(const rt::CycleTime&) noexcept override { return rt::Freshness::fresh; }
+};
+
+TEST(ControlThread, ReportsWhyACycleCouldNotStart) {
+  FailingCycle failing;
+  rt::ControlThread thread;
+  thread.start(failing);
+  ASSERT_TRUE(eventually([&] { return thread.state() == rt::ControlThread::State::failed; }));
+  EXPECT_EQ(thread.failure(), "the simulation cannot start");
+  EXPECT_EQ(thread.statistics().cycles, 0u);
+  // A failed thread may be started again.
+  const ci::RobotModel model = panda();
+  ci::ControlLoop loop(model);
+  rt::MeasurementBuffer measurements(7);
+  measurements.publish(at_rest(panda_ready()));
   thread.start(loop, measurements, nullptr);
   ASSERT_TRUE(eventually([&] { return thread.running(); }));
   EXPECT_EQ(thread.failure(), "");
+  thread.stop();
 }
 
 TEST(ControlThread, StopsPromptlyWhileCyclingAndWhilePreparing) {
@@ -553,8 +608,16 @@ TEST(ControlThread, RejectsBadOptions) {
   EXPECT_THROW(rt::ControlThread{options}, ci::Error);
   options.rate = std::nan("");
   EXPECT_THROW(rt::ControlThread{options}, ci::Error);
+  // Periods count whole nanoseconds: 1e-11 Hz (1e20 ns) would overflow them, and 1e7 Hz is
+  // no control cycle.
+  options.rate = 1e-11;
+  EXPECT_THROW(rt::ControlThread{options}, ci::Error);
+  options.rate = 1e7;
+  EXPECT_THROW(rt::ControlThread{options}, ci::Error);
   options = {};
   options.measurement_timeout = -1.0;
+  EXPECT_THROW(rt::ControlThread{options}, ci::Error);
+  options.measurement_timeout = 1e300;
   EXPECT_THROW(rt::ControlThread{options}, ci::Error);
   options = {};
   options.realtime_priority = 100;

@@ -1,8 +1,11 @@
 // The ROS callbacks: messages converted and validated, frames resolved through tf2, commands
-// handed to the control loop. A rejected message is logged (throttled) and changes nothing.
+// handed to the control loop. A rejected message is logged (throttled per topic and kind of
+// fault) and changes nothing.
 // Commands of the values that the reconfigure servers share go through send_from_topic()
 // (reconfigure.cpp), which records them and makes the servers show them.
 
+#include <optional>
+#include <string>
 #include <string_view>
 
 #include <cartesian_impedance/core/error.hpp>
@@ -24,6 +27,15 @@ std::string_view strip_slash(const std::string& frame_id) {
 
 }  // namespace
 
+void CartesianImpedanceNode::warn_rejected(const char* topic, const std::exception& error) {
+  std::optional<std::string> line;
+  {
+    const std::lock_guard<std::mutex> lock(log_mutex_);
+    line = log_throttle_.rejected(topic, error);
+  }
+  if (line) ROS_WARN("%s", line->c_str());
+}
+
 void CartesianImpedanceNode::on_joint_states(const sensor_msgs::JointState::ConstPtr& message) {
   // One writer (roscpp never runs one subscription's callback twice at once).
   try {
@@ -36,7 +48,7 @@ void CartesianImpedanceNode::on_joint_states(const sensor_msgs::JointState::Cons
     }
     joint_samples_->publish(sample);  // numbered and stamped with the time of arrival
   } catch (const std::exception& error) {
-    ROS_WARN_THROTTLE(1.0, "joint_states rejected: %s", error.what());
+    warn_rejected("joint_states", error);
   }
 }
 
@@ -49,7 +61,7 @@ void CartesianImpedanceNode::on_reference_pose(
     }
     loop_->set_reference_pose(pose);
   } catch (const std::exception& error) {
-    ROS_WARN_THROTTLE(1.0, "reference_pose rejected: %s", error.what());
+    warn_rejected("reference_pose", error);
   }
 }
 
@@ -71,7 +83,7 @@ void CartesianImpedanceNode::on_stiffness(const geometry_msgs::WrenchStamped::Co
     send_from_topic(
         {framed_command(message->header.frame_id, vector_from_wrench(message->wrench), true)});
   } catch (const std::exception& error) {
-    ROS_WARN_THROTTLE(1.0, "set_cartesian_stiffness rejected: %s", error.what());
+    warn_rejected("set_cartesian_stiffness", error);
   }
 }
 
@@ -79,7 +91,7 @@ void CartesianImpedanceNode::on_damping_factors(const geometry_msgs::Wrench::Con
   try {
     send_from_topic({ci::DampingRatio{vector_from_wrench(*message)}});
   } catch (const std::exception& error) {
-    ROS_WARN_THROTTLE(1.0, "set_damping_factors rejected: %s", error.what());
+    warn_rejected("set_damping_factors", error);
   }
 }
 
@@ -88,7 +100,7 @@ void CartesianImpedanceNode::on_wrench(const geometry_msgs::WrenchStamped::Const
     send_from_topic(
         {framed_command(message->header.frame_id, vector_from_wrench(message->wrench), false)});
   } catch (const std::exception& error) {
-    ROS_WARN_THROTTLE(1.0, "set_cartesian_wrench rejected: %s", error.what());
+    warn_rejected("set_cartesian_wrench", error);
   }
 }
 
@@ -109,7 +121,7 @@ void CartesianImpedanceNode::on_config(const NullspaceConfig::ConstPtr& message)
     commands.emplace_back(ci::NullspaceDampingRatio{message->nullspace_damping_ratio});
     send_from_topic(commands);
   } catch (const std::exception& error) {
-    ROS_WARN_THROTTLE(1.0, "set_config rejected: %s", error.what());
+    warn_rejected("set_config", error);
   }
 }
 
@@ -126,7 +138,7 @@ void CartesianImpedanceNode::on_trajectory(
     ROS_INFO("trajectory %llu: %zu points over %.3f s", static_cast<unsigned long long>(id),
              message->points.size(), message->points.back().time_from_start.toSec());
   } catch (const std::exception& error) {
-    ROS_WARN_THROTTLE(1.0, "joint_trajectory rejected: %s", error.what());
+    warn_rejected("joint_trajectory", error);
   }
 }
 

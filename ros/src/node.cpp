@@ -120,7 +120,8 @@ void CartesianImpedanceNode::stop_threads() {
 
 // The library's control thread runs the cycle: in sim mode the closed-loop runner (one
 // simulation step per cycle, started from the simulated state), in topics mode the loop fed by
-// joint_states (started at the first complete one) with the torque going to the effort thread.
+// joint_states (started at the first one it can start from; run() logs those it cannot) with the
+// torque going to the effort thread.
 void CartesianImpedanceNode::start_control_thread() {
   if (runner_) {
     control_thread_->start(*runner_);
@@ -151,7 +152,10 @@ int CartesianImpedanceNode::run() {
     ROS_INFO("waiting for %s", node_.resolveName("joint_states").c_str());
   }
   using State = ci::runtime::ControlThread::State;
+  ci::node::LogThrottle start_throttle;
+  std::uint64_t rejected_starts = 0;
   while (ros::ok() && control_thread_->state() == State::preparing) {
+    report_rejected_starts(start_throttle, rejected_starts);
     ros::WallDuration(0.01).sleep();
   }
   const bool failed = control_thread_->state() == State::failed;
@@ -170,6 +174,21 @@ int CartesianImpedanceNode::run() {
     return 1;
   }
   return 0;
+}
+
+void CartesianImpedanceNode::report_rejected_starts(ci::node::LogThrottle& throttle,
+                                                    std::uint64_t& seen) const {
+  const ci::runtime::RejectedStarts rejected = control_thread_->rejected_starts();
+  if (!rejected.latest) return;
+  const std::string text = "cannot start the controller from " + node_.resolveName("joint_states") +
+                           ": " + rejected.latest->what() +
+                           "; waiting for joint states it can start from";
+  // Every rejection counts, the ones between two polls by the newest's fault.
+  for (; seen < rejected.count; ++seen) {
+    if (auto line = throttle.line("joint_states start", rejected.latest->fault(), text)) {
+      ROS_WARN("%s", line->c_str());
+    }
+  }
 }
 
 void CartesianImpedanceNode::create_command_interface() {

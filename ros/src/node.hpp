@@ -30,6 +30,8 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstdint>
+#include <exception>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -41,6 +43,7 @@
 #include <cartesian_impedance/model/link_transforms.hpp>
 #include <cartesian_impedance/model/robot_model.hpp>
 #include <cartesian_impedance/node/joint_states.hpp>
+#include <cartesian_impedance/node/log_throttle.hpp>
 #include <cartesian_impedance/runtime/control_thread.hpp>
 #include <cartesian_impedance/runtime/robot_io.hpp>
 #include <cartesian_impedance/sim/closed_loop_runner.hpp>
@@ -104,6 +107,13 @@ class CartesianImpedanceNode {
   /// Makes the servers that show `value` show what the record holds, as applied.
   void show_on_servers(SharedValue value);
 
+  /// Logs a rejected message of `topic` (warning), throttled per topic and kind of fault
+  /// (node::LogThrottle); any callback thread.
+  void warn_rejected(const char* topic, const std::exception& error);
+  /// Logs (throttled) the joint states the controller could not start from since `seen`.
+  void report_rejected_starts(cartesian_impedance::node::LogThrottle& throttle,
+                              std::uint64_t& seen) const;
+
   // Callbacks (callbacks.cpp, reconfigure.cpp).
   void on_joint_states(const sensor_msgs::JointState::ConstPtr& message);
   void on_reference_pose(const geometry_msgs::PoseStamped::ConstPtr& message);
@@ -157,6 +167,8 @@ class CartesianImpedanceNode {
   std::optional<cartesian_impedance::runtime::TorqueOutbox> torques_;
   std::optional<cartesian_impedance::runtime::ControlThread> control_thread_;
 
+  std::mutex log_mutex_;  // guards log_throttle_: the spinner has two threads
+  cartesian_impedance::node::LogThrottle log_throttle_;
   std::atomic<bool> stop_{false};  // ends the publisher and effort threads
   std::thread publisher_thread_;
   std::thread effort_thread_;

@@ -381,9 +381,11 @@ def case_two_arms(processes, args):
 
 
 def case_topics_mode(processes, args):
-    """mode topics: joint_states in (in any order, with other joints), effort_command out at the
-    control rate, tf from the measured positions; without joint_states the status turns invalid and the torque ramps to zero
-    (a stale episode); the control thread reports its timing."""
+    """mode topics: first joint_states the controller cannot start from (a joint at 50 rad/s)
+    logged while the node waits, then joint_states in (in any order, with other joints),
+    effort_command out at the control rate, tf from the measured positions; without joint_states
+    the status turns invalid and the torque ramps to zero (a stale episode); the control thread
+    reports its timing."""
     launched = time.monotonic()
     processes.launch(
         "launch", "cartesian_impedance.launch", "mode:=topics",
@@ -397,17 +399,19 @@ def case_topics_mode(processes, args):
 
     robot = rospy.Publisher("/joint_states", JointState, queue_size=10)
     wait_until(lambda: robot.get_num_connections() >= 1, 10.0, "the node to subscribe")
-    running = {"on": True}
+    running = {"on": True, "too_fast": True}
     order = [3, 0, 6, 1, 5, 2, 4]
 
     def play_robot():
         message = JointState()
         message.name = ["panda_finger_joint1"] + [PANDA_JOINTS[i] for i in order]
         message.position = [0.04] + [PANDA_READY[i] for i in order]
-        message.velocity = [0.0] * 8
         message.effort = [0.0] + [0.5] * 7
         while not rospy.is_shutdown() and running["on"] is not None:
             if running["on"]:
+                # The first message's joint panda_joint4 at 50 rad/s, beyond
+                # plausibility/joint_velocity (10 rad/s).
+                message.velocity = [0.0, 50.0 if running["too_fast"] else 0.0] + [0.0] * 6
                 message.header.stamp = rospy.Time.now()
                 robot.publish(message)
             time.sleep(0.004)  # about 250 Hz
@@ -415,6 +419,12 @@ def case_topics_mode(processes, args):
     player = threading.Thread(target=play_robot, daemon=True)
     player.start()
     try:
+        # Not started from, logged (once a second), and the node waits for good ones.
+        wait_until(lambda: "cannot start the controller from /joint_states: dq[3] = 50"
+                   in processes.log("launch"), 10.0, "the rejected first joint_states in the log")
+        time.sleep(1.5)
+        assert "controller running" not in processes.log("launch"), processes.log("launch")
+        running["too_fast"] = False
         state = controller_state()
         m = state.get()
         assert close(m.joint_state.position, PANDA_READY, 1e-9), m.joint_state.position

@@ -123,7 +123,8 @@ TEST(RosParameters, EveryRowOfTheTableIsRead) {
       **frame = ci::Frame::end_effector;
     }
   }
-  // Limits must stay ordered (min <= max) for validation; equal bounds are fine.
+  // Limits stay ordered (min <= max), and the default control period (1 ms) fits plausibility.dt.
+  changed.plausibility.dt.min = 1e-4;  // not the default either
   XmlRpcValue root = to_xmlrpc(YAML::Load(ci::parameters_to_yaml(changed)));
   for (const char* key : {"base_link", "tip_link", "mjcf_path"}) root[key] = std::string("x");
   const ci::Parameters read = cir::configuration_from_xmlrpc(root, kNamespace).parameters;
@@ -242,7 +243,7 @@ TEST(RosParameters, ErrorsNameParameterValueAndRange) {
   {
     XmlRpcValue root = required_settings();
     root["control_rate"] = 0;
-    EXPECT_NE(error_of(root).find("/control_rate: control_rate = 0 Hz is outside (0, 10000]"),
+    EXPECT_NE(error_of(root).find("/control_rate: control_rate = 0 Hz is outside [1, 10000]"),
               std::string::npos);
   }
   {

@@ -121,6 +121,16 @@ RosArguments parse_arguments(const std::vector<std::string>& arguments) {
                        "' (valid: -r, --remap, -p, --param, --params-file, --log-level)");
     }
   }
+  // Each remap's names are checked here, once the namespace and node name are known, so that a
+  // bad one is a bad command line (exit code 2) rather than a failure when the node first uses it.
+  for (const auto& [from, to] : result.remaps) {
+    try {
+      result.resolve(from);
+      result.resolve(to);
+    } catch (const UsageError& error) {
+      throw UsageError("-r " + from + ":=" + to + ": " + error.what());
+    }
+  }
   return result;
 }
 

@@ -41,7 +41,7 @@ struct RosArguments {
 
 /// Parses argv (without argv[0]). Arguments outside `--ros-args ... [--]` are rejected, since the
 /// node has no options of its own besides `--help`.
-/// @throws UsageError naming the argument.
+/// @throws UsageError naming the argument, e.g. a remap whose names are not valid ROS names.
 RosArguments parse_arguments(const std::vector<std::string>& arguments);
 
 /// The help text.

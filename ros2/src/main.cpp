@@ -1,11 +1,14 @@
 // cartesian_impedance_ros2: the Cartesian impedance controller on ROS 2 topics over DDS (see the
-// README's "ROS 2" section). Exit codes: 0 after SIGINT or SIGTERM, 1 if the controller cannot
-// start, 2 for a bad command line or bad parameters (the message names the argument or parameter
-// and the value).
+// README's "ROS 2" section). Exit codes, one rule: 0 after SIGINT or SIGTERM; 2 if what the node
+// was given is wrong - the command line (a remap too), a parameter, a file it names (params file,
+// parameters_file, urdf_path, mjcf_path) or robot_description, e.g. a URDF that does not load or
+// an MJCF that does not match it - found before the control thread starts, with a message naming
+// it; 1 if the node cannot run with what it was given: DDS cannot start, or the controller fails.
 
 #include <csignal>
 #include <exception>
 #include <iostream>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -47,13 +50,26 @@ int main(int argc, char** argv) {
   }
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
+  std::optional<ros2::Node> node;
   try {
-    ros2::Node node(std::move(arguments), std::move(configuration));
-    return node.run(stop_requested);
-  } catch (const cartesian_impedance::ParameterError& error) {
-    // A parameter that only the loaded model shows to be wrong (start_q): as any other.
+    node.emplace(std::move(arguments), std::move(configuration));
+  } catch (const ros2::MiddlewareError& error) {
+    ros2::log(ros2::LogLevel::fatal, error.what());
+    return 1;
+  } catch (const cartesian_impedance::Error& error) {
+    // What only loading shows: a URDF or MJCF that does not load or does not match, a start_q
+    // outside the chain's limits. As wrong as a bad parameter.
     ros2::log(ros2::LogLevel::fatal, error.what());
     return 2;
+  } catch (const ros2::UsageError& error) {
+    ros2::log(ros2::LogLevel::fatal, error.what());  // a topic name that is not valid
+    return 2;
+  } catch (const std::exception& error) {
+    ros2::log(ros2::LogLevel::fatal, error.what());
+    return 1;
+  }
+  try {
+    return node->run(stop_requested);
   } catch (const std::exception& error) {
     ros2::log(ros2::LogLevel::fatal, error.what());
     return 1;

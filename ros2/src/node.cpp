@@ -4,7 +4,7 @@
 
 #include <chrono>
 #include <cstring>
-#include <map>
+#include <optional>
 #include <vector>
 
 #include <cartesian_impedance/core/error.hpp>
@@ -16,7 +16,6 @@
 namespace cartesian_impedance_ros2 {
 
 namespace ci = cartesian_impedance;
-using Clock = std::chrono::steady_clock;
 using ci::node::Mode;
 
 namespace {
@@ -36,10 +35,23 @@ ci::sim::Simulation simulate_urdf(const Ros2Configuration& configuration,
   return ci::sim::Simulation::from_urdf_file(file.path(), options);
 }
 
+// Runs `make`, which creates DDS entities: its failure is the middleware's, not the
+// configuration's (exit code 1, not 2).
+template <typename Make>
+auto dds(Make make) -> decltype(make()) {
+  try {
+    return make();
+  } catch (const ci::Error& error) {
+    throw MiddlewareError(error.what());
+  }
+}
+
 }  // namespace
 
 Node::Node(RosArguments arguments, Ros2Configuration configuration)
-    : arguments_(std::move(arguments)), configuration_(std::move(configuration)) {
+    : arguments_(std::move(arguments)),
+      configuration_(std::move(configuration)),
+      participant_(dds([] { return Participant(); })) {
   for (const std::string& key : configuration_.common.unknown_keys) {
     log(LogLevel::warn, "ignoring parameter " + key + ": not a setting or parameter of this node");
   }
@@ -63,12 +75,14 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
     return std::make_pair("rt" + topic, configuration_.subscription(topic));
   };
   const auto writer = [&](auto& w, const std::string& name) {
-    const auto [topic, qos] = out(name);
-    w = std::decay_t<decltype(w)>(participant_, topic, qos);
+    const auto endpoint = out(name);
+    w = dds(
+        [&] { return std::decay_t<decltype(w)>(participant_, endpoint.first, endpoint.second); });
   };
   const auto reader = [&](auto& r, const std::string& name) {
-    const auto [topic, qos] = in(name);
-    r = std::decay_t<decltype(r)>(participant_, topic, qos);
+    const auto endpoint = in(name);
+    r = dds(
+        [&] { return std::decay_t<decltype(r)>(participant_, endpoint.first, endpoint.second); });
   };
 
   if (settings_.mode == Mode::sim) {
@@ -108,15 +122,15 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
       const TopicQos qos = configuration_.publisher_qos.count(topic)
                                ? configuration_.publisher(topic)
                                : TopicQos{true, true, 1};
-      w = std::decay_t<decltype(w)>(participant_, "rt" + topic, qos);
+      w = dds([&] { return std::decay_t<decltype(w)>(participant_, "rt" + topic, qos); });
     };
     links_.emplace(ci::LinkTransforms::from_urdf_string(configuration_.urdf, settings_.base_link,
                                                         model_->joint_names()));
     const std::string tf_topic = arguments_.resolve("/tf");
-    tf_writer_ = Writer<TFMessage>(participant_, "rt" + tf_topic,
-                                   configuration_.publisher_qos.count(tf_topic)
-                                       ? configuration_.publisher(tf_topic)
-                                       : TopicQos{true, false, 100});
+    const TopicQos tf_qos = configuration_.publisher_qos.count(tf_topic)
+                                ? configuration_.publisher(tf_topic)
+                                : TopicQos{true, false, 100};
+    tf_writer_ = dds([&] { return Writer<TFMessage>(participant_, "rt" + tf_topic, tf_qos); });
     latched(tf_static_writer_, "/tf_static");
     latched(description_writer_, "robot_description");
     std::vector<Eigen::Isometry3d> transforms;
@@ -137,7 +151,9 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
   reader(config_reader_, "~/set_config");
   // Relative, as in the published controller: in the node's namespace.
   reader(trajectory_reader_, "joint_trajectory");
-  wake_ = Entity(check(dds_create_guardcondition(participant_.get()), "guard condition"));
+  wake_ = dds([&] {
+    return Entity(check(dds_create_guardcondition(participant_.get()), "guard condition"));
+  });
 
   std::string joints;
   for (const std::string& name : model_->joint_names())
@@ -189,7 +205,10 @@ int Node::run(const std::atomic<bool>& stop) {
   command_thread_ = std::thread([this] { command_thread(); });
 
   using State = ci::runtime::ControlThread::State;
+  ci::node::LogThrottle start_throttle;
+  std::uint64_t rejected_starts = 0;
   while (!stop && control_thread_->state() == State::preparing) {
+    report_rejected_starts(start_throttle, rejected_starts);
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
   const bool failed = control_thread_->state() == State::failed;
@@ -235,40 +254,31 @@ void Node::command_thread() {
 
 template <typename Convert>
 void Node::send(const char* topic, Convert&& convert) {
-  // One warning per kind of mistake and second, with the count of those not shown, so that a
-  // flood of bad samples cannot flood the log.
-  static thread_local std::map<std::string, Throttle> throttles;
-  // Keyed by topic and the rejected field (the error's fault), so that a different mistake is
-  // reported at once; errors without a field share their topic's key. The fields are the
-  // parameter table's and the commands' (a bounded set); the cap only guards against a bug.
-  constexpr std::size_t kMaxKeys = 256;
-  const auto throttle_for = [&](const std::string& field) -> Throttle& {
-    if (throttles.size() >= kMaxKeys && throttles.count(std::string(topic) + " " + field) == 0) {
-      throttles.clear();
-    }
-    return throttles[std::string(topic) + " " + field];
-  };
+  // One line per kind of mistake and second, with the count of those not shown, so that a flood
+  // of bad samples cannot flood the log. One throttle per thread: the command thread's and the
+  // joint-state thread's.
+  static thread_local ci::node::LogThrottle throttle;
+  std::optional<std::string> line;
   try {
     convert();
-  } catch (const ci::Error& error) {
-    report(topic, error.what(), throttle_for(error.fault().input));
   } catch (const std::exception& error) {
-    report(topic, error.what(), throttle_for(""));
+    line = throttle.rejected(topic, error);
   }
+  if (line) log(LogLevel::warn, *line);
 }
 
-void Node::report(const char* topic, const char* what, Throttle& throttle) {
-  const Clock::time_point now = Clock::now();
-  if (now - throttle.last < std::chrono::seconds(1)) {
-    ++throttle.suppressed;
-    return;
+void Node::report_rejected_starts(ci::node::LogThrottle& throttle, std::uint64_t& seen) const {
+  const ci::runtime::RejectedStarts rejected = control_thread_->rejected_starts();
+  if (!rejected.latest) return;
+  const std::string text = "cannot start the controller from " +
+                           arguments_.resolve("joint_states") + ": " + rejected.latest->what() +
+                           "; waiting for joint states it can start from";
+  // Every rejection counts, the ones between two polls by the newest's fault.
+  for (; seen < rejected.count; ++seen) {
+    if (auto line = throttle.line("joint_states start", rejected.latest->fault(), text)) {
+      log(LogLevel::warn, *line);
+    }
   }
-  std::string text = std::string(topic) + " rejected: " + what;
-  if (throttle.suppressed > 0) {
-    text += " (and " + std::to_string(throttle.suppressed) + " more in the last second)";
-  }
-  log(LogLevel::warn, text);
-  throttle = {now, 0};
 }
 
 void Node::take_commands() {

@@ -21,12 +21,14 @@
 #include <chrono>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <thread>
 
 #include <cartesian_impedance/loop/control_loop.hpp>
 #include <cartesian_impedance/model/robot_model.hpp>
 #include <cartesian_impedance/node/joint_states.hpp>
+#include <cartesian_impedance/node/log_throttle.hpp>
 #include <cartesian_impedance/runtime/control_thread.hpp>
 #include <cartesian_impedance/runtime/robot_io.hpp>
 #include <cartesian_impedance/sim/closed_loop_runner.hpp>
@@ -39,17 +41,28 @@
 
 namespace cartesian_impedance_ros2 {
 
+/// DDS could not create what the node needs: a failure of the middleware (or its environment:
+/// ROS_DOMAIN_ID, CYCLONEDDS_URI), not of the node's configuration.
+class MiddlewareError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 class Node {
  public:
   /// Loads the model (and in sim mode the MJCF) and creates every DDS entity.
-  /// @throws cartesian_impedance::Error with a message for the user.
+  /// @throws MiddlewareError if DDS cannot create an entity; cartesian_impedance::Error (a
+  ///         LoadError, a ParameterError, ...) or UsageError for what the node was given: a URDF
+  ///         or MJCF that does not load or does not match, a start_q outside the chain's limits, a
+  ///         topic name that is not valid.
   Node(RosArguments arguments, Ros2Configuration configuration);
   ~Node();
   Node(const Node&) = delete;
   Node& operator=(const Node&) = delete;
 
   /// Runs until `stop` becomes true; returns the process exit code (1 if the controller could
-  /// not start).
+  /// not start). In topics mode it waits for the first joint states the controller can start
+  /// from, logging those it cannot (throttled), as a running cycle fails closed on them.
   int run(const std::atomic<bool>& stop);
 
  private:
@@ -61,16 +74,13 @@ class Node {
 
   /// Takes every waiting sample of every command topic and sends what converts and validates.
   void take_commands();
-  /// Sends commands from one sample to the loop as one (all or none); logs a rejection.
-  // Runs `convert` (which sends a command); a rejected command is logged, throttled per topic
-  // and rejected field.
+  /// Runs `convert` (which sends a command or a measurement); a rejection is logged, throttled
+  /// per topic and kind of fault (node::LogThrottle, one per thread).
   template <typename Convert>
   void send(const char* topic, Convert&& convert);
-  struct Throttle {
-    std::chrono::steady_clock::time_point last{};
-    int suppressed = 0;
-  };
-  static void report(const char* topic, const char* what, Throttle& throttle);
+  /// Logs (throttled) the joint states the controller could not start from since `seen`.
+  void report_rejected_starts(cartesian_impedance::node::LogThrottle& throttle,
+                              std::uint64_t& seen) const;
 
   RosArguments arguments_;
   Ros2Configuration configuration_;

@@ -534,10 +534,51 @@ TEST(Ros2Node, SimulatesTheUrdfWithDart) {
   })) << client.settle(0).position.transpose();
 }
 
-// Topics mode: joint_states in (as a robot's ros2_control would publish them), torques out to the
-// effort controller, failing closed when joint_states stop.
-TEST(Ros2Node, TopicsModeTakesJointStatesAndCommandsTheEffortController) {
-  const std::string params = params_file("topics_panda.yaml", R"(
+// A robot's joint_states at about 500 Hz (as its ros2_control would publish them, with a finger
+// joint the arm does not have), standing at the Panda's ready pose, until stopped; `dq4` is the
+// fourth arm joint's speed [rad/s].
+class JointStatesPlayer {
+ public:
+  explicit JointStatesPlayer(const std::string& topic)
+      : writer_(Client::participant(), topic, TopicQos{}) {
+    names_ = {"panda_finger_joint1"};
+    for (int i = 1; i <= 7; ++i) names_.push_back("panda_joint" + std::to_string(i));
+    for (std::string& name : names_) name_pointers_.push_back(name.data());
+    thread_ = std::thread([this] { play(); });
+  }
+  ~JointStatesPlayer() { stop(); }
+  void stop() {
+    publishing_ = false;
+    if (thread_.joinable()) thread_.join();
+  }
+  std::atomic<double> dq4{0.0};
+
+ private:
+  void play() {
+    const std::vector<double> ready = {0, -M_PI / 4, 0, -3 * M_PI / 4, 0, M_PI / 2, M_PI / 4};
+    std::vector<double> q = {0.04}, dq(8, 0.0);
+    q.insert(q.end(), ready.begin(), ready.end());
+    JointStateMessage m{};
+    m.header.frame_id = const_cast<char*>("");
+    m.name._buffer = name_pointers_.data();
+    m.position._buffer = q.data();
+    m.velocity._buffer = dq.data();
+    m.name._length = m.position._length = m.velocity._length = 8;
+    while (publishing_) {
+      dq[4] = dq4;
+      writer_.write(m);
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+  }
+  Writer<JointStateMessage> writer_;
+  std::vector<std::string> names_;
+  std::vector<char*> name_pointers_;
+  std::atomic<bool> publishing_{true};
+  std::thread thread_;
+};
+
+std::string topics_params() {
+  return params_file("topics_panda.yaml", R"(
 /**:
   ros__parameters:
     mode: topics
@@ -547,33 +588,17 @@ TEST(Ros2Node, TopicsModeTakesJointStatesAndCommandsTheEffortController) {
     parameters_file: )" + repository() + R"(/config/panda.yaml
     filter: {pose: {time: 0.0}}
 )");
-  NodeProcess node({"--ros-args", "-r", "__ns:=/robot", "--params-file", params});
+}
+
+// Topics mode: joint_states in (as a robot's ros2_control would publish them), torques out to the
+// effort controller, failing closed when joint_states stop.
+TEST(Ros2Node, TopicsModeTakesJointStatesAndCommandsTheEffortController) {
+  NodeProcess node({"--ros-args", "-r", "__ns:=/robot", "--params-file", topics_params()});
   const Participant& participant = Client::participant();
-  Writer<JointStateMessage> joints(participant, "rt/robot/joint_states", TopicQos{});
-  std::vector<std::vector<double>> efforts;
   Latest<Float64MultiArray, std::vector<double> (*)(const Float64MultiArray&)> commands(
       participant, "rt/robot/effort_controller/commands",
       +[](const Float64MultiArray& m) { return values(m.data); });
-  const std::vector<double> ready = {0, -M_PI / 4, 0, -3 * M_PI / 4, 0, M_PI / 2, M_PI / 4};
-  std::vector<std::string> names = {"panda_finger_joint1"};
-  for (int i = 1; i <= 7; ++i) names.push_back("panda_joint" + std::to_string(i));
-  std::vector<char*> name_pointers;
-  for (std::string& name : names) name_pointers.push_back(name.data());
-  std::atomic<bool> publishing{true};
-  std::thread robot([&] {
-    std::vector<double> q = {0.04}, dq(8, 0.0);
-    q.insert(q.end(), ready.begin(), ready.end());
-    JointStateMessage m{};
-    m.header.frame_id = const_cast<char*>("");
-    m.name._buffer = name_pointers.data();
-    m.position._buffer = q.data();
-    m.velocity._buffer = dq.data();
-    m.name._length = m.position._length = m.velocity._length = 8;
-    while (publishing) {
-      joints.write(m);
-      std::this_thread::sleep_for(std::chrono::milliseconds(2));
-    }
-  });
+  JointStatesPlayer robot("rt/robot/joint_states");
   Client client("/robot/cartesian_impedance_controller");
   const State start = client.running();
   TfRecorder tf(participant);  // tf in topics mode too, from the measured joint positions
@@ -590,8 +615,7 @@ TEST(Ros2Node, TopicsModeTakesJointStatesAndCommandsTheEffortController) {
   EXPECT_NEAR(commands.value()[0], 0.0, 0.05)
       << Eigen::Map<const Eigen::VectorXd>(commands.value().data(), 7).transpose();
   // joint_states stop: stale, the torque ramps to zero.
-  publishing = false;
-  robot.join();
+  robot.stop();
   EXPECT_TRUE(client.wait(2.0, [](const State& s) { return s.stale_episodes >= 1; }));
   EXPECT_TRUE(commands.wait(3.0, [](const std::vector<double>& tau) {
     return Eigen::Map<const Eigen::VectorXd>(tau.data(), 7).norm() < 1e-9;
@@ -599,6 +623,43 @@ TEST(Ros2Node, TopicsModeTakesJointStatesAndCommandsTheEffortController) {
   EXPECT_NE(node.log().find("no joint_states for more than"), std::string::npos) << node.log();
 }
 
+// First joint_states the controller cannot start from (a joint at 50 rad/s, beyond
+// plausibility.joint_velocity) are what a running cycle fails closed on: the node stays up,
+// logs them (throttled: one line per second, however many arrive) and starts at the first good
+// one. It used to exit with code 1.
+TEST(Ros2Node, TopicsModeStartsAtTheFirstJointStatesItCanStartFrom) {
+  NodeProcess node({"--ros-args", "-r", "__ns:=/robot", "--params-file", topics_params()});
+  JointStatesPlayer robot("rt/robot/joint_states");
+  robot.dq4 = 50.0;
+  const std::string rejected =
+      "cannot start the controller from /robot/joint_states: dq[3] = 50 is beyond "
+      "plausibility.joint_velocity = 10";
+  ASSERT_TRUE(eventually(10.0, [&] { return node.log().find(rejected) != std::string::npos; }))
+      << node.log();
+  // About 500 bad samples a second for 1.5 s: at most 2 lines (at 0 and 1 s), and the node runs.
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  ASSERT_TRUE(node.running()) << node.log();
+  const std::string log = node.log();
+  int lines = 0;
+  for (std::size_t at = log.find(rejected); at != std::string::npos;
+       at = log.find(rejected, at + 1)) {
+    ++lines;
+  }
+  EXPECT_GE(lines, 1);
+  EXPECT_LE(lines, 3) << log;
+  EXPECT_EQ(log.find("controller running"), std::string::npos) << log;
+
+  robot.dq4 = 0.0;
+  Client client("/robot/cartesian_impedance_controller");
+  const State running = client.running();
+  EXPECT_EQ(running.status, "ok");
+  EXPECT_NEAR(running.q.at(3), -3 * M_PI / 4, 1e-9);
+  EXPECT_TRUE(node.running());
+  EXPECT_EQ(node.stop(), 0) << node.log();
+}
+
+// Exit code 2 for everything the node was given, found before the control thread starts: the
+// command line (remaps too), parameters, the files they name and robot_description.
 TEST(Ros2Node, BadParametersExitWithCode2NamingTheParameter) {
   const std::map<std::string, std::vector<std::string>> cases = {
       {"stiffness.translation", {"-p", "stiffness.translation:=-5"}},
@@ -611,6 +672,15 @@ TEST(Ros2Node, BadParametersExitWithCode2NamingTheParameter) {
       {"qos policy 'lifespan'", {"-p", "qos_overrides./x.publisher.lifespan:=1"}},
       // sim_panda.yaml simulates the MJCF, which DART cannot.
       {"engine 'dart' cannot simulate the MJCF of mjcf_path", {"-p", "engine:=dart"}},
+      // Every cycle would be invalid_dt (1.5 periods above plausibility.dt.max = 20 ms).
+      {"control_rate = 60 Hz does not fit plausibility.dt",
+       {"-p", "control_rate:=60", "-p", "publish_rate:=50"}},
+      {"publish_rate = 1e-11 Hz is outside [1, 10000]", {"-p", "publish_rate:=1e-11"}},
+      {"tf_prefix = 'pppp", {"-p", "tf_prefix:=" + std::string(1000, 'p')}},
+      // What only loading shows is as wrong as a bad parameter: the MJCF of another robot.
+      {"iiwa14.xml", {"-p", "mjcf_path:=" + repository() + "/models/iiwa14/iiwa14.xml"}},
+      {"-r joint_states:=9states: '9states' is not a valid topic name",
+       {"-r", "joint_states:=9states"}},
   };
   for (const auto& [expected, extra] : cases) {
     std::vector<std::string> args = {"--ros-args", "--params-file", sim_params()};
@@ -621,6 +691,16 @@ TEST(Ros2Node, BadParametersExitWithCode2NamingTheParameter) {
     EXPECT_EQ(*code, 2) << node.log();
     EXPECT_NE(node.log().find(expected), std::string::npos) << node.log();
   }
+  // robot_description that is no URDF.
+  NodeProcess description({"--ros-args", "--params-file", params_file("bad_description.yaml", R"(
+/**:
+  ros__parameters:
+    robot_description: "<robot name='arm'><link name='base'/></robot>"
+    base_link: panda_link0
+    tip_link: panda_link8
+)")});
+  EXPECT_EQ(description.wait_for_exit(10.0).value_or(-1), 2) << description.log();
+  EXPECT_NE(description.log().find("panda_link0"), std::string::npos) << description.log();
   NodeProcess unknown({"--frobnicate"});
   EXPECT_EQ(unknown.wait_for_exit(10.0).value_or(-1), 2);
   EXPECT_NE(unknown.log().find("unknown argument '--frobnicate'"), std::string::npos);

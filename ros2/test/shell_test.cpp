@@ -61,6 +61,11 @@ TEST(Ros2Arguments, BadArgumentsNameThemselves) {
   EXPECT_NE(message({"--ros-args", "--bogus"}).find("'--bogus'"), std::string::npos);
   EXPECT_NE(message({"mode:=sim"}).find("--ros-args"), std::string::npos);
   EXPECT_THROW(parse({}).resolve("bad name"), UsageError);
+  // A remap is checked on the command line (exit code 2), not when the node first uses it.
+  EXPECT_EQ(message({"--ros-args", "-r", "joint_states:=9states"}),
+            "-r joint_states:=9states: '9states' is not a valid topic name");
+  EXPECT_EQ(message({"--ros-args", "-r", "__ns:=/left", "-r", "bad name:=/js"}),
+            "-r bad name:=/js: 'bad name' is not a valid topic name");
 }
 
 std::string write(const std::string& name, const std::string& text) {
@@ -254,6 +259,65 @@ TEST(Ros2Parameters, EngineIsASimModeSettingForTheUrdf) {
               testing::EndsWith("engine 'dart' cannot simulate the MJCF of mjcf_path "
                                 "('/models/panda.xml'): DART simulates the robot's URDF; remove "
                                 "mjcf_path or use engine 'mujoco'"));
+}
+
+// What a node is configured with, with the settings of `extra` (-p NAME:=VALUE) in topics mode:
+// "accepted" or the error.
+std::string configuration_error(const std::vector<std::string>& extra) {
+  std::vector<std::string> args = {"--ros-args", "--params-file",
+                                   write("settings.yaml", "/**:\n  ros__parameters:\n" + kRobot)};
+  args.insert(args.end(), extra.begin(), extra.end());
+  try {
+    read_configuration(parse(args));
+  } catch (const ci::Error& error) {
+    return error.what();
+  }
+  return "accepted";
+}
+
+// The rates' ranges in the settings table are sane: a period counted in nanoseconds cannot
+// overflow (1e-11 Hz was 1e20 ns: the publisher spun, the control thread ran every ns), and the
+// control period must be a dt the controller believes, with half a period of jitter either way
+// (below 75 Hz every cycle was invalid_dt at the default plausibility.dt.max of 20 ms while the
+// node said "controller running").
+TEST(Ros2Parameters, RatesAreSaneAndTheControlPeriodFitsThePlausibleDt) {
+  EXPECT_EQ(configuration_error({"-p", "publish_rate:=1e-11"}),
+            "-p publish_rate: publish_rate = 1e-11 Hz is outside [1, 10000]");
+  EXPECT_EQ(configuration_error({"-p", "control_rate:=1e-11"}),
+            "-p control_rate: control_rate = 1e-11 Hz is outside [1, 10000]");
+  EXPECT_EQ(configuration_error({"-p", "joint_states_timeout:=1e-11"}),
+            "-p joint_states_timeout: joint_states_timeout = 1e-11 s is outside [0.001, 1]");
+  EXPECT_EQ(configuration_error({"-p", "control_rate:=50", "-p", "publish_rate:=50"}),
+            "-p control_rate: control_rate = 50 Hz does not fit plausibility.dt = [1e-05, 0.02] "
+            "s: its period of 0.02 s, late by half a period (0.03 s), is above "
+            "plausibility.dt.max = 0.02 s, so cycles would fail closed as invalid_dt; raise "
+            "control_rate to at least 75 Hz or plausibility.dt.max to at least 0.03 s");
+  EXPECT_EQ(configuration_error({"-p", "control_rate:=75", "-p", "publish_rate:=50"}), "accepted");
+  EXPECT_EQ(configuration_error({"-p", "control_rate:=50", "-p", "publish_rate:=50", "-p",
+                                 "plausibility.dt.max:=0.05"}),
+            "accepted");
+  EXPECT_THAT(configuration_error({"-p", "control_rate:=10000", "-p", "plausibility.dt.min:=1e-4"}),
+              testing::HasSubstr("control_rate = 10000 Hz does not fit plausibility.dt = [0.0001, "
+                                 "0.02] s: its period of 0.0001 s, early by half a period (5e-05 "
+                                 "s), is below plausibility.dt.min = 0.0001 s"));
+  EXPECT_THAT(configuration_error({"-p", "publish_rate:=2000"}),
+              testing::HasSubstr("publish_rate = 2000 Hz is above control_rate = 1000 Hz"));
+}
+
+// Strings are bounded (a 50 MB tf_prefix went into every transform of every /tf message: 1.7 GB
+// at 103 % CPU), and a message about one does not repeat it whole.
+TEST(Ros2Parameters, StringSettingsHaveALengthLimit) {
+  const std::string long_prefix(300, 'a');
+  EXPECT_EQ(configuration_error({"-p", "tf_prefix:=" + long_prefix}),
+            "-p tf_prefix: tf_prefix = '" + std::string(40, 'a') +
+                "...' has 300 characters; at most 256 are accepted");
+  EXPECT_EQ(configuration_error({"-p", "tf_prefix:=" + std::string(256, 'a')}), "accepted");
+  EXPECT_THAT(configuration_error({"-p", "base_link:=" + long_prefix}),
+              testing::HasSubstr("base_link = 'aaa"));
+  EXPECT_THAT(configuration_error({"-p", "mode:=" + long_prefix}),
+              testing::HasSubstr("has 300 characters; at most 16 are accepted"));
+  EXPECT_THAT(configuration_error({"-p", "mjcf_path:=/" + std::string(5000, 'm')}),
+              testing::HasSubstr("has 5001 characters; at most 4096 are accepted"));
 }
 
 // What both shells simulate robot_description's text from: a file of its own, gone afterwards.

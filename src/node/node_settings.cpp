@@ -12,19 +12,56 @@
 namespace cartesian_impedance::node {
 namespace {
 
-// Ranges of the numeric settings, in the form of the parameter table's rows.
-const ParameterInfo kControlRate{"control_rate",       "Hz",   0, 10000, true,
-                                 "control cycle rate", nullptr};
-const ParameterInfo kPublishRate{"publish_rate", "Hz", 0, 10000, true, "rate of the state topics",
-                                 nullptr};
-const ParameterInfo kJointStatesTimeout{
-    "joint_states_timeout", "s", 0, 10, true, "age at which joint states count as lost", nullptr};
-// A joint position: radians or metres, bounded like a URDF's prismatic travel (1 km), which
-// catches degrees and typos; check_start_q() checks each against its joint's URDF limits.
-const ParameterInfo kStartQ{"start_q", "rad or m", -1000, 1000, false, "start configuration",
-                            nullptr};
-const ParameterInfo kRealtimePriority{
-    "realtime_priority", "", 0, 99, false, "SCHED_FIFO priority; 0 = normal", nullptr};
+using Kind = NodeSettingInfo::Kind;
+
+// The one table of the settings: what each accepts. Ranges are closed and sane, so that no value
+// in them breaks the node: rates whose periods the control thread and the publisher count in
+// nanoseconds (1 Hz and slower would also delay stopping by a period), a joint-state timeout
+// from a millisecond (a 1 kHz robot's period) to a second (longer, the arm would be controlled
+// from a state that old), strings short enough to copy into every message (a 50 MB tf_prefix is
+// written into each transform of each /tf message).
+constexpr std::size_t kMaxNameLength = 256;   // link names, tf_prefix
+constexpr std::size_t kMaxPathLength = 4096;  // PATH_MAX
+constexpr std::size_t kMaxChoiceLength = 16;  // mode, engine
+std::vector<NodeSettingInfo> make_table() {
+  return {
+      {"mode", Kind::name, "", 0, 0, kMaxChoiceLength, "sim, topics",
+       "how the node reaches the robot"},
+      {"control_rate", Kind::number, "Hz", 1, 10000, 0, "",
+       "control cycle rate; its period must fit plausibility.dt"},
+      {"publish_rate", Kind::number, "Hz", 1, 10000, 0, "",
+       "rate of the state topics, at most control_rate"},
+      {"base_link", Kind::name, "", 0, 0, kMaxNameLength, "", "root link of the controlled chain"},
+      {"tip_link", Kind::name, "", 0, 0, kMaxNameLength, "", "end-effector link"},
+      {"mjcf_path", Kind::name, "", 0, 0, kMaxPathLength, "",
+       "MuJoCo model of the robot (sim mode)"},
+      // A joint position: radians or metres, bounded like a URDF's prismatic travel (1 km), which
+      // catches degrees and typos; check_start_q() checks each against its joint's URDF limits.
+      {"start_q", Kind::numbers, "rad or m", -1000, 1000, static_cast<std::size_t>(kMaxJoints), "",
+       "start configuration (sim mode)"},
+      {"engine", Kind::name, "", 0, 0, kMaxChoiceLength, "mujoco, dart",
+       "physics engine (sim mode)"},
+      {"joint_states_timeout", Kind::number, "s", 0.001, 1, 0, "",
+       "age at which joint states count as lost"},
+      {"realtime_priority", Kind::integer, "", 0, 99, 0, "", "SCHED_FIFO priority; 0 = normal"},
+      {"publish_tf", Kind::flag, "", 0, 0, 0, "", "publish the robot's transforms"},
+      {"tf_prefix", Kind::name, "", 0, 0, kMaxNameLength, "",
+       "put in front of every frame written"},
+  };
+}
+
+// How much of a string that is too long a message shows.
+constexpr std::size_t kShownCharacters = 40;
+
+// True if `name` is one of `choices` ("sim, topics").
+bool is_choice(std::string_view choices, std::string_view name) {
+  while (!choices.empty()) {
+    const std::size_t end = choices.find(", ");
+    if (choices.substr(0, end) == name) return true;
+    choices = end == std::string_view::npos ? std::string_view() : choices.substr(end + 2);
+  }
+  return false;
+}
 
 class Reader {
  public:
@@ -33,44 +70,132 @@ class Reader {
 
   const ParameterValue* setting(std::string_view key) const { return tree_.member(key); }
 
-  [[noreturn]] void fail(std::string_view key, const std::string& what) const {
-    throw ParameterError(ParameterError::Reason::no_value, with_location(location_of_(key), what));
+  [[noreturn]] void fail(std::string_view key, const std::string& what,
+                         ParameterError::Reason reason = ParameterError::Reason::no_value) const {
+    throw ParameterError(reason, with_location(location_of_(key), what));
   }
 
-  double number(const ParameterInfo& row, double fallback) const {
-    const ParameterValue* value = setting(row.name);
-    return value ? decode_number(*value, row, row.name) : fallback;
+  double number(std::string_view key, double fallback) const {
+    const NodeSettingInfo& row = node_setting_info(key);
+    const ParameterValue* value = setting(key);
+    return value ? decode_number(*value, row.range(), row.name) : fallback;
   }
 
+  // A string of at most its row's length (checked before the decoder sees it, whose messages
+  // show the value), one of its row's choices if it has any.
   std::string name(std::string_view key, std::string_view what) const {
     const ParameterValue* value = setting(key);
-    return value ? decode_name(*value, key, what) : std::string();
+    if (value == nullptr) return std::string();
+    const NodeSettingInfo& row = node_setting_info(key);
+    if (value->is(ParameterValue::Kind::string) && value->as_string().size() > row.max_length) {
+      const std::string& text = value->as_string();
+      throw ParameterError(
+          ParameterError::Reason::out_of_range,
+          with_location(value->location.empty() ? location_of_(key) : value->location,
+                        std::string(key) + " = '" + text.substr(0, kShownCharacters) + "...' has " +
+                            std::to_string(text.size()) + " characters; at most " +
+                            std::to_string(row.max_length) + " are accepted"));
+    }
+    std::string name = decode_name(*value, key, what);
+    if (!row.choices.empty() && !is_choice(row.choices, name)) {
+      throw ParameterError(
+          ParameterError::Reason::out_of_range,
+          with_location(value->location.empty() ? location_of_(key) : value->location,
+                        std::string(key) + " = " + value->describe() + " is not " +
+                            std::string(what) + " (valid: " + std::string(row.choices) + ")"));
+    }
+    return name;
   }
+
+  std::string location(std::string_view key) const { return location_of_(key); }
 
  private:
   const ParameterValue& tree_;
   const KeyLocation& location_of_;
 };
 
+// The control thread's period is the dt of every cycle, give or take its jitter: a cycle that
+// starts late by part of a period has a longer dt, and the next one (on its absolute deadline) a
+// shorter one by as much. The period must stay a believable dt (plausibility.dt) with half a
+// period of that either way; a period near plausibility.dt.max would fail every other cycle
+// closed (invalid_dt), one beyond it every cycle, while the node reports itself running.
+void check_period_fits(const Reader& reader, double control_rate, const Range& plausible) {
+  const double period = 1.0 / control_rate;
+  const std::string rate_text = "control_rate = " + format_number(control_rate) + " Hz";
+  const std::string range_text = "plausibility.dt = [" + format_number(plausible.min) + ", " +
+                                 format_number(plausible.max) + "] s";
+  if (1.5 * period > plausible.max) {
+    reader.fail("control_rate",
+                rate_text + " does not fit " + range_text + ": its period of " +
+                    format_number(period) + " s, late by half a period (" +
+                    format_number(1.5 * period) +
+                    " s), is above plausibility.dt.max = " + format_number(plausible.max) +
+                    " s, so cycles would fail closed as invalid_dt; raise control_rate to at "
+                    "least " +
+                    format_number(1.5 / plausible.max) + " Hz or plausibility.dt.max to at least " +
+                    format_number(1.5 * period) + " s",
+                ParameterError::Reason::invalid);
+  }
+  if (0.5 * period < plausible.min) {
+    reader.fail("control_rate",
+                rate_text + " does not fit " + range_text + ": its period of " +
+                    format_number(period) + " s, early by half a period (" +
+                    format_number(0.5 * period) +
+                    " s), is below plausibility.dt.min = " + format_number(plausible.min) +
+                    " s, so cycles would fail closed as invalid_dt; lower control_rate to at "
+                    "most " +
+                    format_number(0.5 / plausible.min) + " Hz or plausibility.dt.min to at most " +
+                    format_number(0.5 * period) + " s",
+                ParameterError::Reason::invalid);
+  }
+}
+
 }  // namespace
+
+ParameterInfo NodeSettingInfo::range() const {
+  return ParameterInfo{name, unit, min, max, false, description, nullptr};
+}
+
+std::string NodeSettingInfo::accepts() const {
+  switch (kind) {
+    case Kind::name:
+      return choices.empty() ? "a string of at most " + std::to_string(max_length) + " characters"
+                             : "one of: " + std::string(choices);
+    case Kind::number:
+    case Kind::integer:
+      return (kind == Kind::integer ? "a whole number in " : "") + range().range_text() +
+             (unit.empty() ? "" : " " + std::string(unit));
+    case Kind::numbers:
+      return "at most " + std::to_string(max_length) + " numbers in " + range().range_text() + " " +
+             std::string(unit);
+    case Kind::flag:
+      return "true or false";
+  }
+  return "";
+}
+
+const std::vector<NodeSettingInfo>& node_settings_table() {
+  static const std::vector<NodeSettingInfo> table = make_table();
+  return table;
+}
+
+const NodeSettingInfo& node_setting_info(std::string_view name) {
+  for (const NodeSettingInfo& row : node_settings_table()) {
+    if (row.name == name) return row;
+  }
+  throw Error("'" + std::string(name) + "' is not a node setting");
+}
 
 const char* to_string(Mode mode) noexcept {
   return mode == Mode::sim ? "sim" : "topics";
 }
 
 const std::vector<std::string_view>& node_setting_names() {
-  static const std::vector<std::string_view> names = {"mode",
-                                                      "control_rate",
-                                                      "publish_rate",
-                                                      "base_link",
-                                                      "tip_link",
-                                                      "mjcf_path",
-                                                      "start_q",
-                                                      "engine",
-                                                      "joint_states_timeout",
-                                                      "realtime_priority",
-                                                      "publish_tf",
-                                                      "tf_prefix"};
+  static const std::vector<std::string_view> names = [] {
+    std::vector<std::string_view> all;
+    for (const NodeSettingInfo& row : node_settings_table()) all.push_back(row.name);
+    return all;
+  }();
   return names;
 }
 
@@ -102,18 +227,18 @@ NodeConfiguration decode_node_configuration(const ParameterValue& tree,
       decode_parameters(ParameterValue::map(std::move(groups)), Parameters{}, source);
 
   NodeSettings& settings = configuration.settings;
-  if (const ParameterValue* mode = reader.setting("mode")) {
-    const std::string name =
-        decode_name(*mode, "mode", "a mode", {to_string(Mode::sim), to_string(Mode::topics)});
+  if (reader.setting("mode") != nullptr) {
+    const std::string name = reader.name("mode", "a mode");
     settings.mode = name == to_string(Mode::sim) ? Mode::sim : Mode::topics;
   }
-  settings.control_rate = reader.number(kControlRate, settings.control_rate);
-  settings.publish_rate = reader.number(kPublishRate, settings.publish_rate);
+  settings.control_rate = reader.number("control_rate", settings.control_rate);
+  settings.publish_rate = reader.number("publish_rate", settings.publish_rate);
   if (settings.publish_rate > settings.control_rate) {
-    reader.fail("publish_rate", format_number(settings.publish_rate) +
-                                    " Hz is above control_rate (" +
-                                    format_number(settings.control_rate) + " Hz)");
+    reader.fail("publish_rate",
+                "publish_rate = " + format_number(settings.publish_rate) +
+                    " Hz is above control_rate = " + format_number(settings.control_rate) + " Hz");
   }
+  check_period_fits(reader, settings.control_rate, configuration.parameters.plausibility.dt);
   settings.base_link = reader.name("base_link", "a link name");
   settings.tip_link = reader.name("tip_link", "a link name");
   if (settings.base_link.empty()) reader.fail("base_link", "is not set (the chain's root link)");
@@ -129,9 +254,16 @@ NodeConfiguration decode_node_configuration(const ParameterValue& tree,
               "start_q = " + start_q->describe() + " is not a list of joint positions [rad or m]"));
     }
     const ParameterList& items = start_q->as_list();
+    const NodeSettingInfo& row = node_setting_info("start_q");
+    if (items.size() > row.max_length) {
+      reader.fail("start_q",
+                  "start_q has " + std::to_string(items.size()) + " values; a chain has at most " +
+                      std::to_string(row.max_length) + " joints",
+                  ParameterError::Reason::wrong_shape);
+    }
     for (std::size_t i = 0; i < items.size(); ++i) {
       settings.start_q.push_back(
-          decode_number(items[i], kStartQ, "start_q[" + std::to_string(i) + "]"));
+          decode_number(items[i], row.range(), "start_q[" + std::to_string(i) + "]"));
     }
     if (settings.mode == Mode::topics && !settings.start_q.empty()) {
       reader.fail(
@@ -140,10 +272,8 @@ NodeConfiguration decode_node_configuration(const ParameterValue& tree,
           "(it is for sim mode)");
     }
   }
-  if (const ParameterValue* engine = reader.setting("engine")) {
-    settings.engine = sim::engine_from_name(
-        decode_name(*engine, "engine", "an engine",
-                    {sim::engine_name(sim::Engine::mujoco), sim::engine_name(sim::Engine::dart)}));
+  if (reader.setting("engine") != nullptr) {
+    settings.engine = sim::engine_from_name(reader.name("engine", "an engine"));
     // Like start_q: a value that would do nothing is refused rather than ignored.
     if (settings.mode == Mode::topics) {
       reader.fail("engine",
@@ -159,10 +289,11 @@ NodeConfiguration decode_node_configuration(const ParameterValue& tree,
                                 "use engine 'mujoco'");
     }
   }
-  settings.joint_states_timeout = reader.number(kJointStatesTimeout, settings.joint_states_timeout);
+  settings.joint_states_timeout =
+      reader.number("joint_states_timeout", settings.joint_states_timeout);
   if (const ParameterValue* priority = reader.setting("realtime_priority")) {
-    settings.realtime_priority =
-        decode_integer(*priority, kRealtimePriority, kRealtimePriority.name);
+    const NodeSettingInfo& row = node_setting_info("realtime_priority");
+    settings.realtime_priority = decode_integer(*priority, row.range(), row.name);
   }
   if (const ParameterValue* publish_tf = reader.setting("publish_tf")) {
     if (!publish_tf->is(ParameterValue::Kind::boolean)) {

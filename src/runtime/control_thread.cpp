@@ -38,10 +38,14 @@ std::chrono::steady_clock::time_point time_point_of(std::int64_t ns) noexcept {
   return std::chrono::steady_clock::time_point(std::chrono::nanoseconds(ns));
 }
 
-void check_positive(const char* name, double value, const char* unit) {
-  if (!(std::isfinite(value) && value > 0.0)) {
+// Within [min, max] (min itself excluded if `min_exclusive`); NaN is outside.
+void check_range(const char* name, double value, const char* unit, double min, double max,
+                 bool min_exclusive) {
+  const bool above_min = min_exclusive ? value > min : value >= min;
+  if (!(above_min && value <= max)) {
     throw Error(std::string("control thread: ") + name + " = " + format_number(value) + " " + unit +
-                " must be finite and > 0");
+                " is outside " + (min_exclusive ? "(" : "[") + format_number(min) + ", " +
+                format_number(max) + "]");
   }
 }
 
@@ -60,13 +64,18 @@ class RobotCycle final : public Cycle {
     measurement_.q = measurement_.dq = measurement_.effort = JointVector::Zero(loop.num_joints());
   }
 
-  // The first complete, finite measurement starts the controller at the measured pose.
+  // The first measurement the controller can start from starts it at the measured pose. One it
+  // cannot start from is what a running cycle would fail closed on: rejected (with start()'s
+  // fault), not fatal, and each measurement is tried once.
   bool prepare() override {
     measurements_.read(measurement_);
-    if (measurement_.sequence == 0 || !measurement_.q.allFinite() || !measurement_.dq.allFinite()) {
-      return false;
+    if (measurement_.sequence == 0 || measurement_.sequence == tried_) return false;
+    tried_ = measurement_.sequence;
+    try {
+      loop_.start(measurement_.q, measurement_.dq);
+    } catch (const Error& error) {
+      throw StartRejected(error);
     }
-    loop_.start(measurement_.q, measurement_.dq);
     return true;
   }
 
@@ -88,19 +97,21 @@ class RobotCycle final : public Cycle {
   std::chrono::steady_clock::duration timeout_;
   JointVector invalid_;
   JointMeasurement measurement_;
+  std::uint64_t tried_ = 0;  // sequence of the measurement prepare() tried last
 };
 
 }  // namespace
 
 ControlThread::ControlThread(const ControlThreadOptions& options) : options_(options) {
-  check_positive("rate", options.rate, "Hz");
-  check_positive("measurement_timeout", options.measurement_timeout, "s");
+  check_range("rate", options.rate, "Hz", kMinRate, kMaxRate, false);
+  check_range("measurement_timeout", options.measurement_timeout, "s", 0.0, kMaxMeasurementTimeout,
+              true);
   const int highest = sched_get_priority_max(SCHED_FIFO);
   if (options.realtime_priority < 0 || options.realtime_priority > highest) {
     throw Error("control thread: realtime_priority = " + std::to_string(options.realtime_priority) +
                 " is outside [0, " + std::to_string(highest) + "] (0 = normal scheduling)");
   }
-  period_ns_ = std::max<std::int64_t>(1, std::llround(1e9 / options.rate));
+  period_ns_ = std::llround(1e9 / options.rate);
 }
 
 ControlThread::~ControlThread() {
@@ -143,6 +154,10 @@ void ControlThread::start(Cycle& cycle) {
   stale_ = false;
   stale_episodes_ = 0;
   realtime_ = false;
+  {
+    const std::lock_guard<std::mutex> lock(rejections_mutex_);
+    rejections_ = {};
+  }
   state_.store(State::preparing, std::memory_order_release);
   thread_ = std::thread([this, &cycle] { body(cycle); });
   if (options_.realtime_priority > 0) {
@@ -164,6 +179,22 @@ void ControlThread::stop() noexcept {
 
 std::string ControlThread::failure() const {
   return state() == State::failed ? failure_ : std::string();
+}
+
+RejectedStarts ControlThread::rejected_starts() const {
+  const std::lock_guard<std::mutex> lock(rejections_mutex_);
+  return rejections_;
+}
+
+bool ControlThread::prepare(Cycle& cycle) {
+  try {
+    return cycle.prepare();
+  } catch (const StartRejected& rejection) {
+    const std::lock_guard<std::mutex> lock(rejections_mutex_);
+    ++rejections_.count;
+    rejections_.latest.emplace(rejection);
+    return false;
+  }
 }
 
 ControlThreadStatistics ControlThread::statistics() const noexcept {
@@ -230,7 +261,7 @@ ControlThreadStatistics ControlThreadSnapshot::since(
 
 void ControlThread::body(Cycle& cycle) noexcept {
   try {
-    while (!cycle.prepare()) {
+    while (!prepare(cycle)) {
       if (stop_requested_.load(std::memory_order_relaxed)) {
         state_.store(State::stopped, std::memory_order_release);
         return;

@@ -8,6 +8,7 @@
 /// decode_node_configuration(); messages read like every other parameter's, placed by the source's
 /// locations.
 
+#include <cstddef>
 #include <functional>
 #include <string>
 #include <string_view>
@@ -29,7 +30,8 @@ enum class Mode {
 /// "sim" / "topics".
 const char* to_string(Mode mode) noexcept;
 
-/// A node's own settings (not controller parameters). Units in brackets.
+/// A node's own settings (not controller parameters). Units in brackets; what each accepts is in
+/// node_settings_table().
 struct NodeSettings {
   Mode mode = Mode::sim;
   double control_rate = 1000.0;  ///< [Hz] control cycle rate
@@ -68,7 +70,39 @@ struct NodeConfiguration {
   std::string start_q_location;
 };
 
-/// Names of the settings decode_node_configuration() reads.
+/// One of a node's settings as the one table of them describes it: decode_node_configuration()
+/// checks every value against its row, and the shells' documentation lists what each accepts.
+struct NodeSettingInfo {
+  enum class Kind {
+    name,     ///< a string of at most max_length characters, one of `choices` if any
+    number,   ///< a number within [min, max] (in `unit`)
+    integer,  ///< a whole number within [min, max]
+    numbers,  ///< a list of at most max_length numbers, each within [min, max] (in `unit`)
+    flag,     ///< true or false
+  };
+  std::string_view name;
+  Kind kind;
+  std::string_view unit;     ///< of the numbers; "" if none
+  double min;                ///< numbers: smallest valid value (closed)
+  double max;                ///< numbers: largest valid value (closed)
+  std::size_t max_length;    ///< names: characters; numbers: list length
+  std::string_view choices;  ///< names: the valid ones, "sim, topics"; "" for any
+  std::string_view description;
+
+  /// The range as a parameter table row, for decode_number() and its messages.
+  ParameterInfo range() const;
+  /// What the row accepts, as the documentation shows it: "[1, 10000] Hz", "a string of at most
+  /// 256 characters", "one of: sim, topics", "true or false".
+  std::string accepts() const;
+};
+
+/// Every setting decode_node_configuration() reads, in documentation order.
+const std::vector<NodeSettingInfo>& node_settings_table();
+
+/// The row called `name`. @throws Error if there is none.
+const NodeSettingInfo& node_setting_info(std::string_view name);
+
+/// Names of the settings decode_node_configuration() reads (the table's).
 const std::vector<std::string_view>& node_setting_names();
 
 /// How a shell names the place of a key of its map in messages, e.g. "ROS parameter
@@ -79,12 +113,17 @@ using KeyLocation = std::function<std::string(std::string_view key)>;
 /// defaults. `shell_keys` are keys the shell reads itself (not reported as unknown). `source`
 /// prefixes the messages about the whole parameter set ("ROS parameters in /arm/controller").
 /// @throws ParameterError naming the key's location, the value and what is expected: a value of
-///         the wrong type or shape or out of range, an unknown parameter inside a group, a
-///         parameter given twice, a set that fails validate(), a missing base_link or tip_link, a
-///         publish_rate above the control_rate, a start_q that is not a list of finite numbers
-///         (the message names the index and the value) or that is given in topics mode, an
-///         engine that is not "mujoco" or "dart", given in topics mode or "dart" with an
-///         mjcf_path. A sim mode without mjcf_path is valid: the URDF is simulated.
+///         the wrong type or shape or outside its row of node_settings_table() (a string longer
+///         than its row allows is named by its length, not shown whole), an unknown parameter
+///         inside a group, a parameter given twice, a set that fails validate(), a missing
+///         base_link or tip_link, a publish_rate above the control_rate, a control_rate whose
+///         period does not fit plausibility.dt with half a period of jitter either way (1.5
+///         periods at most plausibility.dt.max, half a period at least plausibility.dt.min: else
+///         cycles would fail closed as invalid_dt; the message names both settings, their values
+///         and what would fit), a start_q that is not a list of finite numbers (the message names
+///         the index and the value) or that is given in topics mode, an engine that is not
+///         "mujoco" or "dart", given in topics mode or "dart" with an mjcf_path. A sim mode
+///         without mjcf_path is valid: the URDF is simulated.
 NodeConfiguration decode_node_configuration(const ParameterValue& tree,
                                             const KeyLocation& location_of,
                                             const std::vector<std::string>& shell_keys,

@@ -20,9 +20,12 @@
 #include <chrono>
 #include <cstdint>
 #include <memory>
+#include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 
+#include "cartesian_impedance/core/error.hpp"
 #include "cartesian_impedance/loop/control_loop.hpp"
 #include "cartesian_impedance/runtime/robot_io.hpp"
 #include "cartesian_impedance/runtime/timing.hpp"
@@ -42,6 +45,18 @@ enum class Freshness {
   stale,  ///< none within the timeout: the controller was stepped with an invalid measurement
 };
 
+/// What Cycle::prepare() throws when it cannot start from what it has now but may later: the
+/// robot cycle's measurement that the controller cannot start from (not finite, outside the joint
+/// limits, faster than plausibility.joint_velocity). The thread keeps preparing, calls prepare()
+/// again the next period, and counts and keeps the error (ControlThread::rejected_starts()), as a
+/// cycle fails closed on such a measurement and resumes at the next good one. The error's fault()
+/// names the input, as the cycle's would.
+class StartRejected : public Error {
+ public:
+  /// The rejection of `cause` (its message and fault).
+  explicit StartRejected(const Error& cause) : Error(cause) {}
+};
+
 /// What the control thread runs. Implementations in this library: the robot cycle behind
 /// ControlThread::start(loop, measurements, sink), and sim::ClosedLoopRunner (a simulation stepped
 /// once per cycle).
@@ -51,8 +66,9 @@ class Cycle {
 
   /// Called in the control thread before the first cycle, again once per period for as long as it
   /// returns false (e.g. while waiting for the first measurement). Start the controller here.
-  /// Not real-time: may allocate and throw; an exception ends the thread in State::failed with
-  /// its message.
+  /// Not real-time: may allocate and throw. StartRejected means "not from this, try again" (the
+  /// thread keeps preparing); any other exception ends the thread in State::failed with its
+  /// message.
   virtual bool prepare() = 0;
 
   /// One control cycle. Real-time: must not allocate, lock or block.
@@ -61,13 +77,27 @@ class Cycle {
 
 /// Fixed when the thread is created.
 struct ControlThreadOptions {
-  double rate = 1000.0;  ///< [Hz] cycles per second, finite and > 0
-  /// [s] robot cycle: a measurement older than this counts as lost, finite and > 0.
+  /// [Hz] cycles per second, within [kMinRate, kMaxRate]: a period from 1 us to 1000 s, counted
+  /// in whole nanoseconds far from their overflow.
+  double rate = 1000.0;
+  /// [s] robot cycle: a measurement older than this counts as lost; > 0 and at most
+  /// kMaxMeasurementTimeout (nanoseconds of the monotonic clock hold it without overflow).
   double measurement_timeout = 0.1;
   /// SCHED_FIFO priority of the thread, 1..99; 0 = normal scheduling. Without the permission
   /// (CAP_SYS_NICE or an rtprio limit) the thread runs at normal priority and
   /// ControlThread::scheduling_error() says why.
   int realtime_priority = 0;
+};
+
+/// The ranges of ControlThreadOptions.
+inline constexpr double kMinRate = 1e-3;               ///< [Hz] a period of 1000 s
+inline constexpr double kMaxRate = 1e6;                ///< [Hz] a period of 1 us
+inline constexpr double kMaxMeasurementTimeout = 1e6;  ///< [s]
+
+/// The starts that Cycle::prepare() rejected (StartRejected) since ControlThread::start().
+struct RejectedStarts {
+  std::uint64_t count = 0;      ///< how many (for the robot cycle: how many measurements)
+  std::optional<Error> latest;  ///< the newest: its message and fault(); empty if none
 };
 
 /// Counters of the running (or last) thread, read from any thread (ControlThread::statistics()),
@@ -150,9 +180,11 @@ class ControlThread {
   /// since the previous cycle), otherwise steps it with NaN q and dq, so that the controller fails
   /// closed (status invalid_robot_state, the torque ramping toward zero within the rate limit)
   /// until measurements return; then hands the torque to `sink` (if not null). Prepare: waits
-  /// for the first complete, finite measurement and starts the loop there (ControlLoop::start;
-  /// its Error ends the thread in State::failed). `loop`, `measurements` and `sink` must outlive
-  /// the thread.
+  /// for the first measurement the loop can start from and starts it there (ControlLoop::start).
+  /// Each measurement is tried once; one that start() refuses (not finite, outside the joint
+  /// limits, too fast: what would fail a cycle closed) is a StartRejected, counted in
+  /// rejected_starts() with its fault, and the thread waits for the next one. `loop`,
+  /// `measurements` and `sink` must outlive the thread.
   /// @throws Error as start(Cycle&), or if the buffer's joint count is not the loop's.
   void start(ControlLoop& loop, const MeasurementBuffer& measurements, TorqueSink* sink);
 
@@ -165,6 +197,10 @@ class ControlThread {
   bool running() const noexcept { return state() == State::running; }
   /// Why prepare failed (the exception's message), once state() is State::failed; else "".
   std::string failure() const;
+  /// What prepare() rejected since start() (StartRejected), e.g. first measurements the
+  /// controller cannot start from; a shell logs them while state() is State::preparing. Any
+  /// thread; takes a lock that the cycle never takes.
+  RejectedStarts rejected_starts() const;
 
   /// Counters, lateness and period quantiles since start() (snapshot().statistics()).
   ControlThreadStatistics statistics() const noexcept;
@@ -180,6 +216,7 @@ class ControlThread {
 
  private:
   void join_ended();
+  bool prepare(Cycle& cycle);
   void body(Cycle& cycle) noexcept;
   void record(const CycleTime& time, Freshness freshness, std::int64_t end_ns,
               std::int64_t& deadline_ns) noexcept;
@@ -192,6 +229,8 @@ class ControlThread {
   std::atomic<State> state_{State::idle};
   std::string failure_;  // written by the thread before it stores State::failed
   int scheduling_error_ = 0;
+  mutable std::mutex rejections_mutex_;  // prepare() and rejected_starts(); never the cycle
+  RejectedStarts rejections_;
 
   std::atomic<std::uint64_t> starts_{0};
   std::atomic<std::uint64_t> cycles_{0};

@@ -1,0 +1,100 @@
+// The node settings as the ROS 1 shell reads them (the same decoder as the ROS 2 node's): the
+// rates' ranges and the control period against the plausible dt, the strings' length limits, and
+// the settings table of ros/README.md against the one table of the settings.
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <cartesian_impedance/core/error.hpp>
+#include <cartesian_impedance/node/node_settings.hpp>
+
+#include "ros_parameters.hpp"
+
+namespace ci = cartesian_impedance;
+namespace cir = cartesian_impedance_ros;
+using XmlRpc::XmlRpcValue;
+
+namespace {
+
+const std::string kNamespace = "/arm/cartesian_impedance_controller";
+
+XmlRpcValue robot_settings() {
+  XmlRpcValue root;
+  root["base_link"] = std::string("panda_link0");
+  root["tip_link"] = std::string("panda_link8");
+  root["mode"] = std::string("topics");
+  return root;
+}
+
+std::string error_of(XmlRpcValue& root) {
+  try {
+    cir::configuration_from_xmlrpc(root, kNamespace);
+  } catch (const ci::Error& error) {
+    return error.what();
+  }
+  return "accepted";
+}
+
+}  // namespace
+
+TEST(RosNodeSettings, RatesAreSaneAndTheControlPeriodFitsThePlausibleDt) {
+  {
+    XmlRpcValue root = robot_settings();
+    root["publish_rate"] = 1e-11;
+    EXPECT_EQ(error_of(root), "ROS parameter " + kNamespace +
+                                  "/publish_rate: publish_rate = 1e-11 Hz is outside [1, 10000]");
+  }
+  {
+    XmlRpcValue root = robot_settings();
+    root["control_rate"] = 1e-11;
+    EXPECT_EQ(error_of(root), "ROS parameter " + kNamespace +
+                                  "/control_rate: control_rate = 1e-11 Hz is outside [1, 10000]");
+  }
+  {
+    // 40 Hz: a 25 ms period, beyond plausibility.dt.max = 20 ms: every cycle was invalid_dt.
+    XmlRpcValue root = robot_settings();
+    root["control_rate"] = 40;
+    root["publish_rate"] = 20;
+    const std::string error = error_of(root);
+    EXPECT_NE(error.find("/control_rate: control_rate = 40 Hz does not fit plausibility.dt"),
+              std::string::npos)
+        << error;
+    EXPECT_NE(error.find("plausibility.dt.max = 0.02 s"), std::string::npos) << error;
+    root["plausibility"]["dt"]["max"] = 0.05;
+    EXPECT_EQ(error_of(root), "accepted");
+  }
+}
+
+TEST(RosNodeSettings, StringSettingsHaveALengthLimit) {
+  XmlRpcValue root = robot_settings();
+  root["tf_prefix"] = std::string(1000, 'x');
+  EXPECT_EQ(error_of(root), "ROS parameter " + kNamespace + "/tf_prefix: tf_prefix = '" +
+                                std::string(40, 'x') +
+                                "...' has 1000 characters; at most 256 are accepted");
+  root["tf_prefix"] = std::string("left/");
+  EXPECT_EQ(error_of(root), "accepted");
+}
+
+// Every setting is a row of ros/README.md's settings table that says what it accepts, as the
+// table of the settings does.
+TEST(RosNodeSettings, TheReadmeSaysWhatEachSettingAccepts) {
+  std::ifstream file(std::string(CARTESIAN_IMPEDANCE_SOURCE_DIR) + "/ros/README.md");
+  std::stringstream text;
+  text << file.rdbuf();
+  const std::string readme = text.str();
+  for (const ci::node::NodeSettingInfo& row : ci::node::node_settings_table()) {
+    const std::string name = "`" + std::string(row.name) + "`";
+    const std::size_t at = readme.find("\n| " + name);
+    const std::size_t alone = readme.find(", " + name + " |");
+    const std::size_t line_start = at != std::string::npos ? at + 1 : readme.rfind('\n', alone) + 1;
+    ASSERT_TRUE(at != std::string::npos || alone != std::string::npos)
+        << name << " has no row in ros/README.md";
+    const std::string line = readme.substr(line_start, readme.find('\n', line_start) - line_start);
+    EXPECT_NE(line.find(row.accepts()), std::string::npos)
+        << name << ": ros/README.md should say it accepts " << row.accepts() << "\n"
+        << line;
+  }
+}
