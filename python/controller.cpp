@@ -34,7 +34,8 @@ void bind_enums_and_pose(py::module_& m) {
       .value("invalid_robot_state", ci::Status::invalid_robot_state)
       .value("numerical_error", ci::Status::numerical_error)
       .value("missing_dynamics", ci::Status::missing_dynamics)
-      .value("model_error", ci::Status::model_error);
+      .value("model_error", ci::Status::model_error)
+      .value("motion_halted", ci::Status::motion_halted);
   py::enum_<ci::TrajectoryState>(m, "TrajectoryState", "Where trajectory execution stands.")
       .value("idle", ci::TrajectoryState::idle)
       .value("executing", ci::TrajectoryState::executing)
@@ -244,6 +245,9 @@ void bind_states(py::module_& m) {
       .def_readonly("joint_torque_saturated", &ci::ActiveLimits::joint_torque_saturated)
       .def_readonly("torque_rate_limited", &ci::ActiveLimits::torque_rate_limited)
       .def_readonly("joint_torque_limit_ramping", &ci::ActiveLimits::joint_torque_limit_ramping)
+      .def_readonly("holding", &ci::ActiveLimits::holding,
+                    "Repeated implausible motion made the controller hold where the arm is "
+                    "(cleared by the next reference pose).")
       .def("__repr__", [](const ci::ActiveLimits& l) {
         std::string active;
         const std::pair<const char*, bool> flags[] = {
@@ -255,7 +259,8 @@ void bind_states(py::module_& m) {
             {"rotation_error_clipped", l.rotation_error_clipped},
             {"joint_torque_saturated", l.joint_torque_saturated},
             {"torque_rate_limited", l.torque_rate_limited},
-            {"joint_torque_limit_ramping", l.joint_torque_limit_ramping}};
+            {"joint_torque_limit_ramping", l.joint_torque_limit_ramping},
+            {"holding", l.holding}};
         for (const auto& [name, on] : flags) {
           if (on) active += (active.empty() ? "" : ", ") + std::string(name);
         }

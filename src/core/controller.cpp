@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <initializer_list>
 #include <string>
 
@@ -46,6 +47,8 @@ const char* to_string(Status status) noexcept {
       return "missing_dynamics";
     case Status::model_error:
       return "model_error";
+    case Status::motion_halted:
+      return "motion_halted";
   }
   return "unknown";
 }
@@ -66,9 +69,24 @@ Matrix6d ControllerState::damping_base() const noexcept {
   return in_base(damping, stiffness_frame, pose.orientation);
 }
 
+CartesianImpedanceController::LawHandle::LawHandle(int num_joints)
+    : law_(std::make_unique<Law>(num_joints)) {}
+CartesianImpedanceController::LawHandle::~LawHandle() = default;
+// The workspace is copied with the rest: a copy continues exactly where the original is.
+CartesianImpedanceController::LawHandle::LawHandle(const LawHandle& other)
+    : law_(std::make_unique<Law>(*other.law_)) {}
+CartesianImpedanceController::LawHandle& CartesianImpedanceController::LawHandle::operator=(
+    const LawHandle& other) {
+  if (this != &other) law_ = std::make_unique<Law>(*other.law_);
+  return *this;
+}
+CartesianImpedanceController::LawHandle::LawHandle(LawHandle&& other) noexcept = default;
+CartesianImpedanceController::LawHandle& CartesianImpedanceController::LawHandle::operator=(
+    LawHandle&& other) noexcept = default;
+
 CartesianImpedanceController::CartesianImpedanceController(int num_joints,
                                                            const Parameters& parameters)
-    : num_joints_(num_joints) {
+    : num_joints_(num_joints), law_(std::clamp(num_joints, 1, kMaxJoints)) {
   if (num_joints < 1 || num_joints > kMaxJoints) {
     throw Error("num_joints = " + std::to_string(num_joints) + " is outside [1, " +
                 std::to_string(kMaxJoints) + "]");
@@ -95,38 +113,14 @@ CartesianImpedanceController::CartesianImpedanceController(int num_joints,
   scheduled_nullspace_damping_ = JointVector::Zero(n);
   scheduled_damping_.setZero();
   state_.damping.setZero();
-  law_ = std::make_unique<Law>(num_joints);
   set_parameters(parameters);
 }
 
 CartesianImpedanceController::~CartesianImpedanceController() = default;
-
-// The law's workspace is copied with the rest: a copy continues exactly where the original is.
 CartesianImpedanceController::CartesianImpedanceController(
-    const CartesianImpedanceController& other)
-    : num_joints_(other.num_joints_),
-      parameters_(other.parameters_),
-      joint_torque_limit_(other.joint_torque_limit_),
-      joint_torque_rate_limit_(other.joint_torque_rate_limit_),
-      joint_velocity_bound_(other.joint_velocity_bound_),
-      started_(other.started_),
-      gains_(other.gains_),
-      last_valid_dt_(other.last_valid_dt_),
-      state_(other.state_),
-      tau_previous_(other.tau_previous_),
-      stiffness_diagonal_(other.stiffness_diagonal_),
-      scheduled_(other.scheduled_),
-      scheduled_damping_diagonal_(other.scheduled_damping_diagonal_),
-      scheduled_damping_(other.scheduled_damping_),
-      scheduled_nullspace_damping_(other.scheduled_nullspace_damping_),
-      law_(std::make_unique<Law>(*other.law_)) {}
-
+    const CartesianImpedanceController& other) = default;
 CartesianImpedanceController& CartesianImpedanceController::operator=(
-    const CartesianImpedanceController& other) {
-  if (this != &other) *this = CartesianImpedanceController(other);
-  return *this;
-}
-
+    const CartesianImpedanceController& other) = default;
 CartesianImpedanceController::CartesianImpedanceController(
     CartesianImpedanceController&& other) noexcept = default;
 CartesianImpedanceController& CartesianImpedanceController::operator=(
@@ -254,6 +248,10 @@ void CartesianImpedanceController::start(const RobotState& robot,
   const Range& plausible = parameters_.plausibility.dt;
   last_valid_dt_ = std::clamp(1e-3, plausible.min, plausible.max);
   gains_.dt = -1.0;
+  episodes_ = 0;
+  in_episode_ = false;
+  halted_ = false;
+  state_.limits.holding = false;
   started_ = true;
 }
 
@@ -273,7 +271,10 @@ bool CartesianImpedanceController::apply(const ValidCommand& valid) noexcept {
   };
   std::visit(
       Overloaded{
-          [this](const ReferencePose& c) { state_.commanded.pose = c.pose_base; },
+          [this](const ReferencePose& c) {
+            state_.commanded.pose = c.pose_base;
+            state_.limits.holding = false;
+          },
           [this](const NullspaceTarget& c) { state_.commanded.nullspace_q = c.q_desired; },
           [&](const Stiffness& c) {
             change(Commanded::stiffness, [&](Parameters& parameters, Targets& commanded) {
@@ -415,6 +416,8 @@ Status CartesianImpedanceController::fail_closed(Status status, const Fault& fau
   }
   const Range& plausible = parameters_.plausibility.dt;
   if (!(dt >= plausible.min && dt <= plausible.max)) dt = last_valid_dt_;
+  time_ += dt;
+  if (status == Status::invalid_robot_state) count_implausible_motion(fault);
   state_.tau = state_.tau_gravity;
   state_.tau_cartesian.setZero();
   state_.tau_nullspace.setZero();
@@ -423,6 +426,41 @@ Status CartesianImpedanceController::fail_closed(Status status, const Fault& fau
   state_.status = status;
   state_.fault = fault;
   return status;
+}
+
+void CartesianImpedanceController::count_implausible_motion(const Fault& fault) noexcept {
+  // Only a measured motion the arm cannot make: a joint too fast, or past its limit (the loop's
+  // faults with a bound). A non-finite or missing value is a broken measurement, not motion.
+  const bool motion = fault.has_bound &&
+                      (std::strcmp(fault.input, "dq") == 0 || std::strcmp(fault.input, "q") == 0);
+  if (!motion || in_episode_) return;
+  in_episode_ = true;
+  // The last kHoldEpisodes beginnings, oldest first.
+  if (episodes_ == kHoldEpisodes) {
+    std::copy(episode_began_.begin() + 1, episode_began_.end(), episode_began_.begin());
+    --episodes_;
+  }
+  episode_began_[static_cast<std::size_t>(episodes_++)] = time_;
+  if (episodes_ == kHoldEpisodes && time_ - episode_began_[0] <= kHoldWindow) {
+    halted_ = true;
+    at_rest_for_ = 0.0;
+    episodes_ = 0;
+  }
+}
+
+void CartesianImpedanceController::hold_where_the_arm_is(const RobotState& robot) noexcept {
+  // What start() does with the targets, keeping the parameters, the impedance and the torque:
+  // the spring holds the arm where it is, so the energy of the motion is damped out instead of
+  // turned back into the motion.
+  const Pose pose{robot.pose.position, robot.pose.orientation.normalized()};
+  for (Targets* targets : {&state_.commanded, &state_.filtered}) {
+    targets->pose = pose;
+    targets->nullspace_q = robot.q;
+    targets->twist.setZero();
+    targets->nullspace_dq.setZero();
+  }
+  halted_ = false;
+  state_.limits.holding = true;
 }
 
 Status CartesianImpedanceController::update(const RobotState& robot, double dt) noexcept {
@@ -461,6 +499,33 @@ Status CartesianImpedanceController::cycle(const RobotState& robot, double dt,
                        dt);
   }
   last_valid_dt_ = dt;
+  in_episode_ = false;
+  if (halted_) {
+    // Springs off, only the minimum damping, until the arm is at rest; then it holds where it
+    // stopped.
+    at_rest_for_ = robot.dq.cwiseAbs().maxCoeff() <= kRestSpeed ? at_rest_for_ + dt : 0.0;
+    if (at_rest_for_ < kRestTime) {
+      static constexpr Fault kHalted{"joint motion",
+                                     -1,
+                                     0.0,
+                                     "was implausible (beyond plausibility.joint_velocity or the "
+                                     "joint limits) in 3 episodes within 1 s: springs off, the "
+                                     "minimum damping brings the arm to rest",
+                                     0.0,
+                                     false,
+                                     "",
+                                     Fault::Form::statement};
+      time_ += dt;
+      Fault fault;
+      if (!evaluate_halt(robot, fault)) return fail_closed(Status::numerical_error, fault, dt);
+      limit_torque(dt);
+      state_.status = Status::motion_halted;
+      state_.fault = kHalted;
+      return state_.status;
+    }
+    hold_where_the_arm_is(robot);
+  }
+  time_ += dt;
 
   update_gains(dt);
   filter_targets();

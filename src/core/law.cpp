@@ -63,6 +63,31 @@ bool CartesianImpedanceController::evaluate_law(const RobotState& robot, Fault& 
   return false;
 }
 
+// Status::motion_halted: no spring, the minimum damping alone (Cartesian and nullspace, in the
+// base frame), the gravity torque as usual: a passive law whose torque changes slowly enough for
+// any rate limit, which brings a moving arm to rest.
+bool CartesianImpedanceController::evaluate_halt(const RobotState& robot, Fault& fault) noexcept {
+  measure_pose(robot);
+  const MinimumDampingParameters& minimum = parameters_.minimum_damping;
+  Vector6d damping;
+  damping << Eigen::Vector3d::Constant(minimum.translation),
+      Eigen::Vector3d::Constant(minimum.rotation);
+  state_.damping = damping.asDiagonal();
+  Vector6d velocity;
+  jacobian_times(robot.jacobian, robot.dq, velocity);
+  const Vector6d force = -damping.cwiseProduct(velocity);
+  jacobian_transpose_times(robot.jacobian, force, state_.tau_cartesian);
+  law_->tau_0 = -minimum.nullspace * robot.dq;
+  law_->projector.project(robot.jacobian, parameters_.nullspace.pseudo_inverse_damping, law_->tau_0,
+                          state_.tau_nullspace);
+  state_.tau_wrench.setZero();
+  gravity(robot);
+  state_.tau = state_.tau_cartesian + state_.tau_nullspace + state_.tau_gravity;
+  if (state_.tau.allFinite()) return true;
+  find_non_finite(state_.tau, "tau", fault);
+  return false;
+}
+
 // e = [p - p_d; log(R R_d^T)], clipped so that a far reference pulls no harder than a near one.
 void CartesianImpedanceController::measure_pose(const RobotState& robot) noexcept {
   state_.pose.position = robot.pose.position;

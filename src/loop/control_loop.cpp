@@ -447,6 +447,13 @@ const JointVector& ControlLoop::step(const JointVector& q, const JointVector& dq
     joint_limit_torque();
     controller_.update_measured(robot_, dt);
   }
+  // The controller stopped pulling the arm back into a motion it could not make: a running
+  // trajectory would pull it on, so it ends here (aborted, holding where the arm is).
+  const bool holding = controller_.state().limits.holding;
+  if (holding && !was_holding_ && active_buffer_ >= 0) {
+    end_trajectory(TrajectoryState::aborted, true);
+  }
+  was_holding_ = holding;
   if (controller_.started()) {
     ++state_.cycle;  // every step, also those that failed closed
     if (dt_plausible) state_.time += dt;

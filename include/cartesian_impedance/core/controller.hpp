@@ -17,6 +17,7 @@
 /// allocates nothing, takes no lock and does no I/O. One controller serves one robot; it is not
 /// thread-safe (see the control loop for hand-off between threads).
 
+#include <array>
 #include <memory>
 #include <optional>
 #include <string>
@@ -41,6 +42,12 @@ enum class Status {
   numerical_error,      ///< a term of the law could not be evaluated (the fault names it)
   missing_dynamics,     ///< an option needs robot.mass or robot.gravity, which were not given
   model_error,          ///< the robot model could not be evaluated at the measured q
+  /// The arm moved implausibly (beyond plausibility.joint_velocity or its joint limits) in
+  /// kHoldEpisodes separate episodes within kHoldWindow seconds: an oscillation that resuming the
+  /// law would feed. The springs are off and only the minimum damping acts (plus g(q) with
+  /// dynamics.gravity_compensation) until every joint has been slower than kRestSpeed for
+  /// kRestTime; then the controller holds where the arm stopped (ActiveLimits::holding).
+  motion_halted,
 };
 
 /// "ok", "not_started", ...
@@ -75,6 +82,10 @@ struct ActiveLimits {
   /// limits.joint_torque was lowered below the torque being commanded: the bound in force
   /// (ControllerState::joint_torque_limit) is ramping down to it at the torque-rate limit.
   bool joint_torque_limit_ramping = false;
+  /// After Status::motion_halted the arm came to rest and the controller holds where it stopped
+  /// (reference pose and nullspace target reset to the measured ones, a trajectory aborted)
+  /// instead of pulling it back into the motion. Cleared by the next reference pose command.
+  bool holding = false;
 };
 
 /// Snapshot written by every update().
@@ -122,6 +133,14 @@ struct ScheduledImpedance {
 
 class CartesianImpedanceController : public CommandSetters<CartesianImpedanceController> {
  public:
+  /// Implausible-motion episodes within kHoldWindow [s] that halt the motion (Status::
+  /// motion_halted), and what counts as at rest again: every joint slower than kRestSpeed
+  /// [rad/s or m/s] for kRestTime [s].
+  static constexpr int kHoldEpisodes = 3;
+  static constexpr double kHoldWindow = 1.0;
+  static constexpr double kRestSpeed = 0.05;
+  static constexpr double kRestTime = 0.1;
+
   /// @throws Error if num_joints is outside [1, kMaxJoints] or the parameters are invalid.
   explicit CartesianImpedanceController(int num_joints, const Parameters& parameters = {});
   ~CartesianImpedanceController();
@@ -232,6 +251,7 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   // The law, one function per term (law.cpp); a term that cannot be evaluated returns false and
   // names its cause in `fault`.
   bool evaluate_law(const RobotState& robot, Fault& fault) noexcept;
+  bool evaluate_halt(const RobotState& robot, Fault& fault) noexcept;
   void measure_pose(const RobotState& robot) noexcept;
   bool compute_damping(const RobotState& robot, Fault& fault) noexcept;
   void spring_damper(const RobotState& robot) noexcept;
@@ -253,12 +273,37 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   // The filter blends commanded and filtered K, so K stays diagonal while both are: the law then
   // takes the diagonal route.
   bool stiffness_diagonal_ = true;
+  // Episodes of implausible motion: when the last kHoldEpisodes began (controller time [s]),
+  // whether the current failed-closed stretch is one, and whether to hold at the next good cycle.
+  void count_implausible_motion(const Fault& fault) noexcept;
+  void hold_where_the_arm_is(const RobotState& robot) noexcept;
+  double time_ = 0.0;
+  std::array<double, kHoldEpisodes> episode_began_{};
+  int episodes_ = 0;
+  bool in_episode_ = false;
+  bool halted_ = false;     // Status::motion_halted: waiting for the arm to come to rest
+  double at_rest_for_ = 0;  // [s] every joint slower than kRestSpeed
   // Set by schedule(): the damping then comes from the caller, not from the damping ratios.
   bool scheduled_ = false;
   bool scheduled_damping_diagonal_ = true;
   Matrix6d scheduled_damping_;
   JointVector scheduled_nullspace_damping_;
-  std::unique_ptr<Law> law_;
+  // Owns the law's workspace; a copy of the controller copies it.
+  class LawHandle {
+   public:
+    explicit LawHandle(int num_joints);
+    ~LawHandle();
+    LawHandle(const LawHandle& other);
+    LawHandle& operator=(const LawHandle& other);
+    LawHandle(LawHandle&& other) noexcept;
+    LawHandle& operator=(LawHandle&& other) noexcept;
+    Law* operator->() const noexcept { return law_.get(); }
+    Law& operator*() const noexcept { return *law_; }
+
+   private:
+    std::unique_ptr<Law> law_;
+  };
+  LawHandle law_;
 };
 
 }  // namespace cartesian_impedance

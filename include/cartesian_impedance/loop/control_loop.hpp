@@ -217,6 +217,7 @@ class ControlLoop : public CommandSetters<ControlLoop> {
   JointVector lower_limits_, upper_limits_;
   JointVector armature_;  // dynamics.armature per joint, added to M(q)
   std::uint64_t commands_applied_ = 0;
+  bool was_holding_ = false;  // ActiveLimits::holding of the last step
 };
 
 }  // namespace cartesian_impedance
