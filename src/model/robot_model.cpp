@@ -3,9 +3,6 @@
 #include <Eigen/SVD>
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <kdl/chain.hpp>
 #include <kdl/chaindynparam.hpp>
 #include <kdl/chainfksolverpos_recursive.hpp>
@@ -18,6 +15,7 @@
 #include <utility>
 
 #include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/core/files.hpp"
 #include "chain_model.hpp"
 #include "urdf/urdf_to_kdl.hpp"
 
@@ -119,17 +117,7 @@ RobotModel RobotModel::from_urdf_file(const std::string& path, const std::string
                                       const std::string& tip_link,
                                       const Eigen::Isometry3d& T_tip_tool,
                                       const Eigen::Vector3d& gravity_base) {
-  std::error_code code;
-  if (!std::filesystem::exists(path, code)) {
-    throw LoadError("URDF file '" + path + "' does not exist");
-  }
-  if (std::filesystem::is_directory(path, code)) {
-    throw LoadError("URDF file '" + path + "' is a directory; expected a URDF file");
-  }
-  std::ifstream file(path, std::ios::binary);
-  if (!file.is_open()) throw LoadError("URDF file '" + path + "' cannot be opened for reading");
-  const std::string text{std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>()};
-  if (file.bad()) throw LoadError("URDF file '" + path + "' cannot be read");
+  const std::string text = read_regular_file(path, "URDF file");
   return from_urdf_source(text, "URDF file '" + path + "'", base_link, tip_link, T_tip_tool,
                           gravity_base);
 }

@@ -110,8 +110,10 @@ struct ModelData;
 class RobotModel {
  public:
   /// Loads the URDF file at `path` (see from_urdf_string for the arguments).
-  /// @throw LoadError if the file does not exist or cannot be read, and for every reason listed
-  ///        at from_urdf_string; the message names the path.
+  /// @throw LoadError if the file does not exist or cannot be read, is not a regular file (a FIFO,
+  ///        a device such as /dev/zero, a directory) or is larger than kMaxFileBytes (16 MiB; see
+  ///        core/files.hpp), and for every reason listed at from_urdf_string; the message names
+  ///        the path.
   static RobotModel from_urdf_file(
       const std::string& path, const std::string& base_link, const std::string& tip_link,
       const Eigen::Isometry3d& T_tip_tool = Eigen::Isometry3d::Identity(),
