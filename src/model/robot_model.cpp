@@ -196,6 +196,39 @@ const Eigen::Vector3d& RobotModel::gravity_base() const noexcept {
 double RobotModel::moving_mass() const noexcept {
   return data_->urdf.moving_mass;
 }
+const std::vector<std::string>& RobotModel::joint_links() const noexcept {
+  return data_->urdf.joint_links;
+}
+const std::vector<int>& RobotModel::massless_joints() const noexcept {
+  return data_->urdf.massless_joints;
+}
+
+void check_dynamics(const RobotModel& model, const DynamicsParameters& dynamics) {
+  std::string options;
+  if (dynamics.inertia_shaped_damping) options = "dynamics.inertia_shaped_damping";
+  if (dynamics.dynamically_consistent_nullspace) {
+    options +=
+        (options.empty() ? "" : " and ") + std::string("dynamics.dynamically_consistent_nullspace");
+  }
+  if (options.empty()) return;
+  const JointVector& armature = dynamics.armature;
+  for (const int joint : model.massless_joints()) {
+    // One value for every joint or one per joint; another length is validate()'s to report.
+    const Eigen::Index index = armature.size() == 1 ? 0 : joint;
+    if (index >= armature.size() || armature[index] > 0.0) continue;
+    const std::string& link = model.joint_links()[static_cast<std::size_t>(joint)];
+    const std::string& name = model.joint_names()[static_cast<std::size_t>(joint)];
+    const bool rotates =
+        model.joint_types()[static_cast<std::size_t>(joint)] != JointType::prismatic;
+    throw Error("joint '" + name + "' moves no mass: link '" + link +
+                "' and the links after it up to the tip have no mass" +
+                (rotates ? " or rotational inertia" : "") +
+                " (no <inertial> in the URDF), so M(q) is singular at every q and " + options +
+                " cannot be computed; give link '" + link + "' its <inertial>, or joint '" + name +
+                "' its rotor inertia with dynamics.armature[" + std::to_string(joint) +
+                "] > 0, or turn " + options + " off");
+  }
+}
 ModelBackend RobotModel::backend() const noexcept {
   return backend_;
 }
