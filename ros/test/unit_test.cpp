@@ -337,26 +337,6 @@ TEST(RosParameters, UnknownTopLevelKeysAreWarnings) {
                                 "parameter or setting takes");
 }
 
-// The XmlRpc converter recurses into lists and structs inside the bounds every converter keeps
-// (ci::ParameterTreeGuard): a value nested deeper is refused naming its path, not followed.
-TEST(RosParameters, NestingBeyondTheBoundIsRefusedByPath) {
-  XmlRpcValue deep = 1.0;
-  for (int i = 0; i < 100; ++i) {
-    XmlRpcValue list;
-    list.setSize(1);
-    list[0] = deep;
-    deep = list;
-  }
-  XmlRpcValue root = required_settings();
-  root["stiffness"]["translation"] = deep;
-  std::string path = "stiffness/translation";
-  for (int i = 0; i < 31; ++i) path += "[0]";
-  EXPECT_EQ(error_of(root), "ROS parameter " + kNamespace + "/stiffness/translation: '" + path +
-                                "' is nested too deeply: more than 32 levels of lists and maps; "
-                                "parameters are nested at most 4 levels deep, with a list of "
-                                "numbers below");
-}
-
 TEST(RosParameters, SameMistakeSameMessageAsTheYamlLoaderAndTheDecoder) {
   // Each mistake as YAML text, as the parameter server holds it (rosparam load of that text) and
   // as a value without location for its dotted name (how a Python dict arrives): one message
