@@ -270,7 +270,8 @@ void bind_parameters(py::module_& m) {
           "load", [](PathLike path) { return ci::load_parameters(read_path(path, "path")); },
           py::arg("path"),
           "Parameters from a YAML file (e.g. config/panda.yaml). Raises Error for a missing or "
-          "malformed file, an unknown key (named, with its line) or an invalid value.")
+          "malformed file, one that is not a regular file (a FIFO, /dev/zero) or is over 16 MiB "
+          "(LoadError), an unknown key (named, with its line) or an invalid value.")
       .def("to_yaml", &ci::parameters_to_yaml,
            "Every parameter as YAML text, which from_yaml() reads back to the same values.")
       .def(

@@ -2,7 +2,7 @@
 # The demo program as a user meets it: wrong arguments get a clear message and a non-zero exit;
 # a short tour writes its logs, plots and pictures. Usage: demo_cli_test.sh DEMO SOURCE_DIR
 set -uo pipefail
-demo=$1
+demo=$(readlink -f "$1")  # absolute: some runs change directory
 source_dir=$2
 scratch=$(mktemp -d)
 trap 'rm -rf "$scratch"' EXIT

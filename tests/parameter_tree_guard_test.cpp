@@ -5,7 +5,9 @@
 // ros/test/unit_test.cpp.
 
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 
+#include <cstdlib>
 #include <functional>
 #include <string>
 #include <vector>
@@ -108,6 +110,20 @@ TEST(ParameterTreeGuard, YamlTextIsCountedWhileItIsParsed) {
   yaml += "]\n";
   EXPECT_EQ(oversized([&] { ci::parameters_from_yaml(yaml, "big.yaml"); }),
             "big.yaml:2: more than 100000 values; a parameter set holds a few hundred");
+  // Refused before yaml-cpp builds its tree, at hundreds of bytes per node: in a child process,
+  // whose peak resident memory then holds the text and its parser's copy (about 100 MB), far
+  // below the 7.9 GB that tree took (and what sanitizers add).
+  EXPECT_EXIT(
+      {
+        try {
+          ci::parameters_from_yaml(yaml, "big.yaml");
+        } catch (const ci::Error&) {
+        }
+        rusage usage{};
+        getrusage(RUSAGE_SELF, &usage);
+        std::exit(usage.ru_maxrss < 2 * 1024 * 1024 ? 0 : 1);  // [kB]
+      },
+      ::testing::ExitedWithCode(0), "");
 }
 
 TEST(ParameterTreeGuard, YamlKeysCountAsValuesUpToTheCapExactly) {

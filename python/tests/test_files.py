@@ -3,7 +3,8 @@
 it is (core/files.hpp). A FIFO used to hang the interpreter for good, /dev/zero read 2 GB first."""
 
 import os
-import threading
+import subprocess
+import sys
 
 import pytest
 
@@ -11,22 +12,26 @@ import cartesian_impedance as ci
 from conftest import PANDA_URDF
 
 
+# Opens the FIFO read-write every 5 s (never blocking, and the writer a blocked reader waits for).
+UNBLOCKER = """
+import os, sys, time
+while True:
+    time.sleep(5)
+    os.close(os.open(sys.argv[1], os.O_RDWR | os.O_NONBLOCK))
+"""
+
+
 @pytest.fixture
 def fifo(tmp_path):
-    """A FIFO. Should a loader open it to read, it would wait for a writer forever: after 5 s a
-    timer opens it read-write (never blocking, and the writer a blocked reader waits for) and
-    closes it, so that such a loader reads an empty file and fails the test instead of hanging."""
+    """A FIFO. Should a loader open it to read, it would wait for a writer forever (holding the
+    GIL, so no thread of this interpreter could help): a child process opens it now and then, so
+    that such a loader reads an empty file and fails the test instead of hanging."""
     path = tmp_path / "pipe"
     os.mkfifo(path)
-
-    def unblock():
-        os.close(os.open(path, os.O_RDWR | os.O_NONBLOCK))
-
-    timer = threading.Timer(5.0, unblock)
-    timer.start()
+    unblocker = subprocess.Popen([sys.executable, "-c", UNBLOCKER, str(path)])
     yield path
-    timer.cancel()
-    timer.join()
+    unblocker.kill()
+    unblocker.wait()
 
 
 LOADERS = {

@@ -1,7 +1,7 @@
 #pragma once
 // A named pipe (FIFO) for the tests of loaders that must refuse one. Opening a FIFO to read waits
 // for a writer, so a loader that does not refuse it would hang the test forever; a helper thread
-// here opens the FIFO itself after `patience` (read-write, which never blocks on Linux, and counts
+// here opens the FIFO itself every `patience` (read-write, which never blocks on Linux, and counts
 // as the writer a blocked reader waits for) and closes it again. A loader that refuses the FIFO
 // is done long before; one that does not then reads an empty file and fails the test with its
 // own message instead of hanging it.
@@ -31,9 +31,10 @@ class Fifo {
     if (::mkfifo(path_.c_str(), 0600) != 0) throw std::runtime_error("mkfifo " + path_);
     unblocker_ = std::thread([this, patience] {
       std::unique_lock<std::mutex> lock(mutex_);
-      if (done_condition_.wait_for(lock, patience, [this] { return done_; })) return;
-      const int fd = ::open(path_.c_str(), O_RDWR | O_NONBLOCK);
-      if (fd >= 0) ::close(fd);
+      while (!done_condition_.wait_for(lock, patience, [this] { return done_; })) {
+        const int fd = ::open(path_.c_str(), O_RDWR | O_NONBLOCK);
+        if (fd >= 0) ::close(fd);
+      }
     });
   }
   Fifo(const Fifo&) = delete;
