@@ -2,10 +2,16 @@
 // DART, or both side by side), with what theory predicts next to what was measured, CSV logs,
 // plots and pictures.
 
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -76,9 +82,11 @@ void print_usage() {
   --no-plots               skip the plots
   --help                   this text
 
-Exit status: 0 every measurement agrees with theory; 1 some disagree (FAIL); 2 bad arguments,
-robot or configuration (nothing was run); 3 some scenarios could not run, and every measurement
-that was made agrees with theory.
+Exit status: 0 every measurement agrees with theory and every file was written; 1 some
+disagree (FAIL); 2 bad arguments, robot or configuration, or an output folder that cannot be
+created or written to (nothing was run); 3 some scenarios could not run, or a log, plot or
+picture could not be written (each named), and every measurement that was made agrees with
+theory.
 )";
 }
 
@@ -236,9 +244,49 @@ Options parse(int argc, char** argv) {
 // What one engine's tour produced.
 struct Tour {
   std::vector<scenarios::Result> results;
-  std::vector<std::string> not_run;  // "scenario: why"
+  std::vector<std::string> not_run;      // "scenario: why"
+  std::vector<std::string> not_written;  // "output file '...' cannot be created: ..."
   bool every_check_passed = true;
 };
+
+// Creates `folder` and makes sure a file can be written in it, before anything runs: a folder
+// that exists but takes no files (/proc/..., a read-only mount, one of another user's) would
+// otherwise show only after the tour. Returns why not, or "".
+std::string writable_folder(const fs::path& folder) {
+  std::error_code error;
+  fs::create_directories(folder, error);
+  if (error) return error.message();
+  const fs::path probe = folder / ".cartesian_impedance_demo_write_test";
+  errno = 0;
+  std::ofstream file(probe);
+  file << "x";
+  file.close();
+  const int reason = errno;
+  fs::remove(probe, error);
+  if (!file) return reason != 0 ? std::strerror(reason) : "a file cannot be written there";
+  return "";
+}
+
+// Runs the plot script on `folder` and returns "" or why it failed. The folder goes to Python as
+// an argument of its own, never through a shell, whatever quotes or spaces its name holds.
+std::string make_plots(const fs::path& folder) {
+  std::string python = "/usr/bin/python3";
+  std::string script = std::string(CARTESIAN_IMPEDANCE_SOURCE_DIR) + "/apps/plot_demo.py";
+  std::string argument = folder.string();
+  char* const argv[] = {python.data(), script.data(), argument.data(), nullptr};
+  std::cout << std::flush;  // the script's output after ours
+  pid_t child = 0;
+  const int error = posix_spawn(&child, python.c_str(), nullptr, nullptr, argv, environ);
+  const std::string command = python + " " + script;
+  if (error != 0) return "cannot start " + command + ": " + std::strerror(error);
+  int status = 0;
+  while (waitpid(child, &status, 0) < 0) {
+    if (errno != EINTR) return "cannot wait for " + command + ": " + std::strerror(errno);
+  }
+  if (WIFEXITED(status) && WEXITSTATUS(status) == 0) return "";
+  return command + (WIFEXITED(status) ? " exited with status " + std::to_string(WEXITSTATUS(status))
+                                      : " was ended by signal " + std::to_string(WTERMSIG(status)));
+}
 
 Tour run_tour(const Options& options, const scenarios::RobotSetup& robot, const fs::path& out,
               bool render) {
@@ -287,14 +335,23 @@ Tour run_tour(const Options& options, const scenarios::RobotSetup& robot, const 
       }
       tour.results.push_back(result);
     }
-    if (!outcome.samples.empty()) {
-      ci::demo::write_samples(out / (name + ".csv"), outcome.samples);
-    }
-    for (const scenarios::Table& table : outcome.tables) {
-      ci::demo::write_table(out / (name + "_" + table.name + ".csv"), table);
+    try {
+      if (!outcome.samples.empty()) {
+        ci::demo::write_samples(out / (name + ".csv"), outcome.samples);
+      }
+      for (const scenarios::Table& table : outcome.tables) {
+        ci::demo::write_table(out / (name + "_" + table.name + ".csv"), table);
+      }
+    } catch (const ci::Error& failure) {
+      std::cout << "    " << failure.what() << "\n";
+      tour.not_written.push_back(failure.what());
     }
   }
-  ci::demo::write_summary(out / "summary.csv", tour.results);
+  try {
+    ci::demo::write_summary(out / "summary.csv", tour.results);
+  } catch (const ci::Error& failure) {
+    tour.not_written.push_back(failure.what());
+  }
   return tour;
 }
 
@@ -315,29 +372,34 @@ void print_summary(const std::vector<scenarios::Result>& results) {
 
 int main(int argc, char** argv) {
   const Options options = parse(argc, argv);
-  std::error_code error;
-  fs::create_directories(options.out, error);
-  if (error) usage_error("--out '" + options.out.string() + "': " + error.message());
+  const bool both = options.engines.size() > 1;
+  const auto folder_of = [&](ci::sim::Engine engine) {
+    return both ? options.out / ci::sim::engine_name(engine) : options.out;
+  };
+  for (const ci::sim::Engine engine : options.engines) {
+    const std::string why = writable_folder(folder_of(engine));
+    if (!why.empty()) usage_error("--out '" + folder_of(engine).string() + "': " + why);
+  }
 
   std::string why_not;
   const bool render = options.render && ci::sim::offscreen_rendering_available(&why_not);
-  const bool both = options.engines.size() > 1;
   std::vector<Tour> tours;
+  std::vector<std::string> not_written;  // files that are not there, with why
   for (const ci::sim::Engine engine : options.engines) {
-    const fs::path out = both ? options.out / ci::sim::engine_name(engine) : options.out;
-    fs::create_directories(out, error);
+    const fs::path out = folder_of(engine);
     std::cout << (tours.empty() ? "" : "\n") << "Cartesian impedance demo: " << options.robot.name
               << " in " << ci::demo::engine_title(engine) << " at 1 kHz, "
               << options.scenarios.size() << " scenarios, output in " << out.string() << "\n";
     if (options.render && !render) std::cout << "(no pictures: " << why_not << ")\n";
     tours.push_back(run_tour(options, scenarios::with_engine(options.robot, engine), out, render));
     print_summary(tours.back().results);
+    not_written.insert(not_written.end(), tours.back().not_written.begin(),
+                       tours.back().not_written.end());
     if (options.plots) {
-      const std::string command = "/usr/bin/python3 '" +
-                                  std::string(CARTESIAN_IMPEDANCE_SOURCE_DIR) +
-                                  "/apps/plot_demo.py' '" + out.string() + "'";
-      if (std::system(command.c_str()) != 0) {
-        std::cout << "(plots were not made: " << command << " failed)\n";
+      const std::string failure = make_plots(out);
+      if (!failure.empty()) {
+        not_written.push_back("the plots in '" + out.string() + "' were not made: " + failure +
+                              " (--no-plots skips them)");
       }
     }
   }
@@ -345,7 +407,11 @@ int main(int argc, char** argv) {
     std::cout << "\nTheory, MuJoCo and DART side by side (also in "
               << (options.out / "engines.csv").string() << "):\n";
     ci::demo::print_engine_table(tours[0].results, tours[1].results, std::cout);
-    ci::demo::write_engine_table(options.out / "engines.csv", tours[0].results, tours[1].results);
+    try {
+      ci::demo::write_engine_table(options.out / "engines.csv", tours[0].results, tours[1].results);
+    } catch (const ci::Error& failure) {
+      not_written.push_back(failure.what());
+    }
   }
 
   // Three verdicts, three exit codes: a measurement that disagrees with theory (1) is a finding
@@ -364,14 +430,20 @@ int main(int argc, char** argv) {
         std::count_if(tours[t].results.begin(), tours[t].results.end(),
                       [](const scenarios::Result& r) { return !r.applicable; }));
   }
+  // A missing log or plot is said last, where it is seen, and is never hidden by a success.
+  for (const std::string& why : not_written) std::cout << "Not written: " << why << "\n";
   if (!every_check_passed) {
     std::cout << "Some measurements disagree with theory (FAIL above).\n";
     return 1;
   }
-  if (not_run > 0) {
-    std::cout << not_run << " of " << options.scenarios.size() * tours.size()
-              << " scenarios could not run; every measurement that was made agrees with "
-                 "theory.\n";
+  if (not_run > 0 || !not_written.empty()) {
+    if (not_run > 0) {
+      std::cout << not_run << " of " << options.scenarios.size() * tours.size()
+                << " scenarios could not run";
+    } else {
+      std::cout << not_written.size() << " outputs could not be written";
+    }
+    std::cout << "; every measurement that was made agrees with theory.\n";
     return 3;
   }
   if (not_applicable > 0) {

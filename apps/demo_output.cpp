@@ -1,10 +1,40 @@
 #include "demo_output.hpp"
 
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
+
+#include "cartesian_impedance/core/error.hpp"
 
 namespace cartesian_impedance::demo {
 namespace {
+
+// A CSV file being written; finish() closes it and throws if any of it did not reach the file
+// (an unwritable folder, a full disk), so that no run reports success over missing logs.
+class CsvFile {
+ public:
+  explicit CsvFile(const std::filesystem::path& path) : path_(path) {
+    errno = 0;  // the system's reason, if opening fails, and no older one
+    stream_.open(path);
+    if (!stream_) fail("cannot be created");
+  }
+  std::ofstream& stream() { return stream_; }
+  void finish() {
+    errno = 0;
+    stream_.close();  // flushes: a full disk shows here
+    if (!stream_) fail("could not be written completely");
+  }
+
+ private:
+  [[noreturn]] void fail(const std::string& what) const {
+    const int error = errno;
+    throw Error("output file '" + path_.string() + "' " + what +
+                (error != 0 ? std::string(": ") + std::strerror(error) : std::string()));
+  }
+  std::filesystem::path path_;
+  std::ofstream stream_;
+};
 
 std::string csv_field(const std::string& text) {
   std::string quoted = "\"";
@@ -24,7 +54,8 @@ void write_joints(std::ostream& csv, const JointVector& v, int joints) {
 
 void write_samples(const std::filesystem::path& path,
                    const std::vector<scenarios::Sample>& samples) {
-  std::ofstream csv(path);
+  CsvFile file(path);
+  std::ofstream& csv = file.stream();
   const char* const axes[6] = {"x", "y", "z", "rx", "ry", "rz"};
   csv << "time,phase,x,y,z,reference_x,reference_y,reference_z,commanded_x,commanded_y,"
          "commanded_z";
@@ -56,10 +87,12 @@ void write_samples(const std::filesystem::path& path,
     }
     csv << "\n";
   }
+  file.finish();
 }
 
 void write_table(const std::filesystem::path& path, const scenarios::Table& table) {
-  std::ofstream csv(path);
+  CsvFile file(path);
+  std::ofstream& csv = file.stream();
   for (std::size_t i = 0; i < table.columns.size(); ++i) {
     csv << (i == 0 ? "" : ",") << table.columns[i];
   }
@@ -68,10 +101,12 @@ void write_table(const std::filesystem::path& path, const scenarios::Table& tabl
     for (std::size_t i = 0; i < row.size(); ++i) csv << (i == 0 ? "" : ",") << row[i];
     csv << "\n";
   }
+  file.finish();
 }
 
 void write_summary(const std::filesystem::path& path, const std::vector<scenarios::Result>& all) {
-  std::ofstream summary(path);
+  CsvFile file(path);
+  std::ofstream& summary = file.stream();
   summary << "scenario,quantity,theory,measured,unit,tolerance,passed\n";
   for (const scenarios::Result& r : all) {
     summary << csv_field(r.scenario) << "," << csv_field(r.quantity) << "," << r.expected << ","
@@ -81,6 +116,7 @@ void write_summary(const std::filesystem::path& path, const std::vector<scenario
                               : "no")
             << "\n";
   }
+  file.finish();
 }
 
 std::string picture_file_name(const std::string& scenario, const std::string& label) {
@@ -180,7 +216,8 @@ void print_engine_table(const std::vector<scenarios::Result>& mujoco,
 void write_engine_table(const std::filesystem::path& path,
                         const std::vector<scenarios::Result>& mujoco,
                         const std::vector<scenarios::Result>& dart) {
-  std::ofstream csv(path);
+  CsvFile file(path);
+  std::ofstream& csv = file.stream();
   csv << "scenario,quantity,unit,theory,mujoco,mujoco_passed,dart,dart_passed\n";
   const auto value = [](const scenarios::Result* r) {
     return r == nullptr || !r->applicable ? std::string() : std::to_string(r->measured);
@@ -196,6 +233,7 @@ void write_engine_table(const std::filesystem::path& path,
         << "," << csv_field(theory(row)) << "," << value(row.mujoco) << "," << passed(row.mujoco)
         << "," << value(row.dart) << "," << passed(row.dart) << "\n";
   }
+  file.finish();
 }
 
 }  // namespace cartesian_impedance::demo

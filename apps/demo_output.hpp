@@ -1,6 +1,8 @@
 #pragma once
 // What the demo writes besides its console report: CSV logs of the samples and of the scenarios'
-// tables, the summary, and the names of the pictures.
+// tables, the summary, and the names of the pictures. Every writer throws
+// cartesian_impedance::Error naming the file when any of it could not be written (the folder
+// refuses it, the disk is full).
 
 #include <filesystem>
 #include <ostream>

@@ -143,8 +143,9 @@ void bind_robot_model(py::module_& m) {
           "(Pose, (position [m], quaternion x, y, z, w) or 4x4; default identity). gravity: "
           "acceleration (3,) [m/s^2] in the base frame (default (0, 0, -9.81)). backend: "
           "'native' (default) or 'kdl', what computes the kinematics and dynamics (also of every "
-          "ControlLoop made from the model). Raises Error naming the path for a missing file, "
-          "unknown links, an unsupported chain, ...")
+          "ControlLoop made from the model). Raises LoadError naming the path for a missing "
+          "file, one that is not a regular file (a FIFO, /dev/zero) or is over 16 MiB, unknown "
+          "links, an unsupported chain, ...")
       .def_static(
           "from_urdf_string",
           [](const std::string& xml, const std::string& base_link, const std::string& tip_link,

@@ -32,10 +32,14 @@ std::string child_path(const std::string& path, const std::string& key) {
 }
 
 /// `object` as the decoder's value; `path` names it in the messages of the checks made here.
-ci::ParameterValue to_value(py::handle object, const std::string& path) {
+/// `guard` bounds the recursion: a list or dict that contains itself, or is nested without end,
+/// is refused by path (ci::ParameterTreeGuard) before the C stack runs out.
+ci::ParameterValue to_value(py::handle object, const std::string& path,
+                            ci::ParameterTreeGuard& guard) {
   static const py::object& generic = numpy_attribute("generic");
   static const py::object& asarray = numpy_attribute("asarray");
   PyObject* pointer = object.ptr();
+  guard.count(path);
   if (object.is_none()) return {};
   if (PyBool_Check(pointer)) return ci::ParameterValue::boolean(pointer == Py_True);
   if (py::isinstance<ci::Frame>(object)) {
@@ -56,6 +60,7 @@ ci::ParameterValue to_value(py::handle object, const std::string& path) {
     return ci::ParameterValue::string(object.cast<std::string>());
   }
   if (is_mapping(object)) {
+    const ci::ParameterTreeGuard::Level level = guard.enter(pointer, path);
     ci::ParameterMap members;
     for (const auto item : py::reinterpret_borrow<py::object>(object).attr("items")()) {
       const py::tuple pair(py::reinterpret_borrow<py::object>(item));  // converts, checked
@@ -65,14 +70,17 @@ ci::ParameterValue to_value(py::handle object, const std::string& path) {
                              (path.empty() ? "" : " in '" + path + "'"));
       }
       const std::string key = pair[0].cast<std::string>();
-      members.push_back({key, to_value(pair[1], child_path(path, key)), {}});
+      const std::string child = child_path(path, key);
+      guard.count(child);
+      members.push_back({key, to_value(pair[1], child, guard), {}});
     }
     return ci::ParameterValue::map(std::move(members));
   }
   if (is_sequence(object)) {
+    const ci::ParameterTreeGuard::Level level = guard.enter(pointer, path);
     ci::ParameterList items;
     for (const py::handle item : py::reinterpret_borrow<py::sequence>(object)) {
-      items.push_back(to_value(item, path + "[" + std::to_string(items.size()) + "]"));
+      items.push_back(to_value(item, path + "[" + std::to_string(items.size()) + "]", guard));
     }
     return ci::ParameterValue::list(std::move(items));
   }
@@ -81,15 +89,22 @@ ci::ParameterValue to_value(py::handle object, const std::string& path) {
     const char kind = array.dtype().kind();
     if (kind != 'c' && kind != 'O') {
       // 0-d: the Python scalar; n-d: nested Python lists (long double becomes float first, else
-      // its item() would be a NumPy scalar again).
+      // its item() would be a NumPy scalar again), bounded by the guard like any list.
       if (kind == 'f') array = array.attr("astype")("float64");
-      return to_value(array.ndim() == 0 ? array.attr("item")() : array.attr("tolist")(), path);
+      return to_value(array.ndim() == 0 ? array.attr("item")() : array.attr("tolist")(), path,
+                      guard);
     }
     throw py::type_error(path + " must be real numbers, got dtype " +
                          std::string(py::str(array.dtype())));
   }
   throw py::type_error(path + " must be a number, a bool, a str, a list, a dict or None, got " +
                        type_name(object));
+}
+
+/// `object` as the decoder's value, in a tree of its own (one guard).
+ci::ParameterValue to_value(py::handle object, const std::string& path) {
+  ci::ParameterTreeGuard guard;
+  return to_value(object, path, guard);
 }
 
 /// `value` in Python: float, bool, str, None, dict; lists as NumPy arrays or (`lists`) lists of
@@ -255,7 +270,8 @@ void bind_parameters(py::module_& m) {
           "load", [](PathLike path) { return ci::load_parameters(read_path(path, "path")); },
           py::arg("path"),
           "Parameters from a YAML file (e.g. config/panda.yaml). Raises Error for a missing or "
-          "malformed file, an unknown key (named, with its line) or an invalid value.")
+          "malformed file, one that is not a regular file (a FIFO, /dev/zero) or is over 16 MiB "
+          "(LoadError), an unknown key (named, with its line) or an invalid value.")
       .def("to_yaml", &ci::parameters_to_yaml,
            "Every parameter as YAML text, which from_yaml() reads back to the same values.")
       .def(

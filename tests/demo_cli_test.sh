@@ -2,7 +2,7 @@
 # The demo program as a user meets it: wrong arguments get a clear message and a non-zero exit;
 # a short tour writes its logs, plots and pictures. Usage: demo_cli_test.sh DEMO SOURCE_DIR
 set -uo pipefail
-demo=$1
+demo=$(readlink -f "$1")  # absolute: some runs change directory
 source_dir=$2
 scratch=$(mktemp -d)
 trap 'rm -rf "$scratch"' EXIT
@@ -62,6 +62,38 @@ if [ "$status" -ne 3 ] || ! grep -q "1 of 1 scenarios could not run" "$scratch/n
   failures=$((failures + 1))
 fi
 "$demo" --help | grep -q "Usage: cartesian_impedance_demo" || { echo "FAIL: --help"; failures=$((failures + 1)); }
+
+# The output folder reaches the plot script as an argument, never through a shell: a quote in its
+# name neither runs a command nor loses the plots.
+for out in "a'; touch injected; echo '" "robot's data"; do
+  (cd "$scratch" && "$demo" --scenario hold --no-render --out "$out") >"$scratch/quoted.log" 2>&1 ||
+    { echo "FAIL: --out \"$out\" did not succeed:"; cat "$scratch/quoted.log"; failures=$((failures + 1)); }
+  [ -s "$scratch/$out/hold_torques.png" ] ||
+    { echo "FAIL: no plots in '$out':"; cat "$scratch/quoted.log"; failures=$((failures + 1)); }
+done
+[ ! -e "$scratch/injected" ] || { echo "FAIL: a command in --out was run"; failures=$((failures + 1)); }
+
+# An output folder that takes no files is a bad argument, found before anything runs (exit 2):
+# /proc/self exists as a folder, but not even root can create files in it; /etc/hostname is a file.
+for out in /proc/self /etc/hostname/sub; do
+  "$demo" --scenario hold --no-render --no-plots --out "$out" >"$scratch/out" 2>"$scratch/err"
+  status=$?
+  if [ "$status" -ne 2 ] || ! grep -qF -- "--out '$out': " "$scratch/err" ||
+    grep -q "Cartesian impedance demo:" "$scratch/out"; then
+    echo "FAIL: --out $out gave exit $status:"; cat "$scratch/out" "$scratch/err"
+    failures=$((failures + 1))
+  fi
+done
+# A file that cannot be written during the run (here: a folder stands where hold.csv goes) is
+# named, and the run is not a success (exit 3), though its measurements agree.
+mkdir -p "$scratch/busy/hold.csv"
+"$demo" --scenario hold --no-render --no-plots --out "$scratch/busy" >"$scratch/busy.log" 2>&1
+status=$?
+if [ "$status" -ne 3 ] ||
+  ! grep -qF "Not written: output file '$scratch/busy/hold.csv' cannot be created" "$scratch/busy.log" ||
+  grep -q "Every measurement agrees" "$scratch/busy.log"; then
+  echo "FAIL: an unwritable log gave exit $status:"; cat "$scratch/busy.log"; failures=$((failures + 1))
+fi
 
 # A short tour on the iiwa14, with plots and (where EGL works) pictures.
 if ! "$demo" --robot iiwa14 --scenario hold --scenario wrench --out "$scratch/tour" >"$scratch/tour.log" 2>&1; then

@@ -18,6 +18,7 @@
 
 #include "cartesian_impedance/core/error.hpp"
 #include "cartesian_impedance/model/robot_model.hpp"
+#include "support/fifo.hpp"
 #include "support/model_fixtures.hpp"
 
 namespace ci = cartesian_impedance;
@@ -81,6 +82,17 @@ TEST(LoadErrors, MissingOrUnreadableFile) {
   expect_contains(
       error_of([] { ci::RobotModel::from_urdf_file(CARTESIAN_IMPEDANCE_SOURCE_DIR, "a", "b"); }),
       {CARTESIAN_IMPEDANCE_SOURCE_DIR, "is a directory"});
+}
+
+// What is no regular file is refused before it is opened (core/files.hpp): opening a FIFO waits
+// for a writer forever, /dev/zero never ends.
+TEST(LoadErrors, FifoAndDeviceAreRefusedBeforeReading) {
+  const ci::test::Fifo fifo("model_load_errors");
+  expect_contains(error_of([&] { ci::RobotModel::from_urdf_file(fifo.path(), "a", "b"); }),
+                  {"URDF file '" + fifo.path() + "' is a FIFO (named pipe), not a regular file"});
+  EXPECT_THROW(ci::RobotModel::from_urdf_file(fifo.path(), "a", "b"), ci::LoadError);
+  expect_contains(error_of([] { ci::RobotModel::from_urdf_file("/dev/zero", "a", "b"); }),
+                  {"URDF file '/dev/zero' is a character device", "not a regular file"});
 }
 
 // A bad description is a LoadError (fix the file); a bad argument beside it a plain Error.

@@ -402,7 +402,8 @@ TEST(ParameterTreeYaml, AliasesCannotMultiplyTheInput) {
   const std::string message = yaml_error(yaml);
   EXPECT_EQ(message.find("test.yaml:"), 0u) << message;
   EXPECT_NE(message.find("more than 100000 values"), std::string::npos) << message;
-  // A list holding itself ends where the decoder stops looking.
+  // A list holding itself is refused where the converter finds it again (ParameterTreeGuard).
   EXPECT_EQ(yaml_error("limits:\n  joint_torque: &l [1, *l]\n"),
-            "test.yaml:2: limits.joint_torque[1] = a list of 2 is not a number [Nm]");
+            "test.yaml:2: 'limits.joint_torque[1]' is 'limits.joint_torque' again: a list or map "
+            "that contains itself has no end; a parameter value is a tree");
 }

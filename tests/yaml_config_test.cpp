@@ -321,9 +321,9 @@ TEST(YamlConfig, UnusualNumberSpellingsAreDecidedExplicitly) {
   EXPECT_EQ(p.stiffness.rotation, Eigen::Vector3d::Constant(700));
   EXPECT_TRUE(yaml_rejected_with("stiffness:\n  <<: {translation: 1}\n",
                                  {"test.yaml:2:", "'stiffness.<<'", "merge keys"}));
+  // A list or map holding itself is refused where it is used again, naming both paths.
   EXPECT_TRUE(yaml_rejected_with("stiffness: &s\n  translation: 1\n  again: *s\n",
-                                 {"test.yaml:3:", "unknown parameter 'stiffness.again'"}));
-  // A list or map holding itself ends at the first key the loader does not know.
+                                 {"test.yaml:3:", "'stiffness.again' is 'stiffness' again"}));
   EXPECT_TRUE(yaml_rejected_with("stiffness: &s {stiffness: *s}\n",
                                  {"test.yaml:1:", "'stiffness.stiffness'"}));
   EXPECT_TRUE(yaml_rejected_with("limits:\n  joint_torque: &l [1, *l]\n",

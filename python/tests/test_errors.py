@@ -338,7 +338,7 @@ def test_a_dict_and_yaml_give_the_same_message(mapping, yaml, error):
 
 
 def test_bad_parameter_files(tmp_path):
-    with pytest.raises(ci.Error, match="cannot open parameter file '.*missing.yaml'"):
+    with pytest.raises(ci.Error, match="parameter file '.*missing.yaml' does not exist"):
         ci.Parameters.load(tmp_path / "missing.yaml")
     with pytest.raises(ci.Error, match="is a directory"):
         ci.Parameters.load(tmp_path)

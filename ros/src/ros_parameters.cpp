@@ -36,9 +36,13 @@ class Converter {
     return "ROS parameter " + full(relative);
   }
 
-  // `value` (at `relative`, e.g. "stiffness/translation") as the decoder's value.
-  ci::ParameterValue convert(XmlRpcValue& value, const std::string& relative) const {
+  // `value` (at `relative`, e.g. "stiffness/translation", which locates it; `path` adds the index
+  // of a list's item) as the decoder's value. `guard` bounds the depth and size of what it builds
+  // (XmlRpc values are copies, so none contains itself).
+  ci::ParameterValue convert(XmlRpcValue& value, const std::string& relative,
+                             const std::string& path, ci::ParameterTreeGuard& guard) const {
     const std::string where = location(relative);
+    guard.count(path, where);
     switch (value.getType()) {
       case XmlRpcValue::TypeInvalid: {
         ci::ParameterValue empty;
@@ -54,15 +58,22 @@ class Converter {
       case XmlRpcValue::TypeString:
         return ci::ParameterValue::string(static_cast<std::string&>(value), where);
       case XmlRpcValue::TypeArray: {
+        const ci::ParameterTreeGuard::Level level = guard.enter(nullptr, path, where);
         ci::ParameterList items;
-        for (int i = 0; i < value.size(); ++i) items.push_back(convert(value[i], relative));
+        for (int i = 0; i < value.size(); ++i) {
+          items.push_back(convert(value[i], relative, path + "[" + std::to_string(i) + "]", guard));
+        }
         return ci::ParameterValue::list(std::move(items), where);
       }
       case XmlRpcValue::TypeStruct: {
+        const ci::ParameterTreeGuard::Level level = guard.enter(nullptr, path, where);
         ci::ParameterMap members;
         for (auto& member : value) {
           const std::string child = relative + "/" + member.first;
-          members.push_back({member.first, convert(member.second, child), location(child)});
+          const std::string child_path = path + "/" + member.first;
+          guard.count(child_path, location(child));
+          members.push_back(
+              {member.first, convert(member.second, child, child_path, guard), location(child)});
         }
         return ci::ParameterValue::map(std::move(members), where);
       }
@@ -94,10 +105,12 @@ NodeConfiguration configuration_from_xmlrpc(XmlRpcValue& private_namespace,
   // Keys the node does not read go in without their values: only their names are reported, and
   // a value no parameter takes (a date) there must not stop the node.
   ci::ParameterMap members;
+  ci::ParameterTreeGuard guard;
   if (private_namespace.getType() == XmlRpcValue::TypeStruct) {
     for (auto& [key, value] : private_namespace) {
-      members.push_back({key, is_read(key) ? converter.convert(value, key) : ci::ParameterValue(),
-                         converter.location(key)});
+      members.push_back(
+          {key, is_read(key) ? converter.convert(value, key, key, guard) : ci::ParameterValue(),
+           converter.location(key)});
     }
   }
   const ci::ParameterValue tree = ci::ParameterValue::map(std::move(members));

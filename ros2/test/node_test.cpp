@@ -664,7 +664,7 @@ TEST(Ros2Node, BadParametersExitWithCode2NamingTheParameter) {
   const std::map<std::string, std::vector<std::string>> cases = {
       {"stiffness.translation", {"-p", "stiffness.translation:=-5"}},
       {"mode = 'fly'", {"-p", "mode:=fly"}},
-      {"cannot open URDF file", {"-p", "urdf_path:=/nonexistent.urdf"}},
+      {"URDF file '/nonexistent.urdf' does not exist", {"-p", "urdf_path:=/nonexistent.urdf"}},
       {"stiffness.tranlation", {"-p", "stiffness.tranlation:=5"}},
       {"start_q has 3 values; expected one per joint", {"-p", "start_q:=[0.0, -0.5, 0.0]"}},
       {"start_q[3] = 0.5 rad for joint 'panda_joint4' is outside its limits",

@@ -6,7 +6,9 @@
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <vector>
 
+#include <cartesian_impedance/config/yaml.hpp>
 #include <cartesian_impedance/core/error.hpp>
 #include <cartesian_impedance/core/parameter_tree.hpp>
 #include <cartesian_impedance/node/temporary_file.hpp>
@@ -14,6 +16,7 @@
 #include "arguments.hpp"
 #include "messages.hpp"
 #include "parameters.hpp"
+#include "support/fifo.hpp"
 
 namespace cartesian_impedance_ros2 {
 namespace {
@@ -321,6 +324,101 @@ TEST(Ros2Parameters, StringSettingsHaveALengthLimit) {
 }
 
 // What both shells simulate robot_description's text from: a file of its own, gone afterwards.
+// Every file the node reads by name goes through ci::read_regular_file(): a FIFO (whose open
+// waits for a writer forever) and /dev/zero (which never ends) are refused before reading.
+TEST(Ros2Parameters, SpecialFilesAreRefusedWherePathsAreRead) {
+  const auto message = [](const std::vector<std::string>& arguments) {
+    std::vector<std::string> all = {"--ros-args"};
+    all.insert(all.end(), arguments.begin(), arguments.end());
+    try {
+      read_configuration(parse(all));
+    } catch (const ci::LoadError& error) {
+      return std::string(error.what());
+    } catch (const std::exception& error) {
+      return std::string("not a LoadError: ") + error.what();
+    }
+    return std::string("accepted");
+  };
+  const std::string robot =
+      "/**:\n  ros__parameters:\n    base_link: panda_link0\n"
+      "    tip_link: panda_link8\n    mode: topics\n";
+  const std::string panda_urdf = CARTESIAN_IMPEDANCE_SOURCE_DIR "/models/panda/panda.urdf";
+  for (const char* device : {"fifo", "/dev/zero"}) {
+    const ci::test::Fifo fifo("ros2_shell");
+    const std::string path = std::string(device) == "fifo" ? fifo.path() : device;
+    const std::string is =
+        std::string(device) == "fifo" ? "' is a FIFO (named pipe)" : "' is a character device";
+    EXPECT_THAT(message({"--params-file", path}),
+                ::testing::StartsWith("params file '" + path + is));
+    EXPECT_THAT(message({"--params-file",
+                         write("special_urdf.yaml", robot + "    urdf_path: " + path + "\n")}),
+                ::testing::StartsWith("URDF file '" + path + is));
+    EXPECT_THAT(message({"--params-file", write("special_parameters.yaml",
+                                                robot + "    urdf_path: " + panda_urdf +
+                                                    "\n    parameters_file: " + path + "\n")}),
+                ::testing::StartsWith("parameter file '" + path + is));
+  }
+}
+
+// Within one node's ros__parameters, as in the library's parameter files, a parameter is given
+// once: dotted and nested is refused naming both lines, not decided by which came last.
+TEST(Ros2Parameters, ADottedAndANestedKeyForOneParameterAreRefused) {
+  const std::string file = write("dotted_nested.yaml", "/**:\n  ros__parameters:\n" + kRobot +
+                                                           "    stiffness.translation: 100\n"
+                                                           "    stiffness:\n"
+                                                           "      translation: 200\n");
+  const std::string params = "--params-file";
+  try {
+    read_configuration(parse({"--ros-args", params, file}));
+    ADD_FAILURE() << "accepted";
+  } catch (const ci::Error& error) {
+    EXPECT_EQ(std::string(error.what()),
+              file + ":9: 'stiffness.translation' is given twice (first at " + file +
+                  ":7); expected each key once");
+  }
+  // The library's loader says the same of the same text.
+  try {
+    ci::parameters_from_yaml("stiffness.translation: 100\nstiffness:\n  translation: 200\n",
+                             "library.yaml");
+    ADD_FAILURE() << "accepted";
+  } catch (const ci::Error& error) {
+    EXPECT_EQ(std::string(error.what()),
+              "library.yaml:3: 'stiffness.translation' is given twice (first at library.yaml:1); "
+              "expected each key once");
+  }
+}
+
+// A params file is a tree like any other: at most ci::ParameterTreeGuard::kMaxValues values,
+// each key counted. 40,000 keys (80,013 values with the robot's) are read, in several files too,
+// each flattened with one look-up per key; 80,000 keys (160,013) are refused while the file is
+// read.
+TEST(Ros2Parameters, ManyKeysAreReadUpToTheCapAndRefusedBeyondIt) {
+  const auto keys = [](const std::string& prefix, int count) {
+    std::string text = "/**:\n  ros__parameters:\n" + kRobot;
+    for (int i = 0; i < count; ++i) text += "    " + prefix + std::to_string(i) + ": 1\n";
+    return text;
+  };
+  std::vector<std::string> arguments = {"--ros-args"};
+  for (const char* prefix : {"a", "b", "c"}) {
+    arguments.push_back("--params-file");
+    arguments.push_back(write(std::string("keys_") + prefix + ".yaml", keys(prefix, 40000)));
+  }
+  const Ros2Configuration c = read_configuration(parse(arguments));
+  ASSERT_EQ(c.common.unknown_keys.size(), 120000u);
+  EXPECT_EQ(c.common.unknown_keys.front(), "a0");
+  EXPECT_EQ(c.common.unknown_keys.back(), "c39999");
+
+  const std::string too_many = write("keys_80k.yaml", keys("k", 80000));
+  try {
+    read_configuration(parse({"--ros-args", "--params-file", too_many}));
+    ADD_FAILURE() << "accepted";
+  } catch (const ci::Error& error) {
+    EXPECT_THAT(
+        std::string(error.what()),
+        ::testing::HasSubstr("more than 100000 values; a parameter set holds a few hundred"));
+  }
+}
+
 TEST(Ros2Parameters, TemporaryFileHoldsTheTextUntilDestroyed) {
   std::string first_path;
   {

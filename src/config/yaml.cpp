@@ -6,7 +6,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <locale>
@@ -16,6 +15,7 @@
 #include <vector>
 
 #include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/core/files.hpp"
 #include "cartesian_impedance/core/parameter_tree.hpp"
 
 // The YAML adapter of the parameter decoder (parameter_tree.hpp): YAML text -> ParameterValue
@@ -64,38 +64,37 @@ std::size_t table_depth() {
   return depth;
 }
 
-// A parameter file holds a few hundred values; aliases can make a short text name millions.
-constexpr std::size_t kMaxValues = 100000;
-
-// Converts yaml-cpp nodes into the decoder's values. Nodes below the depth the decoder can look
-// at (the values of the deepest parameters and their items) become empty placeholders, so that
-// an alias of a list or map inside itself ends there; kMaxValues bounds the width.
+// Converts yaml-cpp nodes into the decoder's values, inside the bounds every source keeps
+// (ParameterTreeGuard): an alias of a list or map inside itself, nesting without end and aliases
+// that repeat a list or map until the text names millions of values are refused by path.
 class Converter {
  public:
-  Converter(std::string_view source, std::size_t extra_depth)
-      : source_(source), max_depth_(table_depth() + 1 + extra_depth) {}
+  explicit Converter(std::string_view source) : source_(source) {}
 
-  ParameterValue convert(const YAML::Node& node, const std::string& path, std::size_t depth) {
-    if (++count_ > kMaxValues) {
-      fail(source_, node.Mark(),
-           "the YAML holds more than " + std::to_string(kMaxValues) +
-               " values (aliases repeating a list or map?); a parameter file holds a few hundred");
-    }
+  // `node` at `path`; `reference` places the guard's messages where the node is used (a map
+  // member's key) rather than where it is written, which for an alias is its anchor.
+  ParameterValue convert(const YAML::Node& node, const std::string& path,
+                         const std::string& reference = {}) {
     std::string where = location(source_, node.Mark());
-    if (depth > max_depth_ || node.IsNull()) {
+    const std::string& used = reference.empty() ? where : reference;
+    guard_.count(path, used);
+    if (node.IsSequence() || node.IsMap()) {
+      // yaml-cpp shows a node's identity only through its storage: an alias is its anchor's node
+      // itself, so it has the same scalar storage (empty for a list or map, but one object).
+      const ParameterTreeGuard::Level level = guard_.enter(&node.Scalar(), path, used);
+      if (node.IsMap()) return ParameterValue::map(members(node, path), where);
+      ParameterList items;
+      for (const YAML::Node& item : node) {
+        items.push_back(convert(item, path + "[" + std::to_string(items.size()) + "]"));
+      }
+      return ParameterValue::list(std::move(items), where);
+    }
+    if (node.IsNull()) {
       ParameterValue empty;
       empty.location = std::move(where);
       return empty;
     }
-    if (node.IsScalar()) return scalar(node, where);
-    if (node.IsSequence()) {
-      ParameterList items;
-      for (const YAML::Node& item : node) {
-        items.push_back(convert(item, path + "[" + std::to_string(items.size()) + "]", depth + 1));
-      }
-      return ParameterValue::list(std::move(items), where);
-    }
-    return ParameterValue::map(members(node, path, depth), where);
+    return scalar(node, where);
   }
 
  private:
@@ -123,7 +122,7 @@ class Converter {
   // The members of map `node` at `path`. yaml-cpp keeps every entry of a map, so a key given twice
   // would silently take the value read last; a key that is not a name (a list, a map, empty) has
   // no path at all; and a merge key would silently copy values.
-  ParameterMap members(const YAML::Node& node, const std::string& path, std::size_t depth) {
+  ParameterMap members(const YAML::Node& node, const std::string& path) {
     const std::string in = path.empty() ? "" : "in " + path + ": ";
     std::unordered_map<std::string, int> lines;
     ParameterMap result;
@@ -157,7 +156,9 @@ class Converter {
              "'" + child +
                  "' is a merge key, and merge keys are not supported; write the values out");
       }
-      ParameterValue value = convert(entry.second, child, depth + 1);
+      const std::string key_location = location(source_, key.Mark());
+      guard_.count(child, key_location);
+      ParameterValue value = convert(entry.second, child, key_location);
       if (value.location == source_ || value.is(ParameterValue::Kind::empty)) {
         value.location = location(source_, key.Mark());  // an empty value has no line of its own
       }
@@ -167,8 +168,7 @@ class Converter {
   }
 
   std::string_view source_;
-  std::size_t max_depth_;
-  std::size_t count_ = 0;
+  ParameterTreeGuard guard_;
 };
 
 void emit(YAML::Emitter& out, const ParameterValue& value) {
@@ -207,9 +207,14 @@ void emit(YAML::Emitter& out, const ParameterValue& value) {
   }
 }
 
-// Where each document begins, and where its content (its first node) begins.
+// Where each document begins, and where its content (its first node) begins. Counts the nodes
+// as the parser reads them and stops it at one more than any tree may hold (keys and aliases are
+// nodes too, and the converter counts each of them at least once): the text is refused before
+// yaml-cpp builds its own tree of it, which takes hundreds of bytes per node (a list of millions
+// of numbers in a 50 MB text took about a minute and 8 to 12 GB before it was refused).
 class DocumentStarts final : public YAML::EventHandler {
  public:
+  explicit DocumentStarts(std::string_view source) : source_(source) {}
   std::vector<YAML::Mark> starts, contents;
   void OnDocumentStart(const YAML::Mark& mark) override {
     starts.push_back(mark);
@@ -238,8 +243,17 @@ class DocumentStarts final : public YAML::EventHandler {
   void node(const YAML::Mark& mark) {
     if (first_node_) contents.back() = mark;
     first_node_ = false;
+    if (++nodes_ > ParameterTreeGuard::kMaxValues) {
+      throw ParameterError(
+          ParameterError::Reason::oversized,
+          with_location(location(source_, mark),
+                        "more than " + std::to_string(ParameterTreeGuard::kMaxValues) +
+                            " values; a parameter set holds a few hundred"));
+    }
   }
+  std::string_view source_;
   bool first_node_ = false;
+  std::size_t nodes_ = 0;
 };
 
 // The one document of the text (none if the text has none). A second document is reported rather
@@ -250,7 +264,7 @@ class DocumentStarts final : public YAML::EventHandler {
 std::optional<YAML::Node> the_document(const std::string& yaml, std::string_view source) {
   std::istringstream stream(yaml);
   YAML::Parser parser(stream);
-  DocumentStarts starts;
+  DocumentStarts starts(source);
   for (int document = 0; document < 2 && parser.HandleNextDocument(starts); ++document) {
   }
   if (starts.starts.size() > 1) {
@@ -275,17 +289,17 @@ std::optional<YAML::Node> the_document(const std::string& yaml, std::string_view
 
 }  // namespace
 
-ParameterValue parameter_tree_from_yaml(const std::string& yaml, std::string_view source,
-                                        std::size_t extra_depth) {
+ParameterValue parameter_tree_from_yaml(const std::string& yaml, std::string_view source) {
   std::optional<YAML::Node> document;
   try {
     document = the_document(yaml, source);
   } catch (const YAML::DeepRecursion& error) {
-    // yaml-cpp's parser recurses once per level and stops at a bound of its own.
+    // yaml-cpp's parser recurses once per level and stops at a bound of its own, before the
+    // converter's (ParameterTreeGuard::kMaxDepth) is reached on the levels it built.
     fail(source, error.mark,
          "the YAML is nested too deeply (" + std::to_string(error.depth()) +
              " levels); parameters are nested at most " + std::to_string(table_depth()) +
-             " levels deep");
+             " levels deep, with a list of numbers below");
   } catch (const YAML::Exception& error) {
     std::string column;
     if (!error.mark.is_null()) column = " (column " + std::to_string(error.mark.column + 1) + ")";
@@ -293,7 +307,7 @@ ParameterValue parameter_tree_from_yaml(const std::string& yaml, std::string_vie
   }
   ParameterValue tree;
   try {
-    if (document) tree = Converter(source, extra_depth).convert(*document, "", 0);
+    if (document) tree = Converter(source).convert(*document, "");
   } catch (const YAML::Exception& error) {
     // Reading only asks for what it checked is there; should yaml-cpp still object, it is an
     // Error like any other.
@@ -307,15 +321,7 @@ Parameters parameters_from_yaml(const std::string& yaml, std::string_view source
 }
 
 Parameters load_parameters(const std::string& path) {
-  std::error_code error;
-  if (std::filesystem::is_directory(path, error)) {
-    throw Error("parameter file '" + path + "' is a directory");
-  }
-  std::ifstream file(path);
-  if (!file) throw Error("cannot open parameter file '" + path + "'");
-  std::stringstream text;
-  text << file.rdbuf();
-  return parameters_from_yaml(text.str(), path);
+  return parameters_from_yaml(read_regular_file(path, "parameter file"), path);
 }
 
 void save_parameters(const std::string& path, const Parameters& parameters) {

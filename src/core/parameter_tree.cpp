@@ -230,6 +230,60 @@ std::string with_location(std::string_view location, std::string_view message) {
   return text += message;
 }
 
+// ---- ParameterTreeGuard -----------------------------------------------------------------------
+
+namespace {
+
+std::string quoted_path(const std::string& path) {
+  return path.empty() ? std::string("the top level") : "'" + path + "'";
+}
+
+// How many levels deep the parameter table nests its keys ("limits.stiffness.translation.min": 4).
+std::size_t table_depth() {
+  std::size_t depth = 0;
+  for (const ParameterInfo& info : parameter_table()) {
+    depth = std::max(
+        depth, 1 + static_cast<std::size_t>(std::count(info.name.begin(), info.name.end(), '.')));
+  }
+  return depth;
+}
+
+}  // namespace
+
+ParameterTreeGuard::Level::~Level() {
+  guard_.open_.pop_back();
+}
+
+ParameterTreeGuard::Level ParameterTreeGuard::enter(const void* identity, const std::string& path,
+                                                    std::string_view location) {
+  if (identity != nullptr) {
+    for (const auto& [open, open_path] : open_) {
+      if (open == identity) {
+        fail(Reason::oversized, location,
+             quoted_path(path) + " is " + quoted_path(open_path) +
+                 " again: a list or map that contains itself has no end; a parameter value is "
+                 "a tree");
+      }
+    }
+  }
+  if (open_.size() >= kMaxDepth) {
+    fail(Reason::oversized, location,
+         quoted_path(path) + " is nested too deeply: more than " + std::to_string(kMaxDepth) +
+             " levels of lists and maps; parameters are nested at most " +
+             std::to_string(table_depth()) + " levels deep, with a list of numbers below");
+  }
+  open_.emplace_back(identity, path);
+  return Level(*this);
+}
+
+void ParameterTreeGuard::count(const std::string& path, std::string_view location) {
+  if (++values_ > kMaxValues) {
+    fail(Reason::oversized, location,
+         "more than " + std::to_string(kMaxValues) + " values (the next at " + quoted_path(path) +
+             "); a parameter set holds a few hundred");
+  }
+}
+
 namespace {
 
 std::size_t edit_distance(std::string_view a, std::string_view b) {

@@ -59,6 +59,7 @@ ControlLoop::ControlLoop(const RobotModel& model, const Parameters& parameters,
       robot_(make_robot_state(model_.num_joints())),
       inbox_(static_cast<std::size_t>(capacity.commands < 2 ? 2 : capacity.commands)) {
   const int n = model_.num_joints();
+  check_dynamics(model_, controller_.parameters().dynamics);
   if (capacity.trajectory_points < 1) {
     throw Error("LoopCapacity.trajectory_points = " + std::to_string(capacity.trajectory_points) +
                 " must be at least 1");
@@ -205,6 +206,10 @@ ValidCommand ControlLoop::validate(const Command& command) const {
                         },
                         [](const auto&) {}},
              valid.command());
+  // And whether the model can give what the dynamics options need.
+  if (const auto* parameters = std::get_if<Parameters>(&valid.command())) {
+    check_dynamics(model_, parameters->dynamics);
+  }
   return valid;
 }
 

@@ -3,9 +3,6 @@
 #include <Eigen/SVD>
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <kdl/chain.hpp>
 #include <kdl/chaindynparam.hpp>
 #include <kdl/chainfksolverpos_recursive.hpp>
@@ -18,6 +15,7 @@
 #include <utility>
 
 #include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/core/files.hpp"
 #include "chain_model.hpp"
 #include "urdf/urdf_to_kdl.hpp"
 
@@ -119,17 +117,7 @@ RobotModel RobotModel::from_urdf_file(const std::string& path, const std::string
                                       const std::string& tip_link,
                                       const Eigen::Isometry3d& T_tip_tool,
                                       const Eigen::Vector3d& gravity_base) {
-  std::error_code code;
-  if (!std::filesystem::exists(path, code)) {
-    throw LoadError("URDF file '" + path + "' does not exist");
-  }
-  if (std::filesystem::is_directory(path, code)) {
-    throw LoadError("URDF file '" + path + "' is a directory; expected a URDF file");
-  }
-  std::ifstream file(path, std::ios::binary);
-  if (!file.is_open()) throw LoadError("URDF file '" + path + "' cannot be opened for reading");
-  const std::string text{std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>()};
-  if (file.bad()) throw LoadError("URDF file '" + path + "' cannot be read");
+  const std::string text = read_regular_file(path, "URDF file");
   return from_urdf_source(text, "URDF file '" + path + "'", base_link, tip_link, T_tip_tool,
                           gravity_base);
 }
@@ -207,6 +195,39 @@ const Eigen::Vector3d& RobotModel::gravity_base() const noexcept {
 }
 double RobotModel::moving_mass() const noexcept {
   return data_->urdf.moving_mass;
+}
+const std::vector<std::string>& RobotModel::joint_links() const noexcept {
+  return data_->urdf.joint_links;
+}
+const std::vector<int>& RobotModel::massless_joints() const noexcept {
+  return data_->urdf.massless_joints;
+}
+
+void check_dynamics(const RobotModel& model, const DynamicsParameters& dynamics) {
+  std::string options;
+  if (dynamics.inertia_shaped_damping) options = "dynamics.inertia_shaped_damping";
+  if (dynamics.dynamically_consistent_nullspace) {
+    options +=
+        (options.empty() ? "" : " and ") + std::string("dynamics.dynamically_consistent_nullspace");
+  }
+  if (options.empty()) return;
+  const JointVector& armature = dynamics.armature;
+  for (const int joint : model.massless_joints()) {
+    // One value for every joint or one per joint; another length is validate()'s to report.
+    const Eigen::Index index = armature.size() == 1 ? 0 : joint;
+    if (index >= armature.size() || armature[index] > 0.0) continue;
+    const std::string& link = model.joint_links()[static_cast<std::size_t>(joint)];
+    const std::string& name = model.joint_names()[static_cast<std::size_t>(joint)];
+    const bool rotates =
+        model.joint_types()[static_cast<std::size_t>(joint)] != JointType::prismatic;
+    throw Error("joint '" + name + "' moves no mass: link '" + link +
+                "' and the links after it up to the tip have no mass" +
+                (rotates ? " or rotational inertia" : "") +
+                " (no <inertial> in the URDF), so M(q) is singular at every q and " + options +
+                " cannot be computed; give link '" + link + "' its <inertial>, or joint '" + name +
+                "' its rotor inertia with dynamics.armature[" + std::to_string(joint) +
+                "] > 0, or turn " + options + " off");
+  }
 }
 ModelBackend RobotModel::backend() const noexcept {
   return backend_;

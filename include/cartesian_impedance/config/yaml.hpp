@@ -5,7 +5,6 @@
 /// duplicate and merge keys, a second document, quoted or tagged scalars being strings). Part of
 /// the `cartesian_impedance::config` target (yaml-cpp).
 
-#include <cstddef>
 #include <string>
 #include <string_view>
 
@@ -17,11 +16,14 @@ namespace cartesian_impedance {
 /// Reads parameters from a YAML file. Keys not given keep their defaults; keys may be nested or
 /// dotted (`stiffness.translation: 500`); a per-joint or three-axis field may be given as one
 /// number for all entries.
-/// @throws Error for a missing or malformed file, an unknown or repeated key (named, with its
-///         line), a second YAML document, a key that is not a plain name, a merge key, a value of
-///         the wrong shape, a number or switch written as a string (quoted, tagged or a block
-///         scalar), a value outside its range, more than 100000 values (aliases), or a set that
-///         fails validate(). Messages are the decoder's (ParameterError) after `file:line: `.
+/// @throws Error for a missing or malformed file, one that is not a regular file (a FIFO, a
+///         device such as /dev/zero, a directory) or is larger than kMaxFileBytes (16 MiB; see
+///         core/files.hpp), an unknown or repeated key (named, with its line), a second YAML
+///         document, a key that is not a plain name, a merge key, a value of the wrong shape, a
+///         number or switch written as a string (quoted, tagged or a block scalar), a value
+///         outside its range, more than ParameterTreeGuard::kMaxValues (100000) values or lists
+///         and maps nested more than kMaxDepth (32) deep or inside themselves (aliases), or a set
+///         that fails validate(). Messages are the decoder's (ParameterError) after `file:line: `.
 Parameters load_parameters(const std::string& path);
 
 /// As load_parameters(), from YAML text; `source` names it in messages.
@@ -29,12 +31,12 @@ Parameters parameters_from_yaml(const std::string& yaml, std::string_view source
 
 /// The YAML text as the decoder's value tree, every value located as `source:line`, after every
 /// check of the YAML itself that parameters_from_yaml() makes (malformed text, a second document,
-/// keys given twice, merge keys, quoted numbers marked with a hint, size bounds), but none of the
-/// parameters'. For sources that wrap parameters in a YAML file of their own (a ROS 2 params file
-/// nests them `extra_depth` = 2 levels deeper, under `node: ros__parameters:`).
+/// keys given twice, merge keys, quoted numbers marked with a hint, the bounds of
+/// ParameterTreeGuard, counted while the text is parsed), but none of the parameters'. For
+/// sources that wrap parameters in a YAML file of their own (a ROS 2 params file nests them under
+/// `node: ros__parameters:`).
 /// @throws Error as parameters_from_yaml() for the YAML itself.
-ParameterValue parameter_tree_from_yaml(const std::string& yaml, std::string_view source,
-                                        std::size_t extra_depth = 0);
+ParameterValue parameter_tree_from_yaml(const std::string& yaml, std::string_view source);
 
 /// Writes every parameter as YAML that parameters_from_yaml() reads back to the same values.
 std::string parameters_to_yaml(const Parameters& parameters);

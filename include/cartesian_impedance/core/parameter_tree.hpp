@@ -21,9 +21,11 @@
 /// like YAML, decides what is a string before the decoder sees it). Part of the core library: no
 /// YAML, ROS or Python dependency.
 
+#include <cstddef>
 #include <initializer_list>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <variant>
 #include <vector>
 
@@ -116,7 +118,10 @@ class ParameterError : public Error {
     out_of_range,  ///< a number outside its row's range, not finite or too large for a double;
                    ///< a name that is none of the valid ones
     given_twice,   ///< one parameter reached by two keys (a dotted one and a nested one)
-    invalid        ///< the whole set fails validate() (e.g. a limit's min above its max)
+    invalid,       ///< the whole set fails validate() (e.g. a limit's min above its max)
+    oversized      ///< a tree no parameter set can be: nested deeper than
+                   ///< ParameterTreeGuard::kMaxDepth, holding itself, or holding more than
+                   ///< ParameterTreeGuard::kMaxValues values (see ParameterTreeGuard)
   };
   ParameterError(Reason reason, const std::string& message) : Error(message), reason_(reason) {}
   Reason reason() const { return reason_; }
@@ -128,6 +133,70 @@ class ParameterError : public Error {
 /// "location: message", or the message alone if `location` is empty: how every message of a
 /// parameter source is placed.
 std::string with_location(std::string_view location, std::string_view message);
+
+/// The bounds of what a source may turn into a ParameterValue tree, kept by every converter (the
+/// YAML adapter, the Python dict converter, the ROS 1 XmlRpc converter) while it converts, so that
+/// none recurses without end or builds a tree without bound: lists and maps nested deeper than
+/// kMaxDepth, a list or map that contains itself (a Python list appended to itself, a YAML alias
+/// inside its own anchor), and more than kMaxValues values are refused with a ParameterError
+/// (Reason::oversized) naming the path where it was found. A converter makes one guard per tree,
+/// calls count() for every value (lists and maps too) and every key, and for each list or map
+/// holds the Level that enter() returns while it converts the members:
+///
+///     ParameterValue convert(const Source& node, const std::string& path, Guard& guard) {
+///       guard.count(path, location(node));
+///       if (is_list(node)) {
+///         const ParameterTreeGuard::Level level = guard.enter(&node, path, location(node));
+///         ...  // convert(item, path + "[i]", guard) for each item
+///       }
+///       ...
+///     }
+class ParameterTreeGuard {
+ public:
+  /// Lists and maps nested deeper than this are refused. A parameter is at most 4 levels below
+  /// the top (limits.stiffness.translation.min), its value a list of numbers below that, and a
+  /// ROS 2 params file puts two more levels on top (`node: ros__parameters:`): no parameter set
+  /// nests more than 8. The rest is headroom, so that a value a few levels too deep gets the
+  /// decoder's message about its shape; the bound itself keeps a converter's recursion far from
+  /// the end of any thread's stack.
+  static constexpr std::size_t kMaxDepth = 32;
+  /// The most values a tree may hold, counting every number, string, boolean, empty value, list,
+  /// map and key: a parameter set holds a few hundred; a YAML alias may repeat a list or map, and
+  /// a short text then names millions.
+  static constexpr std::size_t kMaxValues = 100000;
+
+  /// One list or map being converted; leaving the scope leaves it. Made only by enter().
+  class [[nodiscard]] Level {
+   public:
+    Level(const Level&) = delete;
+    Level& operator=(const Level&) = delete;
+    ~Level();
+
+   private:
+    friend class ParameterTreeGuard;
+    explicit Level(ParameterTreeGuard& guard) : guard_(guard) {}
+    ParameterTreeGuard& guard_;
+  };
+
+  /// Enters the list or map at `path` ("stiffness.translation[2]"; "" for the top level).
+  /// `identity` is what makes it the same object in the source (the PyObject*, the
+  /// YAML node's storage), or nullptr for a source whose values cannot contain themselves.
+  /// @throws ParameterError (Reason::oversized) with `location` in front of the message, if the
+  ///         list or map is nested deeper than kMaxDepth, is one of those it is inside of (a
+  ///         cycle: the message names both paths).
+  Level enter(const void* identity, const std::string& path, std::string_view location = {});
+
+  /// Counts one value or key at `path`. @throws ParameterError (Reason::oversized) on the value
+  /// after kMaxValues.
+  void count(const std::string& path, std::string_view location = {});
+
+  /// How many lists and maps are being converted (the depth of the current one).
+  std::size_t depth() const { return open_.size(); }
+
+ private:
+  std::vector<std::pair<const void*, std::string>> open_;  // identity and path, outermost first
+  std::size_t values_ = 0;
+};
 
 /// The error for `path`, which is no parameter: "unknown parameter 'path'", with " (it is a group;
 /// give its members)" if it names a group.

@@ -71,7 +71,9 @@ struct LoopCapacity {
 
 class ControlLoop : public CommandSetters<ControlLoop> {
  public:
-  /// @throws Error if the parameters are invalid for the model's joint count.
+  /// @throws Error if the parameters are invalid for the model's joint count, or if their
+  ///         dynamics options need M(q) while a joint moves no mass (check_dynamics(); a
+  ///         parameter set sent later is refused for the same reason).
   explicit ControlLoop(const RobotModel& model, const Parameters& parameters = {},
                        LoopCapacity capacity = {});
   ~ControlLoop();

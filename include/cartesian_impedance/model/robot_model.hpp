@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "cartesian_impedance/core/parameters.hpp"
 #include "cartesian_impedance/core/types.hpp"
 
 namespace cartesian_impedance {
@@ -110,8 +111,10 @@ struct ModelData;
 class RobotModel {
  public:
   /// Loads the URDF file at `path` (see from_urdf_string for the arguments).
-  /// @throw LoadError if the file does not exist or cannot be read, and for every reason listed
-  ///        at from_urdf_string; the message names the path.
+  /// @throw LoadError if the file does not exist or cannot be read, is not a regular file (a FIFO,
+  ///        a device such as /dev/zero, a directory) or is larger than kMaxFileBytes (16 MiB; see
+  ///        core/files.hpp), and for every reason listed at from_urdf_string; the message names
+  ///        the path.
   static RobotModel from_urdf_file(
       const std::string& path, const std::string& base_link, const std::string& tip_link,
       const Eigen::Isometry3d& T_tip_tool = Eigen::Isometry3d::Identity(),
@@ -163,6 +166,14 @@ class RobotModel {
   /// Total mass the dynamics include: the chain's links after the base and what is fixed to
   /// them [kg].
   double moving_mass() const noexcept;
+  /// The link each movable joint moves (its child link in the URDF), base to tip.
+  const std::vector<std::string>& joint_links() const noexcept;
+  /// The movable joints (indices into joint_names(), base to tip) whose motion moves no mass:
+  /// the links from the joint's link down to the tip, and those fixed to them, have no mass and,
+  /// for a revolute joint, no rotational inertia (a URDF without <inertial> on its last moving
+  /// links). M(q) has a zero row and column for each at every q: singular unless
+  /// dynamics.armature gives each such joint a rotor inertia (see check_dynamics()).
+  const std::vector<int>& massless_joints() const noexcept;
 
   /// The implementation every ModelWorkspace (and so every ControlLoop) made from this model
   /// uses: ModelBackend::native unless chosen with with_backend().
@@ -181,6 +192,17 @@ class RobotModel {
   std::shared_ptr<const detail::ModelData> data_;
   ModelBackend backend_ = ModelBackend::native;
 };
+
+/// Refuses `dynamics` for `model` where they need M(q) (dynamics.inertia_shaped_damping or
+/// dynamics.dynamically_consistent_nullspace) and M(q) + diag(dynamics.armature) is singular at
+/// every q, because a joint moves no mass (RobotModel::massless_joints()) and has no armature: the
+/// damping shaped by the task-space inertia, (J M^-1 J^T)^-1, does not exist there, and every
+/// cycle would fail closed. A floor on M would be physics the file does not describe, and
+/// damping the other directions only would leave the arm undamped along this joint's motion. The
+/// control loop checks this when it is made and for every parameter set sent to it.
+/// @throws Error naming the joint, its link, and each way to make it work: an <inertial> for the
+///         link, dynamics.armature for the joint, or the options that need M(q) off.
+void check_dynamics(const RobotModel& model, const DynamicsParameters& dynamics);
 
 /// Per-cycle workspace of one RobotModel: solvers and buffers sized once at construction. One per
 /// control loop or thread (a workspace is not shared between threads; many may share a model).

@@ -404,6 +404,8 @@ UrdfChain urdf_to_kdl_chain(const std::string& xml, const std::string& source,
   result.limits.position_upper.resize(n);
   result.limits.velocity.resize(n);
   result.limits.effort.resize(n);
+  std::vector<MassProperties> bodies;       // of each segment, base to tip
+  std::vector<std::size_t> joint_segments;  // the segment of each movable joint
   for (std::size_t i = 0; i < links.size(); ++i) {
     const urdf::Link& link = *links[i];
     const urdf::Joint& joint = *link.parent_joint;
@@ -416,14 +418,31 @@ UrdfChain urdf_to_kdl_chain(const std::string& xml, const std::string& source,
       read_limits(joint, type, static_cast<int>(result.joint_names.size()), result.limits);
       result.joint_names.push_back(joint.name);
       result.joint_types.push_back(type);
+      result.joint_links.push_back(link.name);
+      joint_segments.push_back(i);
       kdl_joint = to_kdl_joint(joint, T_parent_joint);
     }
     const urdf::Link* next_on_chain = i + 1 < links.size() ? links[i + 1] : nullptr;
     const MassProperties body = rigid_body_of(link, next_on_chain);
+    bodies.push_back(body);
     result.moving_mass += body.mass;
     // The segment's tip frame is the joint origin (at q = 0), i.e. the child link's frame.
     result.chain.addSegment(
         KDL::Segment(link.name, kdl_joint, to_kdl_frame(T_parent_joint), to_kdl(body)));
+  }
+  // A joint moves the segments from its own to the tip. If they carry no mass (and, for a
+  // rotation, no rotational inertia either), M(q) has a zero row and column for the joint at
+  // every q: not an accident of the pose but of the file, so it is found here once.
+  for (std::size_t j = 0; j < joint_segments.size(); ++j) {
+    double mass = 0.0, inertia = 0.0;
+    for (std::size_t i = joint_segments[j]; i < bodies.size(); ++i) {
+      mass += bodies[i].mass;
+      inertia += bodies[i].inertia.cwiseAbs().sum();
+    }
+    const bool rotates = result.joint_types[j] != JointType::prismatic;
+    if (mass == 0.0 && (!rotates || inertia == 0.0)) {
+      result.massless_joints.push_back(static_cast<int>(j));
+    }
   }
   return result;
 }

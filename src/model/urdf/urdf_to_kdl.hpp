@@ -22,6 +22,11 @@ struct UrdfChain {
   std::vector<JointType> joint_types;
   JointLimits limits;
   double moving_mass = 0.0;  ///< [kg] sum of the segment masses
+  /// The child link of each movable joint, base to tip.
+  std::vector<std::string> joint_links;
+  /// The movable joints (indices, base to tip) that move no mass: see
+  /// RobotModel::massless_joints().
+  std::vector<int> massless_joints;
 };
 
 /// The same transform as a KDL frame.
