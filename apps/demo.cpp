@@ -23,6 +23,7 @@
 #include "cartesian_impedance/config/yaml.hpp"
 #include "cartesian_impedance/core/error.hpp"
 #include "cartesian_impedance/core/parameters.hpp"
+#include "cartesian_impedance/model/rate_check.hpp"
 #include "cartesian_impedance/model/robot_model.hpp"
 #include "demo_output.hpp"
 #include "scenarios.hpp"
@@ -207,6 +208,19 @@ Options parse(int argc, char** argv) {
     const ci::ConfigurationCheck check = ci::check_configuration(*model, q);
     for (const std::string& warning : check.warnings) {
       std::cout << "Warning: start configuration: " << warning << "\n";
+    }
+    // The stiffness limits against the torque-rate limit, where the arm starts.
+    if (check.limit_distance >= 0.0) {
+      try {
+        const ci::RateCheck rate =
+            ci::check_rate_limit(*model, q, scenarios::base_parameters(options.robot));
+        for (const std::string& warning : rate.warnings) {
+          std::cout << "Warning: configuration: " << warning << "\n";
+        }
+      } catch (const ci::Error& error) {
+        std::cout << "Warning: configuration: the rate check cannot be made: " << error.what()
+                  << "\n";
+      }
     }
     if (check.limit_distance < 0.0) {
       usage_error("the start configuration is outside the joint range (" + check.warnings.back() +

@@ -18,6 +18,7 @@
 #include "cartesian_impedance/core/error.hpp"
 #include "cartesian_impedance/core/types.hpp"
 #include "cartesian_impedance/loop/control_loop.hpp"
+#include "cartesian_impedance/model/rate_check.hpp"
 #include "cartesian_impedance/model/robot_model.hpp"
 #include "commands.hpp"
 #include "conversions.hpp"
@@ -180,6 +181,27 @@ void bind_robot_model(py::module_& m) {
       .def_property_readonly(
           "moving_mass", [](const Model& s) { return s.model.moving_mass(); },
           "Mass the dynamics include [kg].")
+      .def(
+          "check_rate_limit",
+          [](Model& s, ArrayLike q, ParametersLike parameters) {
+            const ci::RateCheck check = ci::check_rate_limit(
+                s.model, finite_joints(q, "q", s.model.num_joints()), read_parameters(parameters));
+            py::dict result;
+            result["stiffness"] = vector_array(check.stiffness);
+            result["mass"] = vector_array(check.mass);
+            result["frequency"] = vector_array(check.frequency);
+            result["followed"] = vector_array(check.followed);
+            result["lever"] = vector_array(check.lever);
+            result["joint"] = std::vector<int>(check.joint.data(), check.joint.data() + 6);
+            result["warnings"] = check.warnings;
+            return result;
+          },
+          py::arg("q"), py::arg("parameters"),
+          "Whether the torque-rate limit can follow the stiffness limits of `parameters` at q "
+          "(n,) [rad]: per axis of the base frame (x, y, z, then rotations) the end effector's "
+          "mode mass [kg, kg m^2], its frequency [rad/s], the joint that bounds it and its lever, "
+          "and the largest oscillation the rate follows [m, rad]; 'warnings' lists each group "
+          "below 3 mm or 5 mrad with the arithmetic.")
       .def(
           "compute",
           [](Model& s, ArrayLike q, ArrayLike dq, bool dynamics) {

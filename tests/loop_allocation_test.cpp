@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "cartesian_impedance/loop/control_loop.hpp"
 #include "support/allocation_counter.hpp"
 #include "support/model_simulation.hpp"
@@ -32,7 +34,8 @@ TEST(LoopAllocation, StepAllocatesNothingWithEveryOptionOn) {
   for (int k = 1; k <= 50; ++k) {
     ci::JointVector point = q;
     point[0] += 0.01 * k;
-    point[5] = 3.6;  // inside the joint-limit margin of joint 6
+    // Into the joint-limit margin of joint 6 (3.6 rad) over 2 s, within its URDF speed limit.
+    point[5] = q[5] + (3.6 - q[5]) * std::min(1.0, k / 20.0);
     trajectory.times.push_back(0.1 * k);
     trajectory.positions.emplace_back(point.data(), point.data() + 7);
   }

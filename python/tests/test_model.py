@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import cartesian_impedance as ci
-from conftest import PANDA_URDF
+from conftest import PANDA_URDF, PANDA_YAML
 
 
 def rotation_vector(R):
@@ -111,3 +111,20 @@ def test_backend_kdl_agrees_with_the_native_default(panda, ready):
     assert np.all(np.isfinite(loop.step(ready, np.zeros(7), 0.001)))
     with pytest.raises(ci.Error, match="expected 'native' or 'kdl'"):
         ci.RobotModel.from_urdf_file(PANDA_URDF, "panda_link0", "panda_link8", backend="rbdl")
+
+
+def test_rate_check_names_a_stiffness_the_rate_limit_cannot_follow(panda, ready):
+    shipped = ci.Parameters.load(PANDA_YAML)
+    check = panda.check_rate_limit(ready, shipped)
+    assert check["warnings"] == []
+    assert np.all(check["followed"][:3] >= 0.003)
+    stiff = ci.Parameters.load(PANDA_YAML)
+    stiff["limits.stiffness.translation.max"] = 30000.0
+    check = panda.check_rate_limit(ready, stiff)
+    assert len(check["warnings"]) == 1
+    assert "limits.stiffness.translation.max = 30000 N/m" in check["warnings"][0]
+    # followed = R / (k lever w), w = sqrt(k / m)
+    w = np.sqrt(30000.0 / check["mass"][:3])
+    np.testing.assert_allclose(check["frequency"][:3], w, rtol=1e-12)
+    np.testing.assert_allclose(check["followed"][:3], 1000.0 / (30000.0 * check["lever"][:3] * w),
+                               rtol=1e-12)

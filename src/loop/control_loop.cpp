@@ -250,8 +250,12 @@ std::uint64_t ControlLoop::execute_trajectory(const JointTrajectory& trajectory)
   try {
     // The first segment runs from wherever the arm is when the trajectory begins, which is close
     // to the state last published (or to the running trajectory's, which tracks it).
+    // Its speed is the arm's, not the trajectory's: clamped to the limits, it cannot make a
+    // trajectory sent to a fast-moving arm (after a push) fail the check on its own.
     const LoopState latest = latest_state();
-    const TrajectoryStartState from{latest.q, latest.dq};
+    const JointVector& speed_limit = model_.limits().velocity;
+    const TrajectoryStartState from{latest.q,
+                                    latest.dq.cwiseMax(-speed_limit).cwiseMin(speed_limit)};
     const bool started = latest.controller.status != Status::not_started;
     slot.buffer.assign(trajectory, model_.joint_names(),
                        TrajectoryLimits{lower_limits_, upper_limits_, model_.limits().velocity},
