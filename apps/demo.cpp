@@ -237,10 +237,20 @@ Options parse(int argc, char** argv) {
     }
   }
   for (const ci::sim::Engine e : options.engines) {
+    scenarios::RobotSetup setup;
     try {
-      scenarios::with_engine(options.robot, e);  // available, and the MJCF's start readable
+      setup = scenarios::with_engine(options.robot, e);  // available, the MJCF's start readable
     } catch (const ci::Error& error) {
       usage_error(std::string("--engine: ") + error.what());
+    }
+    // The simulation of the robot as given (an MJCF that does not match the URDF, a flange it
+    // lacks) is the user's argument: refused here, before any scenario, like a broken URDF.
+    try {
+      const scenarios::Rig probe(setup, scenarios::base_parameters(setup));
+    } catch (const ci::Error& error) {
+      usage_error(std::string(options.robot.mjcf.empty() ? "the simulation of --urdf: "
+                                                         : "--mjcf: ") +
+                  error.what());
     }
   }
   const std::vector<std::string>& known = scenarios::scenario_names();
