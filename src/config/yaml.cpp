@@ -54,16 +54,6 @@ bool overflows(const std::string& text) {
   return stream.fail() && stream.eof() && std::abs(value) == std::numeric_limits<double>::max();
 }
 
-// How many levels deep the parameter table nests its keys ("limits.stiffness.translation.min": 4).
-std::size_t table_depth() {
-  std::size_t depth = 0;
-  for (const ParameterInfo& info : parameter_table()) {
-    depth = std::max(
-        depth, 1 + static_cast<std::size_t>(std::count(info.name.begin(), info.name.end(), '.')));
-  }
-  return depth;
-}
-
 // Converts yaml-cpp nodes into the decoder's values, inside the bounds every source keeps
 // (ParameterTreeGuard): an alias of a list or map inside itself, nesting without end and aliases
 // that repeat a list or map until the text names millions of values are refused by path.
@@ -298,7 +288,7 @@ ParameterValue parameter_tree_from_yaml(const std::string& yaml, std::string_vie
     // converter's (ParameterTreeGuard::kMaxDepth) is reached on the levels it built.
     fail(source, error.mark,
          "the YAML is nested too deeply (" + std::to_string(error.depth()) +
-             " levels); parameters are nested at most " + std::to_string(table_depth()) +
+             " levels); parameters are nested at most " + std::to_string(parameter_table_depth()) +
              " levels deep, with a list of numbers below");
   } catch (const YAML::Exception& error) {
     std::string column;

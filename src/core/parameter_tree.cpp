@@ -238,16 +238,6 @@ std::string quoted_path(const std::string& path) {
   return path.empty() ? std::string("the top level") : "'" + path + "'";
 }
 
-// How many levels deep the parameter table nests its keys ("limits.stiffness.translation.min": 4).
-std::size_t table_depth() {
-  std::size_t depth = 0;
-  for (const ParameterInfo& info : parameter_table()) {
-    depth = std::max(
-        depth, 1 + static_cast<std::size_t>(std::count(info.name.begin(), info.name.end(), '.')));
-  }
-  return depth;
-}
-
 }  // namespace
 
 ParameterTreeGuard::Level::~Level() {
@@ -270,7 +260,8 @@ ParameterTreeGuard::Level ParameterTreeGuard::enter(const void* identity, const 
     fail(Reason::oversized, location,
          quoted_path(path) + " is nested too deeply: more than " + std::to_string(kMaxDepth) +
              " levels of lists and maps; parameters are nested at most " +
-             std::to_string(table_depth()) + " levels deep, with a list of numbers below");
+             std::to_string(parameter_table_depth()) +
+             " levels deep, with a list of numbers below");
   }
   open_.emplace_back(identity, path);
   return Level(*this);

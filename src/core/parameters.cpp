@@ -1,5 +1,6 @@
 #include "cartesian_impedance/core/parameters.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -246,6 +247,18 @@ void ParameterInfo::check(std::string_view element, double value) const {
 const std::vector<ParameterInfo>& parameter_table() {
   static const std::vector<ParameterInfo> table = make_table();
   return table;
+}
+
+std::size_t parameter_table_depth() {
+  static const std::size_t depth = [] {
+    std::size_t deepest = 0;
+    for (const ParameterInfo& info : parameter_table()) {
+      deepest = std::max(deepest, 1 + static_cast<std::size_t>(
+                                          std::count(info.name.begin(), info.name.end(), '.')));
+    }
+    return deepest;
+  }();
+  return depth;
 }
 
 const ParameterInfo* find_parameter(std::string_view name) {

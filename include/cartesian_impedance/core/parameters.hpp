@@ -185,6 +185,9 @@ const ParameterInfo& parameter_info(std::string_view name);
 /// The row called `name` (a dotted path); nullptr if there is none.
 const ParameterInfo* find_parameter(std::string_view name);
 
+/// How many levels deep the table nests its names ("limits.stiffness.translation.min": 4).
+std::size_t parameter_table_depth();
+
 /// True if `path` is a group of parameters: "limits", "limits.stiffness", not a row itself.
 bool is_parameter_group(std::string_view path);
 
