@@ -19,6 +19,7 @@
 #include "cartesian_impedance/core/types.hpp"
 #include "cartesian_impedance/loop/control_loop.hpp"
 #include "cartesian_impedance/model/rate_check.hpp"
+#include "cartesian_impedance/model/robot_limits.hpp"
 #include "cartesian_impedance/model/robot_model.hpp"
 #include "commands.hpp"
 #include "conversions.hpp"
@@ -181,6 +182,13 @@ void bind_robot_model(py::module_& m) {
       .def_property_readonly(
           "moving_mass", [](const Model& s) { return s.model.moving_mass(); },
           "Mass the dynamics include [kg].")
+      .def(
+          "default_parameters", [](const Model& s) { return ci::default_parameters(s.model); },
+          "The library's defaults made to suit this arm (a Parameters): limits.joint_torque the "
+          "URDF's efforts, limits.joint_torque_rate effort / 0.05 s, "
+          "plausibility.joint_velocity twice the URDF's velocities, and stiffness, stiffness and "
+          "wrench limits that the joints can deliver at the largest pose error "
+          "(model/robot_limits.hpp). Start a configuration from these for an arm nobody tuned.")
       .def(
           "check_rate_limit",
           [](Model& s, ArrayLike q, ParametersLike parameters) {
