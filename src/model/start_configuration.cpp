@@ -203,22 +203,19 @@ void refine(Scorer& scorer, Candidate& candidate) {
 
 std::string describe(const RobotModel& model, const Candidate& c, double reach) {
   const Evaluation& e = c.evaluation;
-  char text[640];
-  const std::string limit =
-      e.closest_joint < 0
-          ? std::string("no joint limited")
-          : format_number(e.limit_distance) + " from the nearest joint limit (" +
-                model.joint_names()[static_cast<std::size_t>(e.closest_joint)] + ")";
+  char limit[160] = "no joint limited";
+  if (e.closest_joint >= 0) {
+    std::snprintf(limit, sizeof(limit), "%.3g from the nearest joint limit (%s)", e.limit_distance,
+                  model.joint_names()[static_cast<std::size_t>(e.closest_joint)].c_str());
+  }
+  char text[512];
   std::snprintf(text, sizeof(text),
-                "smallest singular value %s (%s with translation per %s m of reach), %s, "
-                "flange at (%s, %s, %s) m (%.0f %% of the reach), tool z axis (%.2f, %.2f, "
+                "smallest singular value %.3g (%.3g with translation per %.3g m of reach), %s, "
+                "flange at (%.3f, %.3f, %.3f) m (%.0f %% of the reach), tool z axis (%.2f, %.2f, "
                 "%.2f)",
-                format_number(e.singular_value).c_str(),
-                format_number(e.scaled_singular_value).c_str(), format_number(reach).c_str(),
-                limit.c_str(), format_number(e.position.x()).c_str(),
-                format_number(e.position.y()).c_str(), format_number(e.position.z()).c_str(),
-                100.0 * e.position.norm() / reach, e.tool_axis.x() + 0.0, e.tool_axis.y() + 0.0,
-                e.tool_axis.z() + 0.0);
+                e.singular_value, e.scaled_singular_value, reach, limit, e.position.x(),
+                e.position.y(), e.position.z(), 100.0 * e.position.norm() / reach, e.tool_axis.x(),
+                e.tool_axis.y(), e.tool_axis.z());
   return text;
 }
 
