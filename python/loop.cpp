@@ -269,7 +269,7 @@ void bind_robot_model(py::module_& m) {
       "singular value of the Jacobian (translation rows divided by the arm's reach) times a "
       "factor that falls to 0 at limit_margin [rad or m] from a position limit, with a mild "
       "preference for a ready pose (flange in front of and above the base, at 35-80 % of the "
-      "reach, tool down or outward), over `samples` seeded random configurations of which the "
+      "reach, tool pointing down), over `samples` seeded random configurations of which the "
       "`refined` best are improved by a coordinate search. Deterministic for a given seed. "
       "Returns a dict: q (n,) [rad or m], smallest_singular_value (as check_configuration "
       "computes it), scaled_singular_value, limit_distance [rad or m], reach [m], score, "

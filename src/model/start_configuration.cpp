@@ -146,8 +146,8 @@ class Scorer {
         plateau(horizontal / reach_, 0.25, 0.6, 0.2, 0.5) *
         plateau(height / reach_, 0.2, 0.6, 0.2, 0.5) *
         plateau(e.position.norm() / reach_, 0.35, 0.8, 0.35, 0.6) *
-        (0.8 + 0.2 * clamp01(front)) *                           // in front (+x)
-        (0.75 + 0.25 * clamp01(std::max(tool_down, tool_out)));  // tool down or outward
+        (0.8 + 0.2 * clamp01(front)) *                               // in front (+x)
+        (0.6 + 0.4 * clamp01(std::max(tool_down, 0.5 * tool_out)));  // tool down, or outward
     e.score = e.scaled_singular_value * limit_factor * ready;
     return e;
   }

@@ -16,14 +16,15 @@
 /// - limits(q) in [0, 1]: per joint 0 at limit_margin from a position limit (where
 ///   check_configuration() warns), rising linearly to 1 a quarter of the way to the middle of its
 ///   range; the product over the joints. Continuous joints count 1.
-/// - ready(q) in [0.09, 1]: a preference for a "ready" pose, because the demo's scenarios push
+/// - ready(q) in [0.07, 1]: a preference for a "ready" pose, because the demo's scenarios push
 ///   the flange along x, y and z, step the reference by 10 cm and press on a table (0.3 m wide,
 ///   standing on the floor) below the flange, so a start needs room in every direction: the
 ///   flange 25 % to 60 % of the reach out from the base's vertical axis (clear of the base, a
 ///   table fits under it) and 20 % to 60 % of the reach above the base (a push down does not
 ///   reach the floor), 35 % to 80 % of the reach from the base origin (neither folded nor
-///   stretched), in front of the base (+x), the tool's z axis pointing down or away from the
-///   base. Each factor is 1 in its band and falls linearly to 0.5 to 0.8 outside it; "up" is
+///   stretched), in front of the base (+x), the tool's z axis pointing down (the table is met
+///   by the tool, not by the side of the last link; pointing away from the base counts half).
+///   Each factor is 1 in its band and falls linearly to 0.5 to 0.8 outside it; "up" is
 ///   against the model's gravity, so an arm mounted sideways keeps the meaning. A factor that
 ///   no configuration can change (a planar arm's height) leaves the choice to the others.
 ///
