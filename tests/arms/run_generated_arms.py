@@ -73,9 +73,10 @@ HEADER = re.compile(r"^\[\d+/\d+\] (.+?) \.\.\. ?(.*)$")
 def run_demo(demo, arm, engine, out):
     label, seed, path, info = arm
     command = [demo, "--urdf", path, "--base-link", info["base_link"], "--tip-link",
-               info["tip_link"], "--no-render", "--no-plots", "--out", out]
+               info["tip_link"], "--no-render", "--no-plots"]
     if engine != "mujoco":
         command += ["--engine", engine]
+    command += ["--out", out]
     # The demo runs in its output folder: MuJoCo writes MUJOCO_LOG.TXT (an unstable simulation)
     # into the working folder, which is shown below and must not litter the caller's.
     os.makedirs(out, exist_ok=True)
@@ -135,7 +136,8 @@ def run_all(args):
         return 2
     seed = base_seed(args.seed)
     with tempfile.TemporaryDirectory(prefix="generated_arms_") as scratch:
-        folder = args.keep or scratch
+        folder = os.path.abspath(args.keep or scratch)  # the demo runs in its output folder
+        args.demo = os.path.abspath(args.demo)
         os.makedirs(folder, exist_ok=True)
         arms = arms_to_run(args.count, seed, folder)
         jobs = [(arm, "mujoco") for arm in arms] + [(arm, "dart") for arm in arms[:args.dart]]
