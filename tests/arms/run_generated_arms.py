@@ -8,7 +8,7 @@
 Generates --count arms from seeds --seed, --seed + 1, ... (the environment variable CI_ARM_SEED
 picks another base seed), adds the regression arms of tests/arms/regression/, and runs
 `cartesian_impedance_demo --urdf ... --base-link ... --tip-link ... --no-render --no-plots` on each
-with MuJoCo and on the first --dart of them with DART, --jobs at a time. Exits 0 only if every
+with MuJoCo and on --dart of them (spread over the list) with DART, --jobs at a time. Exits 0 only if every
 run exits 0; otherwise prints per failing run the seed, the joints, the exit code, the demo's FAIL
 and could-not-run lines, and the commands that reproduce it. --report prints a table of every run
 and the pass rate per scenario instead, and exits 0 (for measurements).
@@ -140,10 +140,13 @@ def run_all(args):
         args.demo = os.path.abspath(args.demo)
         os.makedirs(folder, exist_ok=True)
         arms = arms_to_run(args.count, seed, folder)
-        jobs = [(arm, "mujoco") for arm in arms] + [(arm, "dart") for arm in arms[:args.dart]]
+        # DART on --dart arms spread over the list (generated and regression arms alike).
+        step = max(1, len(arms) // max(1, args.dart))
+        on_dart = arms[::step][:args.dart] if args.dart > 0 else []
+        jobs = [(arm, "mujoco") for arm in arms] + [(arm, "dart") for arm in on_dart]
         print("%d arms (seeds %d..%d and %d regression arms): %d runs on MuJoCo, %d on DART, "
               "%d at a time" % (len(arms), seed, seed + args.count - 1, len(arms) - args.count,
-                                len(arms), min(args.dart, len(arms)), args.jobs), flush=True)
+                                len(arms), len(on_dart), args.jobs), flush=True)
         results = []
         with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
             futures = {}
@@ -350,7 +353,7 @@ def main():
     parser.add_argument("--seed", type=int, help="first seed (default: $CI_ARM_SEED or %d)"
                         % DEFAULT_SEED)
     parser.add_argument("--dart", type=int, default=4,
-                        help="also run the first N arms on DART (default 4)")
+                        help="also run N of the arms, spread over the list, on DART (default 4)")
     parser.add_argument("--jobs", type=int, default=2, help="demo runs at a time (default 2)")
     parser.add_argument("--report", action="store_true",
                         help="print every run's result and the pass rates; always exit 0")
