@@ -73,7 +73,8 @@ def norm(a):
 
 
 def matmul(a, b):
-    return tuple(tuple(sum(a[i][k] * b[k][j] for k in range(3)) for j in range(3)) for i in range(3))
+    return tuple(tuple(sum(a[i][k] * b[k][j] for k in range(3)) for j in range(3))
+                 for i in range(3))
 
 
 def matvec(a, v):
@@ -392,9 +393,9 @@ def draw_arm(rng, joints):
                 body = body + cylinder(end, axes[i + 1], a, 1.6 * a, actuator_mass(efforts[i + 1]))
             else:  # the flange plate
                 flange_radius = radius
-                body = body + cylinder(sub(flange, scale(flange_direction, 0.005)), flange_direction,
-                                       radius, 0.01, 2.0 * ALUMINIUM_DENSITY * math.pi * radius
-                                       * radius * 0.01 * 0.5)
+                plate_mass = ALUMINIUM_DENSITY * math.pi * radius * radius * 0.01
+                body = body + cylinder(sub(flange, scale(flange_direction, 0.005)),
+                                       flange_direction, radius, 0.01, plate_mass)
             links.append(body)
         loads = worst_gravity_loads(poses_sampled, links)
         # Joint 1 turns about the vertical and holds no weight; real arms give it a drive like the
@@ -488,7 +489,8 @@ def link_xml(name, body_world, rotation_world, origin_world, shapes, indent="  "
 def generate(seed, joints=None):
     """Returns (urdf_text, info) of the arm drawn from seed; joints None draws 5, 6 or 7."""
     rng = random.Random("cartesian_impedance arm %d" % seed)
-    drawn = rng.choice((5, 6, 6, 7, 7))  # drawn always: --joints N of a seed that draws N is that arm
+    # Drawn always: --joints N of a seed that draws N is that seed's arm.
+    drawn = rng.choice((5, 6, 6, 7, 7))
     if joints is None:
         joints = drawn
     if joints not in (5, 6, 7):
@@ -576,7 +578,8 @@ def generate(seed, joints=None):
     info = {
         "seed": seed, "joints": n, "family": arm["family"], "frames": style,
         "base_link": "base_link", "tip_link": "tool0", "weak_wrist": arm["weak"],
-        "reach": round(arm["reach"], 4), "rated_payload": round(arm["payload"], 2), "total_mass": round(total_mass, 3),
+        "reach": round(arm["reach"], 4), "rated_payload": round(arm["payload"], 2),
+        "total_mass": round(total_mass, 3),
         "efforts": [round(e, 3) for e in arm["efforts"]],
         "gravity_loads": [round(v, 3) for v in arm["loads"]],
         "velocities": [round(v, 3) for v in arm["velocities"]],

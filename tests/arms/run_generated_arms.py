@@ -8,10 +8,10 @@
 Generates --count arms from seeds --seed, --seed + 1, ... (the environment variable CI_ARM_SEED
 picks another base seed), adds the regression arms of tests/arms/regression/, and runs
 `cartesian_impedance_demo --urdf ... --base-link ... --tip-link ... --no-render --no-plots` on each
-with MuJoCo and on --dart of them (spread over the list) with DART, --jobs at a time. Exits 0 only if every
-run exits 0; otherwise prints per failing run the seed, the joints, the exit code, the demo's FAIL
-and could-not-run lines, and the commands that reproduce it. --report prints a table of every run
-and the pass rate per scenario instead, and exits 0 (for measurements).
+with MuJoCo and on --dart of them (spread over the list) with DART, --jobs at a time. Exits 0 only
+if every run exits 0; otherwise prints per failing run the seed, the joints, the exit code, the
+demo's FAIL and could-not-run lines, and the commands that reproduce it. --report prints a table
+of every run and the FAIL lines per scenario instead, and exits 0 (for measurements).
 
 --self-check tests the generator itself: the same seed gives the same file, and each arm loads in
 the library (Python module `cartesian_impedance`, PYTHONPATH=build/python) with the joint count
@@ -23,7 +23,6 @@ import argparse
 import collections
 import concurrent.futures
 import glob
-import json
 import math
 import os
 import random
