@@ -371,10 +371,19 @@ Outcome wrench_on_table(const RobotSetup& robot, const MomentCallback& moment) {
             {}};
   }
   const Pose flange = probe.flange();
-  // A table whose top is 3 cm under the flange (the commanded force takes it down there against
-  // nothing but damping), small enough (10 cm square) that no other link of the arm, which may
-  // hang below the flange's height beside it, touches it.
-  const sim::Box table = sim::Box::table(flange.position.head<2>(), Eigen::Vector2d(0.05, 0.05),
+  // The table stands on the floor (the base's height): a flange less than 4 cm above it leaves
+  // no room for one.
+  if (flange.position.z() < 0.04) {
+    return {{not_applicable(
+                "wrench", quantity_any,
+                format("the flange is at z = %.3g m at the start, the floor at 0: no room for a "
+                       "table 3 cm under it",
+                       flange.position.z()))},
+            {}};
+  }
+  // A table whose top is 3 cm under the flange: the commanded force takes it down there against
+  // nothing but damping.
+  const sim::Box table = sim::Box::table(flange.position.head<2>(), Eigen::Vector2d(0.15, 0.15),
                                          flange.position.z() - 0.03, "table");
   Rig rig(robot, parameters, {table});
   rig.run(0.2);
