@@ -25,6 +25,7 @@
 #include "cartesian_impedance/core/parameters.hpp"
 #include "cartesian_impedance/model/rate_check.hpp"
 #include "cartesian_impedance/model/robot_model.hpp"
+#include "cartesian_impedance/model/start_configuration.hpp"
 #include "demo_output.hpp"
 #include "scenarios.hpp"
 
@@ -53,7 +54,8 @@ Options:
   --flange NAME            site or body at the tip in the simulation (default: the tip link)
   --config FILE            controller parameters (YAML; default: config/<robot>.yaml)
   --start-q Q1,Q2,...      start configuration [rad or m], one value per joint (default: the
-                           MJCF's keyframe 'ready', the shipped robot's, or q = 0)
+                           MJCF's keyframe 'ready', the shipped robot's, or for a URDF alone
+                           one the library chooses: well conditioned, inside the limits)
   --engine NAME            physics engine: mujoco, dart (simulates the URDF) or both (every
                            scenario on each, then a table theory / MuJoCo / DART; the output
                            folder gets a subfolder per engine) (default: mujoco)
@@ -90,6 +92,9 @@ picture could not be written (each named), and every measurement that was made a
 theory.
 )";
 }
+
+// A joint vector as --start-q takes it: comma-separated, 5 significant digits.
+const Eigen::IOFormat kList(5, Eigen::DontAlignCols, ", ", ", ");
 
 void require_file(const std::string& option, const std::string& path) {
   if (!fs::is_regular_file(path)) usage_error(option + " '" + path + "': no such file");
@@ -199,8 +204,20 @@ Options parse(int argc, char** argv) {
     }
     options.robot.start_q = Eigen::Map<const Eigen::VectorXd>(values.data(), joints);
   }
+  // A URDF alone has no start: q = 0 is singular on most arms, so the library chooses one (an
+  // MJCF starts at its keyframe; the shipped robots and --start-q bring their own).
+  if (options.robot.start_q.size() == 0 && options.robot.mjcf.empty()) {
+    try {
+      const ci::StartChoice choice = ci::find_start_configuration(*model);
+      options.robot.start_q = choice.q;
+      std::cout << "Start configuration (chosen: " << choice.description << "; --start-q "
+                << "to give another): q = [" << choice.q.transpose().format(kList) << "]\n";
+    } catch (const ci::Error& error) {
+      std::cout << "Warning: start configuration: " << error.what() << "; starting at q = 0\n";
+    }
+  }
   // A start at a singularity or at a joint limit makes every scenario look broken; say so once.
-  // (An MJCF starts at its keyframe, checked by whoever wrote it; a URDF alone at q = 0.)
+  // (An MJCF starts at its keyframe, checked by whoever wrote it.)
   if (options.robot.start_q.size() == joints || options.robot.mjcf.empty()) {
     const ci::JointVector q = options.robot.start_q.size() == joints
                                   ? options.robot.start_q

@@ -6,6 +6,7 @@
 
 #include "cartesian_impedance/config/yaml.hpp"
 #include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/model/robot_limits.hpp"
 #include "scenario_support.hpp"
 
 namespace cartesian_impedance::scenarios {
@@ -73,7 +74,12 @@ RobotSetup with_engine(RobotSetup robot, sim::Engine engine) {
 }
 
 Parameters base_parameters(const RobotSetup& robot) {
-  return robot.parameters_file.empty() ? Parameters{} : load_parameters(robot.parameters_file);
+  // What the configuration leaves out is derived from the URDF (a robot without a configuration
+  // gets only that), as the nodes and Python do.
+  const Parameters defaults =
+      default_parameters(RobotModel::from_urdf_file(robot.urdf, robot.base_link, robot.tip_link));
+  return robot.parameters_file.empty() ? defaults
+                                       : load_parameters(robot.parameters_file, defaults);
 }
 
 namespace {

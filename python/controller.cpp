@@ -243,6 +243,14 @@ void bind_states(py::module_& m) {
       .def_readonly("translation_error_clipped", &ci::ActiveLimits::translation_error_clipped)
       .def_readonly("rotation_error_clipped", &ci::ActiveLimits::rotation_error_clipped)
       .def_readonly("joint_torque_saturated", &ci::ActiveLimits::joint_torque_saturated)
+      .def_property_readonly(
+          "torque_shaping",
+          [](const ci::ActiveLimits& l) { return std::string(ci::to_string(l.torque_shaping)); },
+          "Which term of the law gave way to the torque bound: 'none', 'nullspace', 'spring', "
+          "'wrench', 'damping' or 'gravity' (scaled in task space in that order; see "
+          "torque_shaping_scale)")
+      .def_readonly("torque_shaping_scale", &ci::ActiveLimits::torque_shaping_scale,
+                    "The fraction of that term kept [0, 1]")
       .def_readonly("torque_rate_limited", &ci::ActiveLimits::torque_rate_limited)
       .def_readonly("joint_torque_limit_ramping", &ci::ActiveLimits::joint_torque_limit_ramping)
       .def_readonly("holding", &ci::ActiveLimits::holding,

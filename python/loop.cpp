@@ -19,7 +19,9 @@
 #include "cartesian_impedance/core/types.hpp"
 #include "cartesian_impedance/loop/control_loop.hpp"
 #include "cartesian_impedance/model/rate_check.hpp"
+#include "cartesian_impedance/model/robot_limits.hpp"
 #include "cartesian_impedance/model/robot_model.hpp"
+#include "cartesian_impedance/model/start_configuration.hpp"
 #include "commands.hpp"
 #include "conversions.hpp"
 #include "module.hpp"
@@ -182,6 +184,13 @@ void bind_robot_model(py::module_& m) {
           "moving_mass", [](const Model& s) { return s.model.moving_mass(); },
           "Mass the dynamics include [kg].")
       .def(
+          "default_parameters", [](const Model& s) { return ci::default_parameters(s.model); },
+          "The library's defaults made to suit this arm (a Parameters): limits.joint_torque the "
+          "URDF's efforts, limits.joint_torque_rate effort / 0.05 s, "
+          "plausibility.joint_velocity twice the URDF's velocities, and stiffness, stiffness and "
+          "wrench limits that the joints can deliver at the largest pose error "
+          "(model/robot_limits.hpp). Start a configuration from these for an arm nobody tuned.")
+      .def(
           "check_rate_limit",
           [](Model& s, ArrayLike q, ParametersLike parameters) {
             const ci::RateCheck check = ci::check_rate_limit(
@@ -236,6 +245,46 @@ void bind_robot_model(py::module_& m) {
         return "RobotModel('" + s.model.robot_name() + "', " + s.model.base_link() + " -> " +
                s.model.tip_link() + ", " + std::to_string(s.model.num_joints()) + " joints)";
       });
+
+  const ci::StartSearch search;
+  m.def(
+      "find_start_configuration",
+      [](const Model& s, int samples, int refined, std::uint64_t seed, double singular_threshold,
+         double limit_margin) {
+        ci::StartSearch options;
+        options.samples = samples;
+        options.refined = refined;
+        options.seed = seed;
+        options.singular_threshold = singular_threshold;
+        options.limit_margin = limit_margin;
+        const ci::StartChoice choice = ci::find_start_configuration(s.model, options);
+        py::dict result;
+        result["q"] = vector_array(choice.q);
+        result["smallest_singular_value"] = choice.smallest_singular_value;
+        result["scaled_singular_value"] = choice.scaled_singular_value;
+        result["limit_distance"] = choice.limit_distance;
+        result["reach"] = choice.reach;
+        result["score"] = choice.score;
+        result["flange_position"] = vector_array(choice.flange_position);
+        result["description"] = choice.description;
+        return result;
+      },
+      py::arg("model"), py::arg("samples") = search.samples, py::arg("refined") = search.refined,
+      py::arg("seed") = search.seed, py::arg("singular_threshold") = search.singular_threshold,
+      py::arg("limit_margin") = search.limit_margin,
+      "A well-conditioned start configuration for `model` within its joint limits, for a robot "
+      "given by its URDF alone (q = 0 is singular on most arms). Maximises the smallest "
+      "singular value of the Jacobian (translation rows divided by the arm's reach) times a "
+      "factor that falls to 0 at limit_margin [rad or m] from a position limit, with a mild "
+      "preference for a ready pose (flange in front of and above the base, at 35-80 % of the "
+      "reach, tool pointing down), over `samples` seeded random configurations of which the "
+      "`refined` best are improved by a coordinate search. Deterministic for a given seed. "
+      "Returns a dict: q (n,) [rad or m], smallest_singular_value (as check_configuration "
+      "computes it), scaled_singular_value, limit_distance [rad or m], reach [m], score, "
+      "flange_position (3,) [m, base frame], description (one line). Raises Error for bad "
+      "options, or if no configuration has a smallest singular value of at least "
+      "singular_threshold with every joint limit_margin inside its limits (naming the best "
+      "found).");
 }
 
 void bind_control_loop(py::module_& m) {

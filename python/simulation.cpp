@@ -20,6 +20,7 @@
 #include "cartesian_impedance/core/error.hpp"
 #include "cartesian_impedance/core/types.hpp"
 #include "cartesian_impedance/loop/control_loop.hpp"
+#include "cartesian_impedance/model/start_configuration.hpp"
 #include "cartesian_impedance/sim/closed_loop_runner.hpp"
 #include "cartesian_impedance/sim/simulation.hpp"
 #include "conversions.hpp"
@@ -180,15 +181,29 @@ void bind_simulation(py::module_& m) {
             "from_urdf_file",
             [](PathLike path, Real timestep, bool gravity_compensation, const std::string& keyframe,
                std::optional<std::vector<std::string>> names, bool multi_point_contacts,
-               py::object start_q, py::object armature, const std::string& engine) {
-              return std::make_unique<Sim>(ci::sim::Simulation::from_urdf_file(
-                  read_path(path, "path"),
+               py::object start_q, py::object armature, const std::string& engine,
+               const Model* model) {
+              ci::sim::SimulationOptions options =
                   simulation_options(timestep, gravity_compensation, keyframe, names,
-                                     multi_point_contacts, start_q, armature, engine)));
+                                     multi_point_contacts, start_q, armature, engine);
+              // A URDF has no start of its own and q = 0 is singular on most arms: with the
+              // controller's model, the library chooses one.
+              if (model != nullptr) {
+                if (!names) options.joint_names = model->model.joint_names();
+                if (start_q.is_none()) {
+                  options.start_q = ci::find_start_configuration(model->model).q;
+                }
+              }
+              return std::make_unique<Sim>(
+                  ci::sim::Simulation::from_urdf_file(read_path(path, "path"), options));
             },
-            py::arg("path"), args...,
+            py::arg("path"), args..., py::arg("model") = py::none(),
             (std::string("Loads a URDF with MuJoCo's importer (no actuators, no floor, no "
-                         "keyframe).") +
+                         "keyframe). model: the controller's RobotModel of this URDF; with it, "
+                         "the simulation exchanges model.joint_names (unless joint_names is "
+                         "given) and, without start_q, starts and resets at "
+                         "cartesian_impedance.find_start_configuration(model)['q'] instead of "
+                         "q = 0 (which is singular on most arms).") +
              options_doc)
                 .c_str());
         sim.def(

@@ -371,7 +371,10 @@ TEST(Saturation, PoseErrorIsClippedKeepingDirection) {
   EXPECT_LE((controller.torque() - six(-12, -16, 0, -6, 0, 0)).norm(), 1e-10);
 }
 
-TEST(Saturation, JointTorqueIsClampedPerJoint) {
+// A spring the joints cannot deliver is scaled as a whole, keeping its direction: clipping each
+// joint on its own would give (-5, 5, 0, 0, 0, -0.5), a force pointing 27 degrees away from the
+// reference.
+TEST(Saturation, JointTorqueBeyondTheBoundScalesTheSpringKeepingItsDirection) {
   ci::Parameters parameters = bare_parameters();
   parameters.limits.joint_torque = (ci::JointVector(6) << 5, 5, 5, 1, 1, 1).finished();
   ci::CartesianImpedanceController controller(6, parameters);
@@ -381,8 +384,12 @@ TEST(Saturation, JointTorqueIsClampedPerJoint) {
   robot.pose.position += Eigen::Vector3d(0.01, -0.02, 0.0);  // -10 N, +20 N wanted
   robot.pose.orientation = Eigen::AngleAxisd(0.005, Eigen::Vector3d::UnitZ());  // -0.5 Nm
   ASSERT_EQ(controller.update(robot, 0.001), ci::Status::ok);
-  EXPECT_TRUE(controller.state().limits.joint_torque_saturated);
-  EXPECT_LE((controller.torque() - six(-5, 5, 0, 0, 0, -0.5)).norm(), 1e-12);
+  const ci::ActiveLimits& limits = controller.state().limits;
+  EXPECT_TRUE(limits.joint_torque_saturated);
+  EXPECT_EQ(limits.torque_shaping, ci::TorqueShaping::spring);
+  // J = I: the largest scale that fits is min(5 / 10, 5 / 20, 1 / 0.5) = 0.25.
+  EXPECT_NEAR(limits.torque_shaping_scale, 0.25, 1e-12);
+  EXPECT_LE((controller.torque() - six(-2.5, 5, 0, 0, 0, -0.125)).norm(), 1e-12);
 }
 
 // --- torque rate

@@ -34,7 +34,16 @@ expect_error "three.yaml' for 7 joints: nullspace.stiffness" --config "$scratch/
 expect_error "--start-q '1,2' has 2 values; the robot has 7 joints" --start-q 1,2
 expect_error "--start-q '0,x,0,0,0,0,0': 'x' is not a number" --start-q 0,x,0,0,0,0,0
 expect_error "the start configuration is outside the joint range (joint panda_joint4 is at 0" \
-  --urdf "$source_dir/models/panda/panda.urdf" --base-link panda_link0 --tip-link panda_link8
+  --urdf "$source_dir/models/panda/panda.urdf" --base-link panda_link0 --tip-link panda_link8 \
+  --start-q 0,0,0,0,0,0,0
+# A URDF alone, without --start-q: the demo chooses a start (q = 0 is outside the Panda's joint 4
+# range and singular), says which, and has no warning about it.
+"$demo" --urdf "$source_dir/models/panda/panda.urdf" --base-link panda_link0 \
+  --tip-link panda_link8 --scenario hold --no-render --no-plots --out "$scratch/chosen" \
+  >"$scratch/chosen.log" 2>&1
+{ grep -q "^Start configuration (chosen: smallest singular value .*): q = \[" "$scratch/chosen.log" &&
+  ! grep -q "Warning: start configuration" "$scratch/chosen.log"; } ||
+  { echo "FAIL: a URDF without --start-q:"; cat "$scratch/chosen.log"; failures=$((failures + 1)); }
 expect_error "--urdf: " --urdf "$source_dir/models/panda/panda.urdf" --base-link panda_link0 --tip-link gripper
 expect_error "--engine: engine 'bullet' is not known; the engines are: mujoco, dart (or both)" --engine bullet
 # An MJCF that does not simulate the URDF's joints is a bad argument (exit 2), as in the ROS 2 node.

@@ -195,7 +195,8 @@ TEST(FailClosed, LoweredTorqueLimitRampsDownWithoutExceedingRateOrBound) {
   // Raising it again holds at once (the rate limit keeps the torque continuous).
   rig.loop.set_parameters(Pulling::parameters());
   rig.loop.step(rig.sim.q, rig.sim.dq, kDt);
-  EXPECT_EQ(rig.loop.state().controller.joint_torque_limit[0], 100.0);
+  // (to the default: the Panda URDF's effort of joint 1)
+  EXPECT_EQ(rig.loop.state().controller.joint_torque_limit[0], 87.0);
 }
 
 // Finding 8 (flood): every queued command used to be applied in the cycle that found it (1.1 ms
@@ -254,7 +255,9 @@ TEST(FailClosed, ParametersThatWouldSilentlyDisableTheControllerAreRejected) {
        {Case{"filter.pose.fraction", [](ci::Parameters& p) { p.filter.pose.fraction = 5e-324; }},
         Case{"filter.pose.time", [](ci::Parameters& p) { p.filter.pose.time = 1e308; }},
         Case{"limits.joint_torque[0]",
-             [](ci::Parameters& p) { p.limits.joint_torque[0] = 5e-324; }},
+             [](ci::Parameters& p) {
+               p.limits.joint_torque = ci::JointVector::Constant(1, 5e-324);
+             }},
         Case{"limits.joint_torque_rate[0]",
              [](ci::Parameters& p) { p.limits.joint_torque_rate[0] = 5e-324; }},
         Case{"nullspace.pseudo_inverse_damping",

@@ -134,8 +134,8 @@ TEST(ParameterTree, EveryWrongShapeIsRejectedWithItsMessage) {
        Reason::wrong_shape},
       {"stiffness.rotation", Value::list({number(1), Value::string("fifty"), number(1)}),
        "stiffness.rotation.y = 'fifty' is not a number [Nm/rad]", Reason::wrong_type},
-      {"limits.joint_torque", numbers({}),
-       "limits.joint_torque must be one number or a list of 1 to " + joints +
+      {"limits.joint_torque_rate", numbers({}),
+       "limits.joint_torque_rate must be one number or a list of 1 to " + joints +
            " numbers (one per joint), got a list of 0",
        Reason::wrong_shape},
       {"limits.joint_torque", numbers(std::vector<double>(ci::kMaxJoints + 1, 1.0)),
@@ -292,7 +292,7 @@ TEST(ParameterTree, EncodeThenDecodeGivesTheSameParameters) {
   EXPECT_EQ(tree.as_map().front().key, "stiffness");
   EXPECT_EQ(*tree.member("limits")->member("stiffness")->member("translation")->member("max"),
             number(5000));
-  EXPECT_EQ(*tree.member("limits")->member("joint_torque"), numbers({100}));
+  EXPECT_EQ(*tree.member("limits")->member("joint_torque"), numbers({}));  // the URDF's
   EXPECT_EQ(*tree.member("wrench")->member("frame"), Value::string("base"));
   EXPECT_EQ(ci::encode_parameters(ci::Parameters{}, ci::KeyLayout::dotted).as_map().size(),
             ci::parameter_table().size());
@@ -362,7 +362,7 @@ TEST(ParameterTreeYaml, GivesTheDecodersMessageAfterFileAndLine) {
       {"filter.pose.time", Value::boolean(true), "filter:\n  pose:\n    time: true\n"},
       {"stiffness.translation", numbers({1, 2}), "stiffness:\n  translation: [1, 2]\n"},
       {"stiffness.rotation", numbers({1, -1, 1}), "stiffness:\n  rotation: [1, -1, 1]\n"},
-      {"limits.joint_torque", numbers({}), "limits:\n  joint_torque: []\n"},
+      {"limits.joint_torque_rate", numbers({}), "limits:\n  joint_torque_rate: []\n"},
       {"wrench.frame", Value::string("tool"), "wrench:\n  frame: tool\n"},
       {"dynamics.gravity_compensation", number(1), "dynamics:\n  gravity_compensation: 1\n"},
       {"stiffness.tranlation", number(1), "stiffness:\n  tranlation: 1\n"},

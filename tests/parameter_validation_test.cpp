@@ -180,10 +180,11 @@ TEST(ParameterValidation, RejectsPerJointFieldsWithWrongCount) {
                       {std::string(name) + " has " + values, "expected 1 (all joints) or 7"});
     }
   }
+  // An empty list means "from the robot" only where the robot can fill it in.
   ci::Parameters empty = other_valid_parameters();
-  empty.limits.joint_torque = ci::JointVector(0);
-  expect_rejected("limits.joint_torque, 0 values", [&](auto& c) { c.set_parameters(empty); },
-                  {"limits.joint_torque has 0 values"});
+  empty.limits.joint_torque_rate = ci::JointVector(0);
+  expect_rejected("limits.joint_torque_rate, 0 values", [&](auto& c) { c.set_parameters(empty); },
+                  {"limits.joint_torque_rate has 0 values"});
 }
 
 TEST(ParameterValidation, AcceptsValuesOnTheBoundaryOfTheirRange) {

@@ -99,8 +99,8 @@ TEST(YamlConfig, ValueOfTheWrongShapeIsRejected) {
                                  {"test.yaml:2:", "stiffness.translation", "3 numbers", "2"}));
   EXPECT_TRUE(yaml_rejected_with("wrench:\n  torque: [1, 2, 3, 4]\n",
                                  {"test.yaml:2:", "wrench.torque", "3 numbers", "4"}));
-  EXPECT_TRUE(yaml_rejected_with("limits:\n  joint_torque: []\n",
-                                 {"test.yaml:2:", "limits.joint_torque", "one per joint"}));
+  EXPECT_TRUE(yaml_rejected_with("limits:\n  joint_torque_rate: []\n",
+                                 {"test.yaml:2:", "limits.joint_torque_rate", "one per joint"}));
   std::string too_many = "limits:\n  joint_torque: [1";
   for (int i = 0; i < ci::kMaxJoints; ++i) too_many += ", 1";  // kMaxJoints + 1 values
   EXPECT_TRUE(yaml_rejected_with(too_many + "]\n",

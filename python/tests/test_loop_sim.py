@@ -191,6 +191,37 @@ def test_start_configuration_and_armature_of_a_urdf_robot():
     np.testing.assert_array_equal(plain.armature, np.full(6, 0.1))
 
 
+def test_a_urdf_robot_with_its_model_starts_where_the_library_chooses():
+    # The UR5e's URDF has no start and q = 0 is singular; given the controller's model, the
+    # simulation starts (and resets) at the chosen, well-conditioned start.
+    urdf = SOURCE_DIR / "models" / "ur5e" / "ur5e.urdf"
+    model = ci.RobotModel.from_urdf_file(urdf, "base_link", "tool0")
+    choice = ci.find_start_configuration(model)
+    assert choice["smallest_singular_value"] >= 0.02 and choice["limit_distance"] >= 0.1
+    assert choice["description"].startswith("smallest singular value ")
+    # Deterministic: the same start every time.
+    np.testing.assert_array_equal(ci.find_start_configuration(model)["q"], choice["q"])
+    jacobian = model.compute(choice["q"], dynamics=False).jacobian
+    assert np.linalg.svd(jacobian, compute_uv=False)[-1] == pytest.approx(
+        choice["smallest_singular_value"], rel=1e-9)
+    assert np.linalg.svd(model.compute(np.zeros(6), dynamics=False).jacobian,
+                         compute_uv=False)[-1] < 1e-9
+    sim = ci.sim.Simulation.from_urdf_file(urdf, model=model)
+    assert sim.joint_names == model.joint_names
+    np.testing.assert_array_equal(sim.q, choice["q"])
+    sim.step(10)
+    sim.reset()
+    np.testing.assert_array_equal(sim.q, choice["q"])
+    # A start given wins over the chosen one.
+    start = [np.pi, -np.pi / 2, np.pi / 2, -np.pi / 2, -np.pi / 2, 0.0]
+    np.testing.assert_array_equal(
+        ci.sim.Simulation.from_urdf_file(urdf, model=model, start_q=start).q, start)
+    with pytest.raises(ci.Error, match=r"StartSearch::samples = 0 must be >= 1"):
+        ci.find_start_configuration(model, samples=0)
+    with pytest.raises(ci.Error, match=r"best smallest singular value found"):
+        ci.find_start_configuration(model, singular_threshold=100.0)
+
+
 def test_start_configuration_outside_a_joint_range_names_the_joint():
     with pytest.raises(ci.Error, match=r"start_q\[3\] = 0 for joint 'panda_joint4' is outside"):
         ci.sim.Simulation.from_mjcf_file(PANDA_XML, start_q=np.zeros(7))

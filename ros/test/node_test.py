@@ -15,6 +15,7 @@ PYTHONPATH=<build>/devel/lib/python3/dist-packages.
 import argparse
 import math
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -457,6 +458,28 @@ def case_topics_mode(processes, args):
         check_timing(processes, state, launched)
     finally:
         running["on"] = None
+
+
+def case_urdf_sim_chosen_start(processes, args):
+    """sim_urdf.launch start_q:=[]: without a start the node chooses one (q = 0 is singular on
+    the UR5e), logs it, starts there and reaches a reference."""
+    processes.launch("launch", "sim_urdf.launch", "start_q:=[]")
+    init_rospy()
+    from sensor_msgs.msg import JointState
+    joints = Latest("/joint_states", JointState)
+    state = controller_state()
+    message = joints.wait(what="joint_states from the simulation")
+    pattern = re.compile(r"start configuration \(chosen, no start_q set: smallest singular value "
+                         r"[^\n]*\): q = \[([^\]]*)\]")
+    wait_until(lambda: pattern.search(processes.log("launch")), 3.0, "the chosen start's log line")
+    chosen = [float(v) for v in pattern.search(processes.log("launch")).group(1).split(",")]
+    assert len(chosen) == 6 and max(abs(v) for v in chosen) > 0.5, chosen
+    assert close(message.position, chosen, 0.02), (message.position, chosen)
+    m = state.get()
+    p0, q0 = position(m.current_pose), quaternion_of(m.current_pose)
+    target = (p0[0], p0[1] + 0.04, p0[2] + 0.03)
+    took = reach_pose(state, "/%s/reference_pose" % CONTROLLER, "", target, q0)
+    print("UR5e from its URDF at the chosen start: reference reached after %.2f s" % took)
 
 
 def case_urdf_sim_dart(processes, args):

@@ -11,6 +11,7 @@
 #include <map>
 #include <sstream>
 
+#include <cartesian_impedance/model/start_configuration.hpp>
 #include <cartesian_impedance/sim/simulation.hpp>
 
 #include "harness.hpp"
@@ -505,6 +506,36 @@ TEST(Ros2Node, SimulatesTheUrdfFromStartQ) {
   EXPECT_NE(node.log().find("(the URDF simulated)"), std::string::npos) << node.log();
   TfRecorder tf(Client::participant());
   check_tf_matches_state(tf, "/cartesian_impedance_controller", "base_link", "tool0");
+  const Eigen::Vector3d step(0.0, 0.04, 0.03);
+  client.pose(start.position + step, start.orientation);
+  EXPECT_TRUE(client.wait(4.0, [&](const State& s) {
+    return (s.position - (start.position + step)).norm() < 3e-3;
+  })) << client.settle(0).position.transpose();
+}
+
+// sim mode without mjcf_path and without start_q: q = 0 is singular on the UR5e, so the node
+// starts where find_start_configuration() chooses, says so, and moves from there.
+TEST(Ros2Node, SimulatesTheUrdfFromAChosenStartWithoutStartQ) {
+  const std::string urdf = repository() + "/models/ur5e/ur5e.urdf";
+  const std::string params = params_file("ur5e_no_start.yaml", R"(
+/**:
+  ros__parameters:
+    mode: sim
+    urdf_path: )" + urdf + R"(
+    base_link: base_link
+    tip_link: tool0
+    parameters_file: )" + repository() + R"(/config/ur5e.yaml
+)");
+  NodeProcess node({"--ros-args", "--params-file", params});
+  Client client;
+  const State start = client.running();
+  const ci::JointVector chosen =
+      ci::find_start_configuration(ci::RobotModel::from_urdf_file(urdf, "base_link", "tool0")).q;
+  ASSERT_EQ(start.q.size(), 6u);
+  for (int i = 0; i < 6; ++i) EXPECT_NEAR(start.q[i], chosen[i], 0.02) << i;
+  EXPECT_NE(node.log().find("start configuration (chosen, no start_q set: smallest singular"),
+            std::string::npos)
+      << node.log();
   const Eigen::Vector3d step(0.0, 0.04, 0.03);
   client.pose(start.position + step, start.orientation);
   EXPECT_TRUE(client.wait(4.0, [&](const State& s) {

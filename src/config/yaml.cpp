@@ -306,12 +306,13 @@ ParameterValue parameter_tree_from_yaml(const std::string& yaml, std::string_vie
   return tree;
 }
 
-Parameters parameters_from_yaml(const std::string& yaml, std::string_view source) {
-  return decode_parameters(parameter_tree_from_yaml(yaml, source), Parameters{}, source);
+Parameters parameters_from_yaml(const std::string& yaml, std::string_view source,
+                                const Parameters& defaults) {
+  return decode_parameters(parameter_tree_from_yaml(yaml, source), defaults, source);
 }
 
-Parameters load_parameters(const std::string& path) {
-  return parameters_from_yaml(read_regular_file(path, "parameter file"), path);
+Parameters load_parameters(const std::string& path, const Parameters& defaults) {
+  return parameters_from_yaml(read_regular_file(path, "parameter file"), path, defaults);
 }
 
 void save_parameters(const std::string& path, const Parameters& parameters) {

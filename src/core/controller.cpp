@@ -53,6 +53,24 @@ const char* to_string(Status status) noexcept {
   return "unknown";
 }
 
+const char* to_string(TorqueShaping shaping) noexcept {
+  switch (shaping) {
+    case TorqueShaping::none:
+      return "none";
+    case TorqueShaping::nullspace:
+      return "nullspace";
+    case TorqueShaping::spring:
+      return "spring";
+    case TorqueShaping::wrench:
+      return "wrench";
+    case TorqueShaping::damping:
+      return "damping";
+    case TorqueShaping::gravity:
+      return "gravity";
+  }
+  return "unknown";
+}
+
 namespace {
 Matrix6d in_base(const Matrix6d& matrix, Frame frame, const Eigen::Quaterniond& orientation) {
   if (frame == Frame::base) return matrix;
@@ -193,7 +211,7 @@ void CartesianImpedanceController::commit(const Parameters& parameters, Targets 
   state_.commanded = commanded;
   if (!started_) state_.filtered = state_.commanded;
   refresh_damping_mode();
-  joint_torque_limit_ = per_joint(parameters.limits.joint_torque, num_joints_);
+  joint_torque_limit_ = per_joint(parameters.limits.joint_torque, num_joints_, kDefaultJointTorque);
   joint_torque_rate_limit_ = per_joint(parameters.limits.joint_torque_rate, num_joints_);
   joint_velocity_bound_ = per_joint(parameters.plausibility.joint_velocity, num_joints_);
   // A raised bound holds at once (the rate limit keeps the torque continuous); a lowered one
@@ -531,7 +549,7 @@ Status CartesianImpedanceController::cycle(const RobotState& robot, double dt,
   filter_targets();
   Fault fault;
   if (!evaluate_law(robot, fault)) return fail_closed(Status::numerical_error, fault, dt);
-  limit_torque(dt);
+  limit_torque(robot, dt);
   state_.status = Status::ok;
   state_.fault = Fault{};
   return state_.status;

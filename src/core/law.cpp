@@ -39,7 +39,10 @@ CartesianImpedanceController::Law::Law(int num_joints)
       damping_computed_for_ratio(Vector6d::Constant(std::numeric_limits<double>::quiet_NaN())),
       nullspace_damping(JointVector::Zero(num_joints)),
       tau_0(JointVector::Zero(num_joints)),
-      max_step(JointVector::Zero(num_joints)) {
+      max_step(JointVector::Zero(num_joints)),
+      tau_spring(JointVector::Zero(num_joints)),
+      tau_damping(JointVector::Zero(num_joints)),
+      tau_kept(JointVector::Zero(num_joints)) {
   forget_damping();
 }
 
@@ -171,18 +174,23 @@ void CartesianImpedanceController::spring_damper(const RobotState& robot) noexce
     rotate_six_inverse(rotation, velocity, velocity_frame);
   }
   const Matrix6d& damping = state_.damping;
+  Vector6d spring_frame;
   if (law_->damping_diagonal) {
-    force_frame = -filtered.stiffness.diagonal().cwiseProduct(error_frame) -
-                  damping.diagonal().cwiseProduct(velocity_frame);
+    spring_frame = -filtered.stiffness.diagonal().cwiseProduct(error_frame);
+    force_frame = spring_frame - damping.diagonal().cwiseProduct(velocity_frame);
   } else {
-    force_frame.noalias() = -filtered.stiffness * error_frame;
+    spring_frame.noalias() = -filtered.stiffness * error_frame;
+    force_frame = spring_frame;
     force_frame.noalias() -= damping * velocity_frame;
   }
+  // The spring alone is kept for the torque shaping, which may scale it apart from the damping.
   Vector6d force;
   if (in_base) {
     force = force_frame;
+    law_->spring_force = spring_frame;
   } else {
     rotate_six(rotation, force_frame, force);
+    rotate_six(rotation, spring_frame, law_->spring_force);
   }
   jacobian_transpose_times(robot.jacobian, force, state_.tau_cartesian);
 }
@@ -242,20 +250,100 @@ void CartesianImpedanceController::gravity(const RobotState& robot) noexcept {
   }
 }
 
-void CartesianImpedanceController::limit_torque(double dt) noexcept {
-  // The bound in force ramps down toward limits.joint_torque at the rate limit (and never sits
-  // below it), so a lowered limit is reached as fast as the rate limit allows. The torque is
-  // clamped to that bound before and after the rate limit: the previous torque lies within the
-  // previous bound, so the clamp after the rate limit moves each joint by at most rate * dt.
+namespace {
+
+// The largest a in [0, 1] for which kept + a part lies within [-bound, bound] on every joint, or
+// -1 if `kept` alone does not (then `part` has to go, and what comes before it too).
+double largest_fitting_scale(const JointVector& kept, const JointVector& part,
+                             const JointVector& bound) noexcept {
+  double scale = 1.0;
+  for (Eigen::Index i = 0; i < kept.size(); ++i) {
+    const double room_up = bound[i] - kept[i];
+    const double room_down = -bound[i] - kept[i];
+    // Rounding in the sums may put `kept` a few ulps outside a bound it touches.
+    const double slack = 1e-12 * bound[i];
+    if (room_up < -slack || room_down > slack) return -1.0;
+    if (part[i] > 0.0) scale = std::min(scale, std::max(room_up, 0.0) / part[i]);
+    if (part[i] < 0.0) scale = std::min(scale, std::min(room_down, 0.0) / part[i]);
+  }
+  return scale;
+}
+
+}  // namespace
+
+// The bound in force ramps down toward limits.joint_torque at the rate limit (and never sits
+// below it), so a lowered limit is reached as fast as the rate limit allows.
+JointVector& CartesianImpedanceController::ramp_torque_bound(double dt) noexcept {
   JointVector& bound = state_.joint_torque_limit;
-  JointVector& max_step = law_->max_step;
-  max_step = joint_torque_rate_limit_ * dt;
-  bound = (bound - max_step).cwiseMax(joint_torque_limit_);
+  law_->max_step = joint_torque_rate_limit_ * dt;
+  bound = (bound - law_->max_step).cwiseMax(joint_torque_limit_);
   state_.limits.joint_torque_limit_ramping = (bound.array() > joint_torque_limit_.array()).any();
+  return bound;
+}
+
+// The torque of the halt and of a failed cycle (damping and gravity only): clamped per joint.
+void CartesianImpedanceController::limit_torque(double dt) noexcept {
+  const JointVector& bound = ramp_torque_bound(dt);
+  state_.limits.torque_shaping = TorqueShaping::none;
+  state_.limits.torque_shaping_scale = 1.0;
   state_.limits.joint_torque_saturated = saturate_torque(bound, state_.tau);
-  state_.limits.torque_rate_limited = limit_rate(tau_previous_, max_step, state_.tau);
+  // The previous torque lies within the previous bound, so the clamp after the rate limit moves
+  // each joint by at most rate * dt.
+  state_.limits.torque_rate_limited = limit_rate(tau_previous_, law_->max_step, state_.tau);
   saturate_torque(bound, state_.tau);
   tau_previous_ = state_.tau;
+}
+
+// The law's torque: shaped in task space to fit the bound, then rate limited.
+void CartesianImpedanceController::limit_torque(const RobotState& robot, double dt) noexcept {
+  const JointVector& bound = ramp_torque_bound(dt);
+  shape_torque(robot, bound);
+  state_.limits.joint_torque_saturated = state_.limits.torque_shaping != TorqueShaping::none;
+  saturate_torque(bound, state_.tau);  // acts only where gravity alone does not fit
+  state_.limits.torque_rate_limited = limit_rate(tau_previous_, law_->max_step, state_.tau);
+  saturate_torque(bound, state_.tau);
+  tau_previous_ = state_.tau;
+}
+
+// Clipping each joint's torque on its own turns the Cartesian force into one of another direction:
+// a stiff spring the joints cannot deliver then pushes the arm sideways, the error grows, and the
+// clipped spring feeds a limit cycle. Instead the terms give way whole, in task space, in the
+// order of what the arm can best do without: the nullspace torque first (it never moves the end
+// effector), then the spring (scaled, it still pulls straight toward the reference, with less
+// force: a softer spring while the error is large), then the commanded wrench; the damping last,
+// since it is what takes energy out of the motion; gravity is never scaled, only clipped. Each
+// scale is the largest that fits, a continuous function of the state, so the torque stays
+// continuous where the shaping starts and where it hands from one term to the next.
+void CartesianImpedanceController::shape_torque(const RobotState& robot,
+                                                const JointVector& bound) noexcept {
+  ActiveLimits& limits = state_.limits;
+  limits.torque_shaping = TorqueShaping::none;
+  limits.torque_shaping_scale = 1.0;
+  JointVector& tau = state_.tau;
+  if ((tau.array().abs() <= bound.array()).all()) return;
+  Law& law = *law_;
+  jacobian_transpose_times(robot.jacobian, law.spring_force, law.tau_spring);
+  law.tau_damping = state_.tau_cartesian - law.tau_spring;
+  const JointVector& gravity = state_.tau_gravity;
+  const JointVector* const parts[] = {&state_.tau_nullspace, &law.tau_spring, &state_.tau_wrench,
+                                      &law.tau_damping};
+  constexpr TorqueShaping kGivesWay[] = {TorqueShaping::nullspace, TorqueShaping::spring,
+                                         TorqueShaping::wrench, TorqueShaping::damping};
+  // kept = gravity + the parts after the one giving way.
+  for (int giving_way = 0; giving_way < 4; ++giving_way) {
+    law.tau_kept = gravity;
+    for (int kept = giving_way + 1; kept < 4; ++kept) law.tau_kept += *parts[kept];
+    const double scale = largest_fitting_scale(law.tau_kept, *parts[giving_way], bound);
+    if (scale >= 0.0) {
+      tau = law.tau_kept + scale * *parts[giving_way];
+      limits.torque_shaping = kGivesWay[giving_way];
+      limits.torque_shaping_scale = scale;
+      return;
+    }
+  }
+  tau = gravity;
+  limits.torque_shaping = TorqueShaping::gravity;
+  limits.torque_shaping_scale = 0.0;
 }
 
 }  // namespace cartesian_impedance

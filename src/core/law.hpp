@@ -23,6 +23,10 @@ struct CartesianImpedanceController::Law {
   JointVector nullspace_damping;  // D_ns of the cycle
   JointVector tau_0;              // the nullspace torque before the projection
   JointVector max_step;           // rate limit * dt per joint
+  // The spring's part of the Cartesian force, -K e in the base frame, and what the torque
+  // shaping (limit_torque) splits the cycle's torque into when it does not fit.
+  Vector6d spring_force = Vector6d::Zero();
+  JointVector tau_spring, tau_damping, tau_kept;
 
   // The damping must be computed anew at the next cycle (K, zeta or the mode changed).
   void forget_damping() noexcept {

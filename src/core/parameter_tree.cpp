@@ -64,6 +64,7 @@ Eigen::Vector3d decode_axes(const ParameterValue& value, const ParameterInfo& ro
 JointVector decode_joints(const ParameterValue& value, const ParameterInfo& row) {
   using Kind = ParameterValue::Kind;
   const bool list = value.is(Kind::list);
+  if (list && value.as_list().empty() && may_come_from_the_robot(row.name)) return JointVector();
   if (value.is(Kind::map) ||
       (list && (value.as_list().empty() || value.as_list().size() > kMaxJoints))) {
     wrong_shape(

@@ -146,8 +146,9 @@ std::vector<ParameterInfo> make_table() {
        "rotation error norm is clipped to this",
        [](Parameters& p) { return field_of(&p.limits.pose_error.rotation); }},
       {"limits.joint_torque", "Nm", 0.1, kMaxJointTorque, false,
-       "absolute commanded torque per joint (one value or one per joint); lowered while running, "
-       "the bound ramps down at the torque-rate limit",
+       "absolute commanded torque per joint (one value or one per joint; [] = the URDF's efforts, "
+       "100 where it gives none); at most the URDF's; lowered while running, the bound ramps "
+       "down at the torque-rate limit",
        [](Parameters& p) { return field_of(&p.limits.joint_torque); }},
       {"limits.joint_torque_rate", "Nm/s", 1, 1e6, false,
        "rate of change of the commanded torque, per joint (one value or one per joint)",
@@ -291,6 +292,15 @@ Frame frame_from_name(std::string_view field, std::string_view name) {
   return decode_frame(ParameterValue::string(std::string(name)), field);
 }
 
+bool may_come_from_the_robot(std::string_view name) {
+  return name == "limits.joint_torque";
+}
+
+JointVector per_joint(const JointVector& values, int num_joints, double otherwise) {
+  if (values.size() == 0) return JointVector::Constant(num_joints, otherwise);
+  return per_joint(values, num_joints);
+}
+
 JointVector per_joint(const JointVector& values, int num_joints) {
   if (values.size() == num_joints) return values;
   return JointVector::Constant(num_joints, values.size() > 0 ? values[0] : 0.0);
@@ -308,8 +318,9 @@ void validate(const Parameters& parameters, int num_joints) {
         info.check(element_name(info.name, kAxisSuffix[i]), (**vector)[i]);
     } else if (auto* joints = std::get_if<JointVector*>(&field)) {
       const JointVector& values = **joints;
-      const bool size_ok = num_joints > 0 ? (values.size() == 1 || values.size() == num_joints)
-                                          : (values.size() >= 1 && values.size() <= kMaxJoints);
+      const bool size_ok = (values.size() == 0 && may_come_from_the_robot(info.name)) ||
+                           (num_joints > 0 ? (values.size() == 1 || values.size() == num_joints)
+                                           : (values.size() >= 1 && values.size() <= kMaxJoints));
       if (!size_ok) {
         throw Error(std::string(info.name) + " has " + std::to_string(values.size()) +
                     " values; expected 1 (all joints) or " +

@@ -1,5 +1,7 @@
 #include "cartesian_impedance/loop/control_loop.hpp"
 
+#include "cartesian_impedance/model/robot_limits.hpp"
+
 #include <chrono>
 #include <cmath>
 #include <thread>
@@ -53,7 +55,7 @@ ControlLoop::ControlLoop(const RobotModel& model, const Parameters& parameters,
     : model_(model),
       workspace_(model_),
       reference_workspace_(model_),
-      controller_(model_.num_joints(), parameters),
+      controller_(model_.num_joints(), with_robot_limits(parameters, model_)),
       kinematics_(workspace_.make_kinematics()),
       reference_kinematics_(reference_workspace_.make_kinematics()),
       robot_(make_robot_state(model_.num_joints())),
@@ -186,7 +188,11 @@ int ControlLoop::claim(std::vector<std::unique_ptr<SlotType>>& slots) const {
 }
 
 ValidCommand ControlLoop::validate(const Command& command) const {
-  ValidCommand valid = validate_command(command, num_joints());
+  // Parameters are checked as the controller will use them: the torque bound the URDF gives
+  // filled in, or a given one above it refused.
+  const auto* given = std::get_if<Parameters>(&command);
+  ValidCommand valid = validate_command(
+      given != nullptr ? Command(with_robot_limits(*given, model_)) : command, num_joints());
   // What only the loop knows: a nullspace target within the URDF's joint limits (outside them the
   // nullspace spring would fight the limit).
   std::visit(Overloaded{[this](const NullspaceTarget& target) {

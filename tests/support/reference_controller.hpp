@@ -156,8 +156,13 @@ class Controller {
                                         a_nullspace * commanded_.nullspace_damping_ratio;
     filtered_.wrench = (1 - a_wrench) * filtered_.wrench + a_wrench * commanded_.wrench;
 
-    Eigen::VectorXd tau = law(q, dq, position, orientation, jacobian, filtered_, parameters_).total;
+    const Torques torques = law(q, dq, position, orientation, jacobian, filtered_, parameters_);
     const double torque_limit = parameters_.limits.joint_torque[0];
+    Eigen::VectorXd tau = shape(
+        torques,
+        law(q, Eigen::VectorXd::Zero(n_), position, orientation, jacobian, filtered_, parameters_)
+            .cartesian,
+        torque_limit);
     const double max_step = parameters_.limits.joint_torque_rate[0] * dt;
     for (Eigen::Index i = 0; i < n_; ++i) {
       tau[i] = std::clamp(tau[i], -torque_limit, torque_limit);
@@ -165,6 +170,32 @@ class Controller {
     }
     tau_previous_ = tau;
     return tau;
+  }
+
+  // The task-space shaping of a torque beyond the bound, written as its definition: the terms
+  // give way in the order nullspace, spring, wrench, damping, each scaled by the largest factor
+  // (found by bisection) that makes the sum fit. `spring` is the Cartesian torque at dq = 0.
+  static Eigen::VectorXd shape(const Torques& torques, const Eigen::VectorXd& spring,
+                               double limit) {
+    const auto fits = [limit](const Eigen::VectorXd& tau) {
+      return tau.cwiseAbs().maxCoeff() <= limit * (1.0 + 1e-12);
+    };
+    if (fits(torques.total)) return torques.total;
+    const Eigen::VectorXd damping = torques.cartesian - spring;
+    const Eigen::VectorXd parts[] = {torques.nullspace, spring, torques.wrench, damping};
+    for (int giving_way = 0; giving_way < 4; ++giving_way) {
+      Eigen::VectorXd kept = Eigen::VectorXd::Zero(spring.size());
+      for (int k = giving_way + 1; k < 4; ++k) kept += parts[k];
+      if (!fits(kept)) continue;
+      double low = 0.0, high = 1.0;
+      if (fits(kept + parts[giving_way])) return kept + parts[giving_way];
+      for (int step = 0; step < 60; ++step) {
+        const double middle = 0.5 * (low + high);
+        (fits(kept + middle * parts[giving_way]) ? low : high) = middle;
+      }
+      return kept + low * parts[giving_way];
+    }
+    return Eigen::VectorXd::Zero(spring.size());
   }
 
  private:

@@ -24,10 +24,13 @@ namespace cartesian_impedance {
 ///         outside its range, more than ParameterTreeGuard::kMaxValues (100000) values or lists
 ///         and maps nested more than kMaxDepth (32) deep or inside themselves (aliases), or a set
 ///         that fails validate(). Messages are the decoder's (ParameterError) after `file:line: `.
-Parameters load_parameters(const std::string& path);
+/// What the file leaves out keeps its value in `defaults` (the library's, or those suited to a
+/// robot: default_parameters(model) in model/robot_limits.hpp).
+Parameters load_parameters(const std::string& path, const Parameters& defaults = Parameters{});
 
 /// As load_parameters(), from YAML text; `source` names it in messages.
-Parameters parameters_from_yaml(const std::string& yaml, std::string_view source = "<yaml>");
+Parameters parameters_from_yaml(const std::string& yaml, std::string_view source = "<yaml>",
+                                const Parameters& defaults = Parameters{});
 
 /// The YAML text as the decoder's value tree, every value located as `source:line`, after every
 /// check of the YAML itself that parameters_from_yaml() makes (malformed text, a second document,

@@ -67,6 +67,24 @@ struct Targets {
   JointVector nullspace_dq;  ///< nullspace target velocity [rad/s]
 };
 
+/// Which term of the law gave way when the torque it asked for exceeded a joint's bound
+/// (ControllerState::joint_torque_limit). The command is shaped in task space, in this order of
+/// giving way: the nullspace torque, then the Cartesian spring, then the commanded wrench, then
+/// the damping; gravity is only ever clipped. The term named was scaled by
+/// ActiveLimits::torque_shaping_scale (keeping its direction); the terms before it were dropped,
+/// those after it kept whole.
+enum class TorqueShaping {
+  none,       ///< the torque fitted: nothing shaped
+  nullspace,  ///< the nullspace torque scaled
+  spring,     ///< the nullspace dropped, the spring -K e scaled
+  wrench,     ///< the nullspace and spring dropped, the commanded wrench scaled
+  damping,    ///< only damping and gravity left, the damping scaled
+  gravity,    ///< not even gravity fits: it is clipped per joint
+};
+
+/// "none", "nullspace", "spring", "wrench", "damping", "gravity".
+const char* to_string(TorqueShaping shaping) noexcept;
+
 /// Which limits shaped the commands and the last cycle. A command saturation flag says whether
 /// the last command of that quantity was saturated (new parameters re-command them all); the
 /// others describe the last cycle.
@@ -77,7 +95,12 @@ struct ActiveLimits {
   bool wrench_saturated = false;
   bool translation_error_clipped = false;
   bool rotation_error_clipped = false;
+  /// The torque the law asked for exceeded a joint's bound in force: it was shaped in task space
+  /// (see torque_shaping), and clipped per joint only where gravity alone does not fit.
   bool joint_torque_saturated = false;
+  /// Which term gave way to the torque bound, and the fraction of it that was kept [0, 1].
+  TorqueShaping torque_shaping = TorqueShaping::none;
+  double torque_shaping_scale = 1.0;
   bool torque_rate_limited = false;
   /// limits.joint_torque was lowered below the torque being commanded: the bound in force
   /// (ControllerState::joint_torque_limit) is ramping down to it at the torque-rate limit.
@@ -259,6 +282,9 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   void commanded_wrench(const RobotState& robot) noexcept;
   void gravity(const RobotState& robot) noexcept;
   void limit_torque(double dt) noexcept;
+  void limit_torque(const RobotState& robot, double dt) noexcept;
+  JointVector& ramp_torque_bound(double dt) noexcept;
+  void shape_torque(const RobotState& robot, const JointVector& bound) noexcept;
 
   int num_joints_;
   Parameters parameters_;

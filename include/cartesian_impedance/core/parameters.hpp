@@ -14,6 +14,14 @@
 
 namespace cartesian_impedance {
 
+/// The torque bound of a joint whose limit nobody gave: not in the parameters, not in the URDF
+/// [Nm or N].
+inline constexpr double kDefaultJointTorque = 100.0;
+
+/// True for the per-joint parameters that may be left empty to mean "from the robot's URDF"
+/// (limits.joint_torque).
+bool may_come_from_the_robot(std::string_view name);
+
 /// Closed interval [min, max] used for saturation limits and plausibility bounds.
 struct Range {
   double min = 0.0;
@@ -131,8 +139,11 @@ struct LimitParameters {
   Range nullspace_stiffness{0.0, 500.0};                   ///< [Nm/rad]
   WrenchLimits wrench{100.0, 20.0};
   PoseErrorLimits pose_error{0.1, 0.5};
-  /// Absolute commanded torque per joint [Nm]: one value for every joint, or one per joint.
-  JointVector joint_torque = JointVector::Constant(1, 100.0);
+  /// Absolute commanded torque per joint [Nm]: one value for every joint, or one per joint, or
+  /// none (empty, the default): the URDF's efforts, which the control loop fills in (see
+  /// model/robot_limits.hpp; a value above them is refused); kDefaultJointTorque per joint where
+  /// there is no URDF or it gives no effort.
+  JointVector joint_torque = JointVector();
   /// Rate of change of the commanded torque per joint [Nm/s]: one value, or one per joint.
   JointVector joint_torque_rate = JointVector::Constant(1, 1000.0);
 };
@@ -207,6 +218,9 @@ Frame frame_from_name(std::string_view field, std::string_view name);
 /// The parameter table as Markdown (name, unit, default, range, description), as in the README.
 std::string parameter_table_markdown();
 
+/// Expands a per-joint field (1 or n entries) to n entries; an empty one (a value left to the
+/// robot, see may_come_from_the_robot()) to `otherwise`.
+JointVector per_joint(const JointVector& values, int num_joints, double otherwise);
 /// Expands a per-joint field (1 or n entries) to n entries.
 JointVector per_joint(const JointVector& values, int num_joints);
 
