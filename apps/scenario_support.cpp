@@ -117,8 +117,9 @@ Capacity capacity(Rig& rig) {
   workspace.compute(result.q, JointVector::Zero(n), kinematics, true);
   result.reach = kinematics.pose.position.norm();
   result.jacobian = kinematics.jacobian;
+  // An empty limits.joint_torque means the URDF's efforts.
   const JointVector limit = model.limits().effort.cwiseMin(
-      per_joint(rig.loop().controller().parameters().limits.joint_torque, n));
+      per_joint(rig.loop().controller().parameters().limits.joint_torque, n, kForever));
   result.torque_left = (limit - kinematics.gravity.cwiseAbs()).cwiseMax(0.0);
   result.lower = model.limits().position_lower;
   result.upper = model.limits().position_upper;
@@ -249,6 +250,12 @@ std::vector<std::string> overrides(const RobotSetup& robot, const Parameters& us
   if (configured.filter.nullspace.time != used.filter.nullspace.time) {
     out.push_back("filter.nullspace.time = " + std::to_string(used.filter.nullspace.time) +
                   " s (configured: " + std::to_string(configured.filter.nullspace.time) + ")");
+  }
+  if (configured.trajectory.goal_tolerance != used.trajectory.goal_tolerance) {
+    out.push_back(
+        format("trajectory.goal_tolerance = %.3g rad (configured: %.3g): what the "
+               "joints' friction holds against the springs, twice",
+               used.trajectory.goal_tolerance, configured.trajectory.goal_tolerance));
   }
   if (configured.filter.pose.time != used.filter.pose.time) {
     out.push_back("filter.pose.time = " + std::to_string(used.filter.pose.time) +

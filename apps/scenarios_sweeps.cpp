@@ -1,3 +1,4 @@
+#include <Eigen/QR>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -22,6 +23,38 @@ Outcome trajectory(const RobotSetup& robot, const MomentCallback& moment) {
   // friction, 50 Nm/rad keeps it within a few mrad of the goal.
   parameters.nullspace.stiffness =
       JointVector::Constant(1, std::min(50.0, parameters.limits.nullspace_stiffness.max));
+  {
+    // The joints' friction tau_f can hold each joint short of the goal by up to
+    // (J^T K J + N^T K_n N)^-1 tau_f (the springs the law puts on the joints: the Cartesian one
+    // through J, the nullspace one through the projector N), largest at a corner of the box of
+    // friction torques. Where that is more than the configured goal tolerance (an arm whose
+    // limits.stiffness keeps the spring soft) the trajectory could never be reported finished:
+    // the scenario then allows twice it.
+    Rig probe(robot, parameters);
+    const Eigen::MatrixXd jacobian = jacobian_now(probe);
+    const int n = probe.model().num_joints();
+    Vector6d k;
+    k << parameters.stiffness.translation, parameters.stiffness.rotation;
+    const Eigen::MatrixXd projector =
+        Eigen::MatrixXd::Identity(n, n) -
+        Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(jacobian).pseudoInverse() *
+            jacobian;
+    const Eigen::MatrixXd joint_stiffness =
+        jacobian.transpose() * k.asDiagonal() * jacobian +
+        projector.transpose() * per_joint(parameters.nullspace.stiffness, n).asDiagonal() *
+            projector;
+    const Eigen::MatrixXd compliance =
+        Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(joint_stiffness).pseudoInverse();
+    const JointVector friction = probe.sim().friction_loss();
+    double held = 0.0;
+    for (long corner = 0; corner < (1L << n); ++corner) {
+      Eigen::VectorXd tau(n);
+      for (int i = 0; i < n; ++i) tau[i] = (corner >> i & 1) ? friction[i] : -friction[i];
+      held = std::max(held, (compliance * tau).cwiseAbs().maxCoeff());
+    }
+    parameters.trajectory.goal_tolerance =
+        std::min(1.0, std::max(parameters.trajectory.goal_tolerance, 2.0 * held));
+  }
   Rig rig(robot, parameters);
   rig.run(0.2);
   const JointVector start = rig.sim().q();
@@ -154,7 +187,12 @@ Outcome stability_grid(const RobotSetup& robot, const MomentCallback&) {
       Matrix6d stiffness = Matrix6d::Zero();
       bool limited = false;
       JointVector dq_before = rig.sim().dq();
-      for (int k = 0; k < 2500; ++k) {
+      // 2.5 s, or 6 time constants d / K of the minimum damping against the spring where that
+      // is longer (a soft grid point is overdamped by it: e^-6 leaves 0.25 % of the step).
+      const MinimumDampingParameters& floor = rig.loop().controller().parameters().minimum_damping;
+      const double settle =
+          std::max(2.5, 6.0 * std::max(floor.translation / kt, floor.rotation / kr));
+      for (int k = 0; k < static_cast<int>(settle / kDt); ++k) {
         rig.run(kDt);
         const ControllerState& state = rig.loop().state().controller;
         const Vector6d& e = state.pose_error;
