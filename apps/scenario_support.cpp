@@ -107,6 +107,76 @@ Result not_applicable(const std::string& scenario, const std::string& quantity,
   return result;
 }
 
+Capacity capacity(Rig& rig) {
+  Capacity result;
+  const RobotModel& model = rig.model();
+  const int n = model.num_joints();
+  ModelWorkspace workspace(model);
+  Kinematics kinematics = workspace.make_kinematics();
+  result.q = rig.sim().q();
+  workspace.compute(result.q, JointVector::Zero(n), kinematics, true);
+  result.reach = kinematics.pose.position.norm();
+  result.jacobian = kinematics.jacobian;
+  // An empty limits.joint_torque means the URDF's efforts.
+  const JointVector limit = model.limits().effort.cwiseMin(
+      per_joint(rig.loop().controller().parameters().limits.joint_torque, n, kForever));
+  result.torque_left = (limit - kinematics.gravity.cwiseAbs()).cwiseMax(0.0);
+  result.lower = model.limits().position_lower;
+  result.upper = model.limits().position_upper;
+  return result;
+}
+
+namespace {
+double largest_along(const Capacity& capacity, const Vector6d& wrench) {
+  const Eigen::VectorXd torque = capacity.jacobian.transpose() * wrench;
+  double largest = kForever;
+  for (int i = 0; i < torque.size(); ++i) {
+    if (std::abs(torque[i]) > 1e-12) {
+      largest = std::min(largest, capacity.torque_left[i] / std::abs(torque[i]));
+    }
+  }
+  return largest;
+}
+}  // namespace
+
+double Capacity::force_along(const Eigen::Vector3d& direction) const {
+  Vector6d wrench = Vector6d::Zero();
+  wrench.head<3>() = direction.normalized();
+  return largest_along(*this, wrench);
+}
+
+double Capacity::torque_about(const Eigen::Vector3d& axis) const {
+  Vector6d wrench = Vector6d::Zero();
+  wrench.tail<3>() = axis.normalized();
+  return largest_along(*this, wrench);
+}
+
+double Capacity::fraction_within_limits(const Vector6d& twist, double margin) const {
+  const Eigen::VectorXd dq =
+      Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(jacobian).solve(twist);
+  for (double fraction = 1.0; fraction >= 0.125; fraction *= 0.5) {
+    const JointVector goal = q + fraction * dq;
+    if (((goal - lower).array() >= margin).all() && ((upper - goal).array() >= margin).all()) {
+      return fraction;
+    }
+  }
+  return 0.0;
+}
+
+double fitted_load(double tuned, double capacity, double stiffness, double travel) {
+  double load = std::min(tuned, kLoadShare * capacity);
+  if (stiffness > 0.0) load = std::min(load, stiffness * travel);
+  return load;
+}
+
+std::string load_note(double tuned, double used, const char* unit) {
+  if (used >= tuned) return "";
+  return format(
+      "%.3g %s instead of the tuned %.3g %s: at most %.0f %% of what the joints hold, "
+      "and a spring travel of a few cm",
+      used, unit, tuned, unit, 100.0 * kLoadShare);
+}
+
 namespace {
 const char* const kDirectionNames[6] = {
     "x", "y", "z", "rotation about x", "rotation about y", "rotation about z"};
@@ -180,6 +250,12 @@ std::vector<std::string> overrides(const RobotSetup& robot, const Parameters& us
   if (configured.filter.nullspace.time != used.filter.nullspace.time) {
     out.push_back("filter.nullspace.time = " + std::to_string(used.filter.nullspace.time) +
                   " s (configured: " + std::to_string(configured.filter.nullspace.time) + ")");
+  }
+  if (configured.trajectory.goal_tolerance != used.trajectory.goal_tolerance) {
+    out.push_back(
+        format("trajectory.goal_tolerance = %.3g rad (configured: %.3g): what the "
+               "joints' friction holds against the springs, twice",
+               used.trajectory.goal_tolerance, configured.trajectory.goal_tolerance));
   }
   if (configured.filter.pose.time != used.filter.pose.time) {
     out.push_back("filter.pose.time = " + std::to_string(used.filter.pose.time) +

@@ -71,6 +71,42 @@ struct FrictionBand {
 };
 FrictionBand friction_band(Rig& rig);
 
+/// What the arm can do at the rig's current configuration, from its URDF (efforts, position
+/// limits) and the parameters in force (limits.joint_torque): the scenarios size their pushes,
+/// steps, table and trajectory by it, so that they fit an arm nobody tuned them for.
+struct Capacity {
+  double reach = 0.0;  ///< distance from the base origin to the flange [m]
+  /// Per joint: what is left of min(URDF effort, limits.joint_torque) once g(q) is held [Nm]. The
+  /// simulated firmware holds gravity apart, but a real arm's limit covers both.
+  JointVector torque_left;
+  JointVector q;             ///< where it was computed [rad]
+  Eigen::MatrixXd jacobian;  ///< 6 x n at q, base frame
+  JointVector lower, upper;  ///< position limits [rad]
+  /// Largest force [N] along `direction` (base frame, normalised here) the joints can hold at the
+  /// flange: J^T (F d) must stay within torque_left, so F = min_i torque_left_i / |(J^T d)_i|.
+  double force_along(const Eigen::Vector3d& direction) const;
+  /// The same for a torque about `axis` [Nm].
+  double torque_about(const Eigen::Vector3d& axis) const;
+  /// The largest of 1, 1/2, ... 1/8 of the flange motion `twist` [m; rad, base frame] whose joint
+  /// motion to first order, J^+ twist, keeps every joint `margin` [rad] inside its limits; 0 if
+  /// none does.
+  double fraction_within_limits(const Vector6d& twist, double margin) const;
+};
+Capacity capacity(Rig& rig);
+
+/// Of what the joints can hold, the share a scenario's largest load may take: the rest is left
+/// for the arm's own acceleration, the damping, and the law's margin to its torque limits.
+constexpr double kLoadShare = 0.3;
+
+/// The load [N or Nm] a scenario applies: `tuned` (the value the shipped robots were tuned with),
+/// or less where it would exceed kLoadShare of `capacity` or carry a spring of `stiffness` farther
+/// than `travel` (beyond a few cm an arm is no longer linear about its start).
+double fitted_load(double tuned, double capacity, double stiffness, double travel);
+
+/// "20 N is more than 30 % of the 45 N its joints can hold along x at the start": why a load was
+/// reduced, for the result's note; "" if it was not.
+std::string load_note(double tuned, double used, const char* unit);
+
 // The scenarios, in scenarios.cpp and scenarios_sweeps.cpp.
 Outcome hold(const RobotSetup& robot, const MomentCallback& moment);
 Outcome compliance(const RobotSetup& robot, const MomentCallback& moment);

@@ -12,34 +12,51 @@
 
 namespace cartesian_impedance::scenarios::detail {
 
-// 1. Hold: a payload the robot's firmware does not know about (1 kg at the flange) makes the
-// spring sag by m g / K, and the arm then stays there. A dead controller would let it fall.
+// 1. Hold: a payload the robot's firmware does not know about (1 kg at the flange, less on an
+// arm whose joints cannot carry that with room to spare) makes the spring sag by m g / K, and the
+// arm then stays there. A dead controller would let it fall.
 Outcome hold(const RobotSetup& robot, const MomentCallback& moment) {
   Rig rig(robot, base_parameters(robot));
   const TaskDirections directions = task_directions(rig);
+  const std::string sag_quantity = "sag under an unknown payload (m g / K)";
   if (!directions.controlled[2]) {
-    return {{not_applicable("hold", "sag under an unknown 1 kg payload",
+    return {{not_applicable("hold", sag_quantity,
                             "the arm cannot move its flange along z (it moves in " +
                                 directions.describe() + ")")},
             {}};
   }
+  const Parameters& parameters = rig.loop().controller().parameters();
+  const double stiffness = parameters.stiffness.translation.z();
+  // The weight: 1 kg, or what the joints hold with room to spare and the spring carries within a
+  // few cm (the sag stays in the arm's linear range, short of limits.pose_error's clipping).
+  const Capacity can = capacity(rig);
+  const double weight = fitted_load(9.81, can.force_along(-Eigen::Vector3d::UnitZ()), stiffness,
+                                    std::min(0.04, 0.9 * parameters.limits.pose_error.translation));
+  const double payload = weight / 9.81;  // [kg]
+  // The sag's tolerance is what friction holds (band / K): a weight not well above it measures
+  // nothing.
+  const double held = friction_band(rig).force_along.z();
+  if (weight < 5.0 * held) {
+    return {{not_applicable("hold", sag_quantity,
+                            format("the joints carry %.2g N with room to spare, not 5 x the %.2g "
+                                   "N their friction holds along z",
+                                   weight, held))},
+            {}};
+  }
   rig.run(0.5);
   const Pose reference = rig.loop().state().controller.filtered.pose;
-  const double payload = 1.0;  // [kg]
-  rig.push(Eigen::Vector3d(0.0, 0.0, -9.81 * payload));
+  rig.push(Eigen::Vector3d(0.0, 0.0, -weight));
   rig.remember_pose("without the payload");
-  rig.phase("1 kg payload");
+  rig.phase(format("%.3g kg payload", payload));
   rig.run(3.0);
   const Pose loaded = rig.flange();
   rig.run(2.0);
   const Pose end = rig.flange();
-  const Parameters& parameters = rig.loop().controller().parameters();
-  const double stiffness = parameters.stiffness.translation.z();
-  notify(moment, "holding a 1 kg payload", rig,
+  notify(moment, format("holding a %.3g kg payload", payload), rig,
          {format("the payload's weight (orange arrow) sags the flange %.1f mm (theory m g / K = "
-                 "9.81 N / %.0f N/m = %.1f mm)",
-                 1e3 * (reference.position - end.position).z(), stiffness,
-                 1e3 * 9.81 * payload / stiffness)});
+                 "%.3g N / %.0f N/m = %.1f mm)",
+                 1e3 * (reference.position - end.position).z(), weight, stiffness,
+                 1e3 * weight / stiffness)});
   const FrictionBand band = friction_band(rig);
   // The softest rotational spring among the directions the arm can turn in (the others hold by
   // the arm's structure, whatever their stiffness).
@@ -50,9 +67,10 @@ Outcome hold(const RobotSetup& robot, const MomentCallback& moment) {
     }
   }
   const double sag = 1e3 * (reference.position - end.position).z();
-  return {{compare("hold", "sag under an unknown 1 kg payload (m g / K)",
-                   1e3 * 9.81 * payload / stiffness, sag, "mm", 1e3 * band.force / stiffness,
-                   "tolerance: what joint friction can hold"),
+  const std::string note = load_note(9.81, weight, "N");
+  return {{compare("hold", format("sag under an unknown %.3g kg payload (m g / K)", payload),
+                   1e3 * weight / stiffness, sag, "mm", 1e3 * band.force / stiffness,
+                   "tolerance: what joint friction can hold" + (note.empty() ? "" : "; " + note)),
            at_most("hold", "sideways motion", 1.0 + 1e3 * band.force / stiffness,
                    1e3 * (end.position - reference.position).head<2>().norm(), "mm"),
            at_most("hold", "rotation", 0.01 + band.torque / rotation_stiffness,
@@ -110,86 +128,129 @@ PushResponse respond(Rig& rig, const Eigen::Vector3d& force, const Eigen::Vector
 // doubling K halves the displacement.
 Outcome compliance(const RobotSetup& robot, const MomentCallback& moment) {
   Parameters parameters = base_parameters(robot);
-  parameters.stiffness.translation.setConstant(500.0);
-  parameters.stiffness.rotation.setConstant(50.0);
+  // 500 N/m and 50 Nm/rad, or less where limits.stiffness would not let K double (translation)
+  // or not allow it (rotation).
+  const double soft = std::min(500.0, 0.5 * parameters.limits.stiffness.translation.max);
+  const double soft_rotation = std::min(50.0, parameters.limits.stiffness.rotation.max);
+  parameters.stiffness.translation.setConstant(soft);
+  parameters.stiffness.rotation.setConstant(soft_rotation);
   Rig rig(robot, parameters);
   const TaskDirections directions = task_directions(rig);
+  const Capacity can = capacity(rig);
+  const FrictionBand band = friction_band(rig);
   Outcome outcome;
   outcome.overrides = overrides(robot, parameters);
   const char* axes = "xyz";
   const std::string cannot = "the arm cannot move its flange in this direction (it moves in " +
                              directions.describe() + ")";
   // Loads well above the joints' friction (0.1-0.2 Nm), which would otherwise hold the arm a
-  // few per cent short of the spring's equilibrium.
-  const double force = 20.0, torque = 5.0;
+  // few per cent short of the spring's equilibrium: 20 N and 5 Nm as tuned, or what the joints
+  // hold with room to spare (respond() briefly pushes up to 1.5 times that), within 4 cm and
+  // 0.1 rad of the spring (the linear range about the start, short of limits.pose_error).
+  const double travel = std::min(0.04, 0.9 * parameters.limits.pose_error.translation);
+  const double turn = std::min(0.1, 0.9 * parameters.limits.pose_error.rotation);
+  const auto force_along = [&](int axis) {
+    return fitted_load(20.0, can.force_along(Eigen::Vector3d::Unit(axis)), soft, travel);
+  };
+  // The loading/unloading average cancels the friction band only while it is a small part of
+  // the load: below 5 times the band the 5 % tolerance would not hold.
+  const auto too_weak = [&](double load, double held, const char* unit) {
+    return format("%.2g %s is not 5 x the %.2g %s the joints' friction holds", load, unit, held,
+                  unit);
+  };
   for (int axis = 0; axis < 3; ++axis) {
-    const std::string quantity = std::string("force along ") + axes[axis] + ": 20 N at 500 N/m";
+    const double force = force_along(axis);
+    const std::string quantity =
+        format("force along %c: %.3g N at %.4g N/m", axes[axis], force, soft);
     if (!directions.controlled[static_cast<std::size_t>(axis)]) {
       outcome.results.push_back(not_applicable("compliance", quantity, cannot));
       continue;
     }
+    if (force < 5.0 * band.force_along[axis]) {
+      outcome.results.push_back(
+          not_applicable("compliance", quantity, too_weak(force, band.force_along[axis], "N")));
+      continue;
+    }
     const Eigen::Vector3d direction = Eigen::Vector3d::Unit(axis);
-    const double expected = 1e3 * force / parameters.stiffness.translation[axis];
+    const double expected = 1e3 * force / soft;
     const double measured =
         1e3 * respond(rig, force * direction, Eigen::Vector3d::Zero()).displacement.dot(direction);
     if (axis == 0) {
-      notify(moment, "pushed 20 N along x", rig,
-             {format("the flange gave way %.1f mm along x (theory F / K = 20 N / 500 N/m = "
+      notify(moment, format("pushed %.3g N along x", force), rig,
+             {format("the flange gave way %.1f mm along x (theory F / K = %.3g N / %.4g N/m = "
                      "%.0f mm)",
-                     measured, expected)});
+                     measured, force, soft, expected)});
     }
-    outcome.results.push_back(
-        compare("compliance", quantity, expected, measured, "mm", 0.05 * expected));
+    outcome.results.push_back(compare("compliance", quantity, expected, measured, "mm",
+                                      0.05 * expected, load_note(20.0, force, "N")));
   }
   for (int axis = 0; axis < 3; ++axis) {
-    const std::string quantity = std::string("torque about ") + axes[axis] + ": 5 Nm at 50 Nm/rad";
+    const double torque =
+        fitted_load(5.0, can.torque_about(Eigen::Vector3d::Unit(axis)), soft_rotation, turn);
+    const std::string quantity =
+        format("torque about %c: %.3g Nm at %.4g Nm/rad", axes[axis], torque, soft_rotation);
     if (!directions.controlled[static_cast<std::size_t>(3 + axis)]) {
       outcome.results.push_back(not_applicable("compliance", quantity, cannot));
       continue;
     }
+    if (torque < 5.0 * band.torque) {
+      outcome.results.push_back(
+          not_applicable("compliance", quantity, too_weak(torque, band.torque, "Nm")));
+      continue;
+    }
     const Eigen::Vector3d direction = Eigen::Vector3d::Unit(axis);
-    const double expected = torque / parameters.stiffness.rotation[axis];
+    const double expected = torque / soft_rotation;
     const double measured =
         respond(rig, Eigen::Vector3d::Zero(), torque * direction).rotation.dot(direction);
-    outcome.results.push_back(
-        compare("compliance", quantity, expected, measured, "rad", 0.05 * expected));
+    outcome.results.push_back(compare("compliance", quantity, expected, measured, "rad",
+                                      0.05 * expected, load_note(5.0, torque, "Nm")));
   }
   // A sweep along x (or the first direction the arm moves in): displacement against force is a
   // line of slope 1 / K.
   const int along = directions.first_of({0, 1, 2});
-  if (along < 0) {
-    outcome.results.push_back(not_applicable("compliance sweep", "displacement under 5..20 N",
-                                             "the arm cannot move its flange along any axis"));
+  const double force = along < 0 ? 0.0 : force_along(along);
+  if (along < 0 || force < 5.0 * band.force_along[along]) {
+    const std::string why = along < 0 ? "the arm cannot move its flange along any axis"
+                                      : too_weak(force, band.force_along[along], "N");
+    outcome.results.push_back(
+        not_applicable("compliance sweep", "displacement under a quarter to all of the push", why));
+    outcome.results.push_back(
+        not_applicable("stiffness change", "displacement at 2 K / at K", why));
     outcome.samples = rig.samples();
     return outcome;
   }
   const Eigen::Vector3d unit = Eigen::Vector3d::Unit(along);
-  for (const double sweep : {5.0, 10.0, 15.0, 20.0}) {
-    const double expected = 1e3 * sweep / parameters.stiffness.translation[along];
+  // Four loads evenly from a quarter of the push (or 5 times the friction band, where that is
+  // more: below it the band would not average out to within the 5 %) to all of it.
+  const double lightest = std::max(0.25 * force, 5.0 * band.force_along[along]);
+  for (int k = 0; k < 4; ++k) {
+    const double sweep = lightest + (force - lightest) * k / 3.0;
+    const std::string quantity = format("displacement along %c under %.3g N", axes[along], sweep);
+    const double expected = 1e3 * sweep / soft;
     const double measured =
         1e3 * respond(rig, sweep * unit, Eigen::Vector3d::Zero()).displacement.dot(unit);
-    char quantity[64];
-    std::snprintf(quantity, sizeof(quantity), "displacement along %c under %.0f N", axes[along],
-                  sweep);
     outcome.results.push_back(
         compare("compliance sweep", quantity, expected, measured, "mm", 0.05 * expected));
   }
   // Doubling K online (filtered) halves the displacement under the same push.
-  const double soft = respond(rig, force * unit, Eigen::Vector3d::Zero()).displacement.dot(unit);
-  Vector6d doubled = six(500, 500, 500, 50, 50, 50);
-  doubled[along] = 1000;
+  const double soft_travel =
+      respond(rig, force * unit, Eigen::Vector3d::Zero()).displacement.dot(unit);
+  Vector6d doubled;
+  doubled << Eigen::Vector3d::Constant(soft), Eigen::Vector3d::Constant(soft_rotation);
+  doubled[along] = 2.0 * soft;
   rig.loop().set_stiffness(doubled);
-  rig.phase(std::string("K ") + axes[along] + " doubled to 1000 N/m");
-  const double stiff = respond(rig, force * unit, Eigen::Vector3d::Zero()).displacement.dot(unit);
+  rig.phase(format("K %c doubled to %.4g N/m", axes[along], 2.0 * soft));
+  const double stiff_travel =
+      respond(rig, force * unit, Eigen::Vector3d::Zero()).displacement.dot(unit);
   notify(moment, "stiffness doubled", rig,
-         {format("at 1000 N/m the same 20 N moves the flange %.1f mm, at 500 N/m it moved %.1f mm "
-                 "(theory: half)",
-                 1e3 * stiff, 1e3 * soft)});
+         {format("at %.4g N/m the same %.3g N move the flange %.1f mm, at %.4g N/m they moved "
+                 "%.1f mm (theory: half)",
+                 2.0 * soft, force, 1e3 * stiff_travel, soft, 1e3 * soft_travel)});
   rig.release();
-  outcome.results.push_back(
-      compare("stiffness change",
-              std::string("displacement along ") + axes[along] + " at 1000 N/m / at 500 N/m", 0.5,
-              stiff / soft, "", 0.05 * 0.5));
+  outcome.results.push_back(compare(
+      "stiffness change",
+      format("displacement along %c at %.4g N/m / at %.4g N/m", axes[along], 2.0 * soft, soft), 0.5,
+      stiff_travel / soft_travel, "", 0.05 * 0.5));
   outcome.samples = rig.samples();
   return outcome;
 }
@@ -206,13 +267,30 @@ Outcome reference_step(const RobotSetup& robot, const MomentCallback& moment) {
   const Pose start = rig.flange();
   Pose target = start;
   // A step in every direction the arm can move in, and a turn about z (or the axis it can turn
-  // about).
+  // about): (10, 5, -5) cm and 0.3 rad as tuned, the step at most a fifth of the flange's
+  // distance from the base (the shipped arms step 12 cm at 0.6-0.7 m), and both halved until the
+  // joints get there (to first order) 0.1 rad inside their limits.
   Eigen::Vector3d step(0.10, 0.05, -0.05);
   for (int i = 0; i < 3; ++i)
     step[i] = directions.controlled[static_cast<std::size_t>(i)] ? step[i] : 0.0;
   const int turn_axis = directions.first_of({5, 4, 3});
-  const double turn = turn_axis < 0 ? 0.0 : 0.3;
+  double turn = turn_axis < 0 ? 0.0 : 0.3;
   const Eigen::Vector3d axis = Eigen::Vector3d::Unit(turn_axis < 0 ? 2 : turn_axis - 3);
+  const Capacity can = capacity(rig);
+  if (step.norm() > 0.0) step *= std::min(1.0, 0.2 * can.reach / step.norm());
+  Vector6d twist;
+  twist << step, turn * axis;
+  const double fraction = can.fraction_within_limits(twist, 0.1);
+  if (fraction == 0.0 || twist.isZero()) {
+    return {{not_applicable("reference step", "position and orientation error after a step",
+                            twist.isZero() ? "the arm cannot move its flange"
+                                           : "even an eighth of the step would take a joint "
+                                             "within 0.1 rad of its limit")},
+            rig.samples(),
+            overrides(robot, parameters)};
+  }
+  step *= fraction;
+  turn *= fraction;
   target.position += step;
   target.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(turn, axis)) * start.orientation;
   rig.remember_pose("at the start");
@@ -251,9 +329,9 @@ Outcome reference_step(const RobotSetup& robot, const MomentCallback& moment) {
        at_most("reference step", turn_quantity, turn_bound, rotation_between(target, end).norm(),
                "rad", "bound: 0.01 rad + what joint friction can hold against the spring"),
        // Zero for a linear critically damped system; 1 % of the step for an arm that is not
-       // linear (the task-space inertia changes along the way).
-       at_most("reference step", "overshoot along the step at damping ratio 1", 1.0,
-               1e3 * std::max(overshoot, 0.0), "mm"),
+       // linear (the task-space inertia changes along the way), and at least 1 mm.
+       at_most("reference step", "overshoot along the step at damping ratio 1",
+               std::max(1.0, 1e3 * 0.01 * step.norm()), 1e3 * std::max(overshoot, 0.0), "mm"),
        at_most("reference step", "overshoot of the turn at damping ratio 1", 0.003,
                std::max(turn_overshoot, 0.0), "rad"),
        at_most("reference step", "largest torque rate / limit", 1.0 + 1e-9,
@@ -268,14 +346,41 @@ Outcome wrench_on_table(const RobotSetup& robot, const MomentCallback& moment) {
   Parameters parameters = base_parameters(robot);
   Rig probe(robot, parameters);
   const TaskDirections directions = task_directions(probe);
+  const std::string quantity_any = "contact force under a commanded downward force";
   if (!directions.controlled[2]) {
-    return {{not_applicable("wrench", "contact force under a commanded 10 N",
+    return {{not_applicable("wrench", quantity_any,
                             "the arm cannot move its flange along z (it moves in " +
                                 directions.describe() + ")")},
             {}};
   }
+  // 10 N as tuned, or what the joints hold downward with room to spare, within limits.wrench.
+  const Capacity can = capacity(probe);
+  const double force =
+      std::min(fitted_load(10.0, can.force_along(-Eigen::Vector3d::UnitZ()), 0.0, 0.0),
+               parameters.limits.wrench.force);
+  // The check's tolerance includes the friction band along z: a force not well above it
+  // measures nothing.
+  const double probe_band = friction_band(probe).force_along.z();
+  if (force < 5.0 * probe_band) {
+    return {{not_applicable("wrench", quantity_any,
+                            format("the joints hold %.2g N downward with room to spare, not 5 x "
+                                   "the %.2g N their friction holds along z",
+                                   force, probe_band))},
+            {}};
+  }
   const Pose flange = probe.flange();
-  // A table whose top is 3 cm under the flange.
+  // The table stands on the floor (the base's height): a flange less than 4 cm above it leaves
+  // no room for one.
+  if (flange.position.z() < 0.04) {
+    return {{not_applicable(
+                "wrench", quantity_any,
+                format("the flange is at z = %.3g m at the start, the floor at 0: no room for a "
+                       "table 3 cm under it",
+                       flange.position.z()))},
+            {}};
+  }
+  // A table whose top is 3 cm under the flange: the commanded force takes it down there against
+  // nothing but damping.
   const sim::Box table = sim::Box::table(flange.position.head<2>(), Eigen::Vector2d(0.15, 0.15),
                                          flange.position.z() - 0.03, "table");
   Rig rig(robot, parameters, {table});
@@ -284,13 +389,13 @@ Outcome wrench_on_table(const RobotSetup& robot, const MomentCallback& moment) {
                                parameters.stiffness.translation.y(), 0.0,
                                parameters.stiffness.rotation.x(), parameters.stiffness.rotation.y(),
                                parameters.stiffness.rotation.z()));
-  const double force = 10.0;
   rig.remember_pose("before pressing");
-  rig.phase("K z = 0, commanded 10 N down");
+  rig.phase(format("K z = 0, commanded %.3g N down", force));
   rig.loop().set_wrench(six(0, 0, -force, 0, 0, 0));
   rig.run(3.0);
   notify(moment, "pressing on the table", rig,
-         {"vertical stiffness released: the commanded 10 N presses the tip on the table"});
+         {format("vertical stiffness released: the commanded %.3g N presses the tip on the table",
+                 force)});
   double average = 0.0;
   for (int k = 0; k < 100; ++k) {
     rig.run(0.005);
@@ -301,17 +406,21 @@ Outcome wrench_on_table(const RobotSetup& robot, const MomentCallback& moment) {
   // solver's step-to-step ripple. DART's hard contact stops the arm at once, so there the band
   // shows (UR5e: 0.72 N of its 0.8 N band); MuJoCo's soft contact lets it settle.
   const double band = friction_band(rig).force_along.z();
-  return {{compare("wrench", "contact force under a commanded 10 N", force, average, "N",
-                   0.05 * force + band)},
+  return {{compare("wrench", format("contact force under a commanded %.3g N", force), force,
+                   average, "N", 0.05 * force + band, load_note(10.0, force, "N"))},
           rig.samples()};
 }
 
 // 6. Nullspace: moving the nullspace target moves the elbow while the end effector stays.
 Outcome nullspace(const RobotSetup& robot, const MomentCallback& moment) {
   Parameters parameters = base_parameters(robot);
-  parameters.stiffness.translation.setConstant(1500.0);
-  parameters.stiffness.rotation.setConstant(150.0);
-  parameters.nullspace.stiffness = JointVector::Constant(1, 10.0);
+  // Stiff in the task, within limits.stiffness, so that the flange stays while the elbow moves.
+  parameters.stiffness.translation.setConstant(
+      std::min(1500.0, parameters.limits.stiffness.translation.max));
+  parameters.stiffness.rotation.setConstant(
+      std::min(150.0, parameters.limits.stiffness.rotation.max));
+  parameters.nullspace.stiffness =
+      JointVector::Constant(1, std::min(10.0, parameters.limits.nullspace_stiffness.max));
   parameters.filter.nullspace.time = 1.0;
   Rig rig(robot, parameters);
   const TaskDirections directions = task_directions(rig);
@@ -332,7 +441,25 @@ Outcome nullspace(const RobotSetup& robot, const MomentCallback& moment) {
   const Eigen::JacobiSVD<Eigen::MatrixXd> svd(jacobian_now(rig), Eigen::ComputeFullV);
   Eigen::VectorXd self_motion = svd.matrixV().rightCols(1);
   if (self_motion[0] < 0.0) self_motion = -self_motion;
-  const JointVector target = q_start + 0.3 * self_motion / self_motion.cwiseAbs().maxCoeff();
+  // Less where that would take a joint within 0.1 rad of its limit (the null space is not
+  // straight: the 0.1 rad also covers its curving).
+  const JointVector lower = rig.model().limits().position_lower.array() + 0.1;
+  const JointVector upper = rig.model().limits().position_upper.array() - 0.1;
+  double amplitude = 0.3;  // [rad] on the joint that moves most
+  const JointVector unit_motion = self_motion / self_motion.cwiseAbs().maxCoeff();
+  while (amplitude >= 0.05 && !(((q_start + amplitude * unit_motion) - lower).array() >= 0.0 &&
+                                (upper - (q_start + amplitude * unit_motion)).array() >= 0.0)
+                                   .all()) {
+    amplitude *= 0.5;
+  }
+  if (amplitude < 0.05) {
+    return {{not_applicable("nullspace", "end-effector motion while the elbow moves",
+                            "the self-motion would take a joint within 0.1 rad of its limit "
+                            "even at 0.05 rad")},
+            rig.samples(),
+            overrides(robot, parameters)};
+  }
+  const JointVector target = q_start + amplitude * unit_motion;
   rig.remember_pose("before the nullspace target moved");
   rig.view(210.0, -35.0);  // from the front, above: the elbow swings sideways, across the picture
   rig.phase("nullspace target moved");
@@ -347,12 +474,13 @@ Outcome nullspace(const RobotSetup& robot, const MomentCallback& moment) {
          {format("the joints moved %.2f rad toward the new nullspace target; the flange stayed "
                  "within %.1f mm",
                  elbow, 1e3 * worst)});
-  return {
-      {at_most("nullspace", "largest end-effector motion while the elbow moves", 2.0, 1e3 * worst,
-               "mm"),
-       at_least("nullspace", "joint motion toward the new nullspace target", 0.1, elbow, "rad")},
-      rig.samples(),
-      overrides(robot, parameters)};
+  return {{at_most("nullspace", "largest end-effector motion while the elbow moves", 2.0,
+                   1e3 * worst, "mm"),
+           // A third of the target's distance: the nullspace spring fights the joints' friction.
+           at_least("nullspace", "joint motion toward the new nullspace target", amplitude / 3.0,
+                    elbow, "rad")},
+          rig.samples(),
+          overrides(robot, parameters)};
 }
 
 // 7. Teaching: with zero stiffness a push moves the end effector, which stops soon after the
@@ -368,11 +496,22 @@ Outcome teaching(const RobotSetup& robot, const MomentCallback& moment) {
                             "the arm cannot move its flange along any axis")},
             {}};
   }
+  // A hand's gentle push: 10 N for 0.3 s as tuned, or what the joints hold with room to spare.
+  const double force =
+      fitted_load(10.0, capacity(rig).force_along(Eigen::Vector3d::Unit(along)), 0.0, 0.0);
+  const double duration = 0.3;
+  const double band = friction_band(rig).force_along[along];
+  if (force < 5.0 * band) {
+    return {{not_applicable("teaching", "distance a push moves the flange",
+                            format("the joints hold %.2g N with room to spare, not 5 x the %.2g N "
+                                   "their friction holds",
+                                   force, band))},
+            {}};
+  }
   rig.loop().start_teaching();
   rig.phase("teaching (zero stiffness)");
   rig.run(1.0);
   const Pose start = rig.flange();
-  const double force = 10.0, duration = 0.3;  // a hand's gentle push
   rig.push(force * Eigen::Vector3d::Unit(along));
   rig.run(duration);
   rig.release();
@@ -409,7 +548,11 @@ Outcome teaching(const RobotSetup& robot, const MomentCallback& moment) {
   std::snprintf(limit, sizeof(limit),
                 "distance the push moved the flange (at most F t / d = %.0f mm)",
                 1e3 * force * duration / parameters.minimum_damping.translation);
-  return {{at_least("teaching", "distance the push moved the flange", 20.0, pushed, "mm"),
+  // The damping floor alone would let the push move the flange F t / d; the arm's inertia and
+  // friction take some of it (as tuned: at least 20 mm of 100 mm), so at least a fifth of it.
+  const double free_travel = 1e3 * force * duration / parameters.minimum_damping.translation;
+  return {{at_least("teaching", "distance the push moved the flange", 0.2 * free_travel, pushed,
+                    "mm", "at least a fifth of F t / d"),
            at_most("teaching", limit,
                    1e3 * force * duration / parameters.minimum_damping.translation, pushed, "mm"),
            at_most("teaching", "coast after the release (at most D^-1 Lambda v)",

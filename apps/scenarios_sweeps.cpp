@@ -1,3 +1,4 @@
+#include <Eigen/QR>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -14,11 +15,46 @@ namespace cartesian_impedance::scenarios::detail {
 // 8. Trajectory: tracked, and reported finished only once the robot is there.
 Outcome trajectory(const RobotSetup& robot, const MomentCallback& moment) {
   Parameters parameters = base_parameters(robot);
-  parameters.stiffness.translation.setConstant(1500.0);
-  parameters.stiffness.rotation.setConstant(150.0);
+  parameters.stiffness.translation.setConstant(
+      std::min(1500.0, parameters.limits.stiffness.translation.max));
+  parameters.stiffness.rotation.setConstant(
+      std::min(150.0, parameters.limits.stiffness.rotation.max));
   // The redundant joint is held by the nullspace spring alone: against 0.1-0.2 Nm of joint
   // friction, 50 Nm/rad keeps it within a few mrad of the goal.
-  parameters.nullspace.stiffness = JointVector::Constant(1, 50.0);
+  parameters.nullspace.stiffness =
+      JointVector::Constant(1, std::min(50.0, parameters.limits.nullspace_stiffness.max));
+  {
+    // The joints' friction tau_f can hold each joint short of the goal by up to
+    // (J^T K J + N^T K_n N)^-1 tau_f (the springs the law puts on the joints: the Cartesian one
+    // through J, the nullspace one through the projector N), largest at a corner of the box of
+    // friction torques. Where that is more than the configured goal tolerance (an arm whose
+    // limits.stiffness keeps the spring soft) the trajectory could never be reported finished:
+    // the scenario then allows twice it.
+    Rig probe(robot, parameters);
+    const Eigen::MatrixXd jacobian = jacobian_now(probe);
+    const int n = probe.model().num_joints();
+    Vector6d k;
+    k << parameters.stiffness.translation, parameters.stiffness.rotation;
+    const Eigen::MatrixXd projector =
+        Eigen::MatrixXd::Identity(n, n) -
+        Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(jacobian).pseudoInverse() *
+            jacobian;
+    const Eigen::MatrixXd joint_stiffness =
+        jacobian.transpose() * k.asDiagonal() * jacobian +
+        projector.transpose() * per_joint(parameters.nullspace.stiffness, n).asDiagonal() *
+            projector;
+    const Eigen::MatrixXd compliance =
+        Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(joint_stiffness).pseudoInverse();
+    const JointVector friction = probe.sim().friction_loss();
+    double held = 0.0;
+    for (long corner = 0; corner < (1L << n); ++corner) {
+      Eigen::VectorXd tau(n);
+      for (int i = 0; i < n; ++i) tau[i] = (corner >> i & 1) ? friction[i] : -friction[i];
+      held = std::max(held, (compliance * tau).cwiseAbs().maxCoeff());
+    }
+    parameters.trajectory.goal_tolerance =
+        std::min(1.0, std::max(parameters.trajectory.goal_tolerance, 2.0 * held));
+  }
   Rig rig(robot, parameters);
   rig.run(0.2);
   const JointVector start = rig.sim().q();
@@ -34,21 +70,30 @@ Outcome trajectory(const RobotSetup& robot, const MomentCallback& moment) {
     if (goal[i] < low || goal[i] > high) goal[i] = start[i] - offset;
     goal[i] = std::clamp(goal[i], std::min(low, start[i]), std::max(high, start[i]));
   }
+  // 3 s as tuned, or longer where a joint would pass half its URDF velocity limit: the cosine
+  // profile's peak speed is pi / 2 x the joint's motion / the duration. Half leaves the other
+  // half for the impedance's tracking error, and keeps the accelerations (pi^2 / 2 x the motion /
+  // the duration squared, at most 0.3 rad/s^2 in 3 s) to small torques.
+  double duration = 3.0;
+  for (int i = 0; i < goal.size(); ++i) {
+    duration =
+        std::max(duration, 0.5 * M_PI * std::abs(goal[i] - start[i]) / (0.5 * limits.velocity[i]));
+  }
   JointTrajectory trajectory;
   trajectory.joint_names = rig.model().joint_names();
   const int points = 30;
   for (int k = 1; k <= points; ++k) {
     const double s = static_cast<double>(k) / points;
     const JointVector q = start + (0.5 - 0.5 * std::cos(M_PI * s)) * (goal - start);
-    trajectory.times.push_back(3.0 * s);
+    trajectory.times.push_back(duration * s);
     trajectory.positions.emplace_back(q.data(), q.data() + q.size());
   }
   rig.remember_pose("at the start");
-  rig.phase("joint trajectory of 3 s");
+  rig.phase(format("joint trajectory of %.3g s", duration));
   rig.loop().execute_trajectory(trajectory);
   const double tolerance = parameters.trajectory.goal_tolerance;
   double error_when_finished = -1.0, finish_time = -1.0, worst_tracking = 0.0;
-  for (int k = 0; k < 600 && error_when_finished < 0.0; ++k) {
+  for (int k = 0; k < static_cast<int>(100 * (duration + 3.0)) && error_when_finished < 0.0; ++k) {
     rig.run(0.01);
     const LoopState& state = rig.loop().state();
     if (state.trajectory.state == TrajectoryState::executing) {
@@ -60,27 +105,38 @@ Outcome trajectory(const RobotSetup& robot, const MomentCallback& moment) {
     }
   }
   notify(moment, "trajectory finished", rig,
-         {format("every joint moved 0.2-0.5 rad in 3 s; reported finished %.2f s after its start, "
-                 "the largest joint error then %.4f rad",
-                 finish_time, error_when_finished)});
-  return {{at_least("trajectory", "reported finished (1 = yes)", 1.0,
-                    error_when_finished >= 0.0 ? 1.0 : 0.0, ""),
-           at_most("trajectory", "largest joint error when reported finished", tolerance,
-                   error_when_finished < 0.0 ? 1e9 : error_when_finished, "rad"),
-           at_least("trajectory", "time of the report (the last point is at 3 s)", 3.0, finish_time,
-                    "s"),
-           at_most("trajectory", "largest Cartesian tracking error while moving", 20.0,
-                   1e3 * worst_tracking, "mm")},
-          rig.samples(),
-          overrides(robot, parameters)};
+         {format("every joint moved 0.2-0.5 rad in %.3g s; reported finished %.2f s after its "
+                 "start, the largest joint error then %.4f rad",
+                 duration, finish_time, error_when_finished)});
+  return {
+      {at_least("trajectory", "reported finished (1 = yes)", 1.0,
+                error_when_finished >= 0.0 ? 1.0 : 0.0, ""),
+       at_most("trajectory", "largest joint error when reported finished", tolerance,
+               error_when_finished < 0.0 ? 1e9 : error_when_finished, "rad"),
+       at_least("trajectory", format("time of the report (the last point is at %.3g s)", duration),
+                duration, finish_time, "s"),
+       at_most("trajectory", "largest Cartesian tracking error while moving", 20.0,
+               1e3 * worst_tracking, "mm")},
+      rig.samples(),
+      overrides(robot, parameters)};
 }
 
 // 9. Stability grid: every combination converges after a reference step, and the energy of the
 // closed loop (kinetic + spring) never exceeds what the step put in.
 Outcome stability_grid(const RobotSetup& robot, const MomentCallback&) {
   Outcome outcome;
-  const double translations[] = {100, 300, 1000, 3000};
-  const double rotations[] = {10, 30, 100, 300};
+  // Four stiffnesses a factor of about 3 apart, up to the largest limits.stiffness allows (the
+  // Panda's 3000 N/m: 100, 300, 1000, 3000), from the parameters in force rather than numbers
+  // that one arm's limits would saturate.
+  const Parameters configured = base_parameters(robot);
+  const double top = configured.limits.stiffness.translation.max;
+  const double top_rotation = configured.limits.stiffness.rotation.max;
+  const double shares[] = {1.0 / 30.0, 0.1, 1.0 / 3.0, 1.0};
+  double translations[4], rotations[4];
+  for (int i = 0; i < 4; ++i) {
+    translations[i] = std::max(shares[i] * top, configured.limits.stiffness.translation.min);
+    rotations[i] = std::max(shares[i] * top_rotation, configured.limits.stiffness.rotation.min);
+  }
   int stable = 0, total = 0;
   bool saturated = false;
   std::ostringstream failures;
@@ -96,17 +152,24 @@ Outcome stability_grid(const RobotSetup& robot, const MomentCallback&) {
       parameters.filter.pose.time = 0.0;  // a true step: the spring energy is known at once
       parameters.limits.pose_error = {1.0, 1.0};
       Rig rig(robot, parameters);
-      // 3 cm along x and 0.05 rad about y, or along and about directions the arm can move in.
+      // 3 cm along x and 0.05 rad about y, or along and about directions the arm can move in;
+      // the step at most 5 % of the flange's distance from the base, and both halved until the
+      // joints get there (to first order) 0.1 rad inside their limits.
       const TaskDirections directions = task_directions(rig);
       const int along = directions.first_of({0, 2, 1});
       const int about = directions.first_of({4, 5, 3});
+      const Capacity can = capacity(rig);
+      Vector6d twist = Vector6d::Zero();
+      if (along >= 0) twist[along] = std::min(0.03, 0.05 * can.reach);
+      if (about >= 0) twist[about] = 0.05;
+      twist *= can.fraction_within_limits(twist, 0.1);
       rig.run(0.1);
       const Pose start = rig.flange();
       Pose target = start;
-      if (along >= 0) target.position[along] += 0.03;
+      target.position += twist.head<3>();
       if (about >= 0) {
         target.orientation =
-            Eigen::Quaterniond(Eigen::AngleAxisd(0.05, Eigen::Vector3d::Unit(about - 3))) *
+            Eigen::Quaterniond(Eigen::AngleAxisd(twist[about], Eigen::Vector3d::Unit(about - 3))) *
             start.orientation;
       }
       rig.loop().set_reference_pose(target);
@@ -124,7 +187,12 @@ Outcome stability_grid(const RobotSetup& robot, const MomentCallback&) {
       Matrix6d stiffness = Matrix6d::Zero();
       bool limited = false;
       JointVector dq_before = rig.sim().dq();
-      for (int k = 0; k < 2500; ++k) {
+      // 2.5 s, or 6 time constants d / K of the minimum damping against the spring where that
+      // is longer (a soft grid point is overdamped by it: e^-6 leaves 0.25 % of the step).
+      const MinimumDampingParameters& floor = rig.loop().controller().parameters().minimum_damping;
+      const double settle =
+          std::max(2.5, 6.0 * std::max(floor.translation / kt, floor.rotation / kr));
+      for (int k = 0; k < static_cast<int>(settle / kDt); ++k) {
         rig.run(kDt);
         const ControllerState& state = rig.loop().state().controller;
         const Vector6d& e = state.pose_error;
@@ -166,11 +234,13 @@ Outcome stability_grid(const RobotSetup& robot, const MomentCallback&) {
       }
     }
   }
-  outcome.results.push_back(compare("stability grid",
-                                    "combinations of 100..3000 N/m x 10..300 Nm/rad that converge",
-                                    total, stable, "", 0.0, failures.str()));
+  outcome.results.push_back(
+      compare("stability grid",
+              format("combinations of %.4g..%.4g N/m x %.4g..%.4g Nm/rad that converge",
+                     translations[0], translations[3], rotations[0], rotations[3]),
+              total, stable, "", 0.0, failures.str()));
   outcome.overrides.push_back(
-      std::string("stiffness: each of the grid's 16 combinations") +
+      std::string("stiffness: each of the grid's 16 combinations, from limits.stiffness") +
       (saturated ? " (saturated to the configured limits.stiffness)" : "") +
       "; filter.pose.time = 0 (a true step); limits.pose_error = 1 m, 1 rad (unclipped)");
   outcome.tables.push_back(grid);
@@ -256,6 +326,7 @@ struct ArmPair {
   double push_force = 20.0;  // [N], less where the spring would pass limits.pose_error
   double push_travel_tolerance = 0.0;  // [m] friction band / stiffness along push_axis
   double step_tolerance = 0.0;         // [m] the same along step_axis
+  double step = 0.05;                  // [m] the right arm's reference step, less on a small arm
 };
 
 ArmPair arm_pair(const RobotSetup& robot) {
@@ -278,11 +349,22 @@ ArmPair arm_pair(const RobotSetup& robot) {
   const TaskDirections directions = task_directions(rig);
   pair.push_axis = directions.first_of({1, 0, 2});
   pair.step_axis = directions.first_of({2, 0, 1});
+  const Capacity can = capacity(rig);
   if (pair.push_axis >= 0) {
-    // The spring pulls back with at most K times the clipped error: push with less than that.
+    // 20 N as tuned, or what the joints hold with room to spare, within 4 cm of the spring; and
+    // the spring pulls back with at most K times the clipped error: push with less than that.
     const Parameters parameters = base_parameters(pair.left);
-    pair.push_force = std::min(20.0, 0.8 * parameters.limits.pose_error.translation *
-                                         parameters.stiffness.translation[pair.push_axis]);
+    const double stiffness = parameters.stiffness.translation[pair.push_axis];
+    pair.push_force = std::min(
+        fitted_load(20.0, can.force_along(Eigen::Vector3d::Unit(pair.push_axis)), stiffness, 0.04),
+        0.8 * parameters.limits.pose_error.translation * stiffness);
+  }
+  if (pair.step_axis >= 0) {
+    // 5 cm as tuned, at most a tenth of the flange's distance from the base, halved until the
+    // joints get there (to first order) 0.1 rad inside their limits.
+    Vector6d twist = Vector6d::Zero();
+    twist[pair.step_axis] = -std::min(0.05, 0.1 * can.reach);
+    pair.step = -twist[pair.step_axis] * can.fraction_within_limits(twist, 0.1);
   }
   if (!pair.sites && pair.push_axis >= 0 && pair.step_axis >= 0) {
     // Twins: the joints' friction may hold each short of the spring's rest by this much.
@@ -439,7 +521,7 @@ TwoArmRun run_two_arms(const ArmPair& pair, bool push_left, bool step_right,
   result.right_rest = tip(pair.right_tip);
   if (step_right) {
     Pose right_target = right_loop.state().controller.pose;
-    right_target.position[pair.step_axis] -= 0.05;
+    right_target.position[pair.step_axis] -= pair.step;
     right_loop.set_reference_pose(right_target);
     phase = 3.0;
   }
@@ -454,6 +536,12 @@ Outcome two_arms(const RobotSetup& robot, const MomentCallback& moment) {
   if (pair.push_axis < 0 || pair.step_axis < 0) {
     return {{not_applicable("two arms", "one arm pushed, the other unmoved",
                             "the arm cannot move its flange along x, y or z")},
+            {}};
+  }
+  if (pair.step == 0.0) {
+    return {{not_applicable("two arms", "one arm pushed, the other unmoved",
+                            "even a small reference step would take a joint within 0.1 rad of "
+                            "its limit")},
             {}};
   }
   // The mutation of `robot` (tests of the tests) applies to both arms.
@@ -477,17 +565,17 @@ Outcome two_arms(const RobotSetup& robot, const MomentCallback& moment) {
       stepped, sizeof(stepped), "right arm reference step %s",
       pair.step_axis == 2 ? "down" : (std::string("along -") + axes[pair.step_axis]).c_str());
   const std::string right = "right arm (" + display_name(pair.right) + ")";
-  return {
-      {compare("two arms", pushed, travel, 1e3 * left_moved, "mm",
-               0.05 * travel + 1e3 * pair.push_travel_tolerance),
-       at_most("two arms", right + ": difference to a run without the push", 1e-3,
-               1e3 * right_difference, "mm"),
-       compare("two arms", stepped, -50.0, 1e3 * right_step, "mm", 2.0 + 1e3 * pair.step_tolerance),
-       at_most("two arms", "left arm: difference to a run without the step", 1e-3,
-               1e3 * left_difference, "mm")},
-      {},
-      {},
-      {both.motion}};
+  return {{compare("two arms", pushed, travel, 1e3 * left_moved, "mm",
+                   0.05 * travel + 1e3 * pair.push_travel_tolerance),
+           at_most("two arms", right + ": difference to a run without the push", 1e-3,
+                   1e3 * right_difference, "mm"),
+           compare("two arms", stepped, -1e3 * pair.step, 1e3 * right_step, "mm",
+                   2.0 + 1e3 * pair.step_tolerance),
+           at_most("two arms", "left arm: difference to a run without the step", 1e-3,
+                   1e3 * left_difference, "mm")},
+          {},
+          {},
+          {both.motion}};
 }
 
 }  // namespace cartesian_impedance::scenarios::detail
