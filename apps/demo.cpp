@@ -265,9 +265,9 @@ Options parse(int argc, char** argv) {
     try {
       const scenarios::Rig probe(setup, scenarios::base_parameters(setup));
     } catch (const ci::Error& error) {
-      usage_error(std::string(options.robot.mjcf.empty() ? "the simulation of --urdf: "
-                                                         : "--mjcf: ") +
-                  error.what());
+      usage_error(
+          std::string(options.robot.mjcf.empty() ? "the simulation of --urdf: " : "--mjcf: ") +
+          error.what());
     }
   }
   const std::vector<std::string>& known = scenarios::scenario_names();

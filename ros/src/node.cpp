@@ -40,6 +40,7 @@ CartesianImpedanceNode::CartesianImpedanceNode(const ros::NodeHandle& node,
   }
   model_.emplace(ci::RobotModel::from_urdf_string(urdf, settings_.base_link, settings_.tip_link));
   ci::node::check_start_q(configuration_, *model_);
+  ci::node::apply_robot_defaults(configuration_, *model_);
   // Callbacks wait up to 0.1 s for room in a full inbox (the cycle drains 8 commands per step),
   // so a burst of commands is delayed rather than lost; only a loop that stopped stepping makes
   // a callback give up, with a warning naming the command.

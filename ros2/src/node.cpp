@@ -61,6 +61,7 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
   model_.emplace(ci::RobotModel::from_urdf_string(configuration_.urdf, settings_.base_link,
                                                   settings_.tip_link));
   ci::node::check_start_q(configuration_.common, *model_);
+  ci::node::apply_robot_defaults(configuration_.common, *model_);
   // The command thread waits up to 0.1 s for room in a full inbox (the cycle drains 8 commands
   // per step), so a burst is delayed rather than lost.
   ci::LoopCapacity capacity;

@@ -5,6 +5,7 @@
 #include <utility>
 
 #include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/model/robot_limits.hpp"
 
 // The shells' common settings, decoded with the parameter decoder's own functions so that their
 // messages read like every other parameter's.
@@ -223,8 +224,10 @@ NodeConfiguration decode_node_configuration(const ParameterValue& tree,
       configuration.unknown_keys.push_back(key);
     }
   }
+  configuration.given_parameters = ParameterValue::map(std::move(groups));
+  configuration.parameters_source = std::string(source);
   configuration.parameters =
-      decode_parameters(ParameterValue::map(std::move(groups)), Parameters{}, source);
+      decode_parameters(configuration.given_parameters, Parameters{}, source);
 
   NodeSettings& settings = configuration.settings;
   if (reader.setting("mode") != nullptr) {
@@ -307,6 +310,11 @@ NodeConfiguration decode_node_configuration(const ParameterValue& tree,
   }
   settings.tf_prefix = reader.name("tf_prefix", "a frame prefix");
   return configuration;
+}
+
+void apply_robot_defaults(NodeConfiguration& configuration, const RobotModel& model) {
+  configuration.parameters = decode_parameters(
+      configuration.given_parameters, default_parameters(model), configuration.parameters_source);
 }
 
 void check_start_q(const NodeConfiguration& configuration, const RobotModel& model) {

@@ -62,7 +62,12 @@ struct NodeSettings {
 
 struct NodeConfiguration {
   NodeSettings settings;
+  /// The controller parameters given, on the library's defaults; apply_robot_defaults() reads
+  /// them again on the defaults derived from the robot's URDF once it is loaded.
   Parameters parameters;
+  /// The parameter groups as given, and where they came from (for apply_robot_defaults()).
+  ParameterValue given_parameters = ParameterValue::map({});
+  std::string parameters_source;
   /// Keys of the map that are neither settings, parameter groups nor the shell's own keys, as
   /// the shell names them (reported as warnings, e.g. a misspelt group).
   std::vector<std::string> unknown_keys;
@@ -134,6 +139,13 @@ NodeConfiguration decode_node_configuration(const ParameterValue& tree,
 /// @throws ParameterError naming start_q's location, its count and the chain's joints, or the
 ///         index, value, joint and limits.
 void check_start_q(const NodeConfiguration& configuration, const RobotModel& model);
+
+/// Reads the given controller parameters again on the defaults derived from `model`'s URDF
+/// (default_parameters() in model/robot_limits.hpp: efforts, rates, stiffness and wrench limits
+/// that suit the arm), as the demo and Python do: what the parameters leave out suits the arm.
+/// @throws ParameterError as decode_node_configuration() if the given values do not fit the
+///         derived ones (e.g. a stiffness minimum above the derived maximum).
+void apply_robot_defaults(NodeConfiguration& configuration, const RobotModel& model);
 
 /// The tf frame of a link: tf_prefix + link.
 std::string tf_frame(const NodeSettings& settings, const std::string& link);
