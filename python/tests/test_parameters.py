@@ -31,7 +31,9 @@ def other_value(row):
         return number(default)
     if row["kind"] == "xyz":
         return [number(d, i) for i, d in enumerate(default)]
-    return [number(default[0], i) for i in range(7)]  # per joint, 7 joints
+    # per joint, 7 joints (an empty default, limits.joint_torque's "the URDF's", as 100 Nm)
+    first = default[0] if len(default) else 100.0
+    return [number(first, i) for i in range(7)]
 
 
 def same(a, b):

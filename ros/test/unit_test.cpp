@@ -352,7 +352,7 @@ TEST(RosParameters, SameMistakeSameMessageAsTheYamlLoaderAndTheDecoder) {
       {"stiffness:\n  translation: [500, 500]\n", "stiffness.translation",
        Value::list({Value::number(500), Value::number(500)})},
       {"stiffness:\n  rotation: -1\n", "stiffness.rotation", Value::number(-1)},
-      {"limits:\n  joint_torque: []\n", "limits.joint_torque", Value::list({})},
+      {"limits:\n  joint_torque_rate: []\n", "limits.joint_torque_rate", Value::list({})},
       {"wrench:\n  frame: tool\n", "wrench.frame", Value::string("tool")},
       {"dynamics:\n  gravity_compensation: 1\n", "dynamics.gravity_compensation", Value::number(1)},
       {"stiffness:\n  tranlation: 1\n", "stiffness.tranlation", Value::number(1)},
