@@ -154,6 +154,15 @@ Outcome compliance(const RobotSetup& robot, const MomentCallback& moment) {
   };
   // The loading/unloading average cancels the friction band only while it is a small part of
   // the load: below 5 times the band the 5 % tolerance would not hold.
+  // What friction leaves of that average: critically damped, each approach comes to rest on
+  // its own side of F / K, where the spring's excess falls inside the band b the joints'
+  // friction holds, so within b / K of F / K; the average of the two rests lies within b / 2K.
+  // On an arm with weak joints (low derived K) this is most of the error: generated arm seed 11
+  // measured 19.15 mm for 20.41 mm at 3.47 N = 5 b, 170 N/m (b / 2K = 2 mm); 5 % on top for
+  // the arm's nonlinearity over the travel.
+  const auto friction_share = [](double band_held, double stiffness) {
+    return 0.5 * band_held / stiffness;
+  };
   const auto too_weak = [&](double load, double held, const char* unit) {
     return format("%.2g %s is not 5 x the %.2g %s the joints' friction holds", load, unit, held,
                   unit);
@@ -181,8 +190,10 @@ Outcome compliance(const RobotSetup& robot, const MomentCallback& moment) {
                      "%.0f mm)",
                      measured, force, soft, expected)});
     }
-    outcome.results.push_back(compare("compliance", quantity, expected, measured, "mm",
-                                      0.05 * expected, load_note(20.0, force, "N")));
+    outcome.results.push_back(
+        compare("compliance", quantity, expected, measured, "mm",
+                0.05 * expected + 1e3 * friction_share(band.force_along[axis], soft),
+                load_note(20.0, force, "N")));
   }
   for (int axis = 0; axis < 3; ++axis) {
     const double torque =
@@ -203,7 +214,8 @@ Outcome compliance(const RobotSetup& robot, const MomentCallback& moment) {
     const double measured =
         respond(rig, Eigen::Vector3d::Zero(), torque * direction).rotation.dot(direction);
     outcome.results.push_back(compare("compliance", quantity, expected, measured, "rad",
-                                      0.05 * expected, load_note(5.0, torque, "Nm")));
+                                      0.05 * expected + friction_share(band.torque, soft_rotation),
+                                      load_note(5.0, torque, "Nm")));
   }
   // A sweep along x (or the first direction the arm moves in): displacement against force is a
   // line of slope 1 / K.
@@ -230,7 +242,8 @@ Outcome compliance(const RobotSetup& robot, const MomentCallback& moment) {
     const double measured =
         1e3 * respond(rig, sweep * unit, Eigen::Vector3d::Zero()).displacement.dot(unit);
     outcome.results.push_back(
-        compare("compliance sweep", quantity, expected, measured, "mm", 0.05 * expected));
+        compare("compliance sweep", quantity, expected, measured, "mm",
+                0.05 * expected + 1e3 * friction_share(band.force_along[along], soft)));
   }
   // Doubling K online (filtered) halves the displacement under the same push.
   const double soft_travel =
