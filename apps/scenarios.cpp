@@ -345,8 +345,17 @@ Outcome reference_step(const RobotSetup& robot, const MomentCallback& moment) {
        // linear (the task-space inertia changes along the way), and at least 1 mm.
        at_most("reference step", "overshoot along the step at damping ratio 1",
                std::max(1.0, 1e3 * 0.01 * step.norm()), 1e3 * std::max(overshoot, 0.0), "mm"),
-       at_most("reference step", "overshoot of the turn at damping ratio 1", 0.003,
-               std::max(turn_overshoot, 0.0), "rad"),
+       // Zero for the turn alone (critically damped; measured 0 on the generated arms), 1 % of
+       // the tuned 0.3 rad for the arm's nonlinearity. The step turns the flange too (the law
+       // shapes no inertia, and the task-space inertia couples translation and rotation:
+       // generated arm seed 11 at 5 Nm/rad turned 0.1 rad about z under the step alone), so with
+       // both the turn may cross its target (seed 11: 0.013 rad); the spring then pulls it back
+       // against the joints' friction, which holds it anywhere within band.torque / K_rot of the
+       // target (0.034 rad there). That much is allowed on top.
+       at_most("reference step", "overshoot of the turn at damping ratio 1",
+               0.003 + band.torque / parameters.stiffness.rotation.maxCoeff(),
+               std::max(turn_overshoot, 0.0), "rad",
+               "bound: 0.003 rad + what joint friction can hold against the spring"),
        at_most("reference step", "largest torque rate / limit", 1.0 + 1e-9,
                rig.largest_rate_fraction(), "")},
       rig.samples(),
