@@ -12,6 +12,32 @@
 
 namespace cartesian_impedance::scenarios::detail {
 
+namespace {
+// The largest speed [m/s] at which the flange creeps while MuJoCo's joint friction holds the arm.
+// That friction is a soft constraint: holding torque f_i it lets joint i move at
+// v_i = (1 - d) / d * (M^-1)_ii * f_i / b, with MuJoCo's default solver parameters d = 0.9
+// (solimp's impedance at zero violation) and b = 2 / (0.95 * 0.02 s) (solref); M includes the
+// armature. At the flange: sum_i |J_i| v_i (translation rows). DART's friction is a hard
+// constraint: no creep.
+double creep_speed(Rig& rig) {
+  if (rig.sim().engine() != sim::Engine::mujoco) return 0.0;
+  const int n = rig.model().num_joints();
+  ModelWorkspace workspace(rig.model());
+  Kinematics kinematics = workspace.make_kinematics();
+  workspace.compute(rig.sim().q(), JointVector::Zero(n), kinematics, true);
+  const JointMatrix mass = kinematics.mass + JointMatrix(rig.sim().armature().asDiagonal());
+  const JointVector inverse_diagonal = mass.inverse().diagonal();
+  const JointVector friction = rig.sim().friction_loss();
+  constexpr double kImpedance = 0.9, kDamping = 2.0 / (0.95 * 0.02);
+  double speed = 0.0;
+  for (int i = 0; i < n; ++i) {
+    speed += kinematics.jacobian.col(i).head<3>().norm() * (1.0 - kImpedance) / kImpedance *
+             inverse_diagonal[i] * friction[i] / kDamping;
+  }
+  return speed;
+}
+}  // namespace
+
 // 1. Hold: a payload the robot's firmware does not know about (1 kg at the flange, less on an
 // arm whose joints cannot carry that with room to spare) makes the spring sag by m g / K, and the
 // arm then stays there. A dead controller would let it fall.
@@ -76,9 +102,13 @@ Outcome hold(const RobotSetup& robot, const MomentCallback& moment) {
            at_most("hold", "rotation", 0.01 + band.torque / rotation_stiffness,
                    rotation_between(reference, end).norm(), "rad"),
            // MuJoCo's joint friction is a soft constraint: a joint it holds still creeps, by
-           // about 0.1 mm/s at the flange a few seconds after a change.
-           at_most("hold", "drift over the last 2 s", 0.5,
-                   1e3 * (end.position - loaded.position).norm(), "mm")},
+           // about 0.1 mm/s at the flange a few seconds after a change; 0.5 mm, or 2 s at the
+           // largest creep speed where that is more (weak generated arm seed 13: 0.26 mm/s).
+           at_most("hold", "drift over the last 2 s", std::max(0.5, 2.0 * 1e3 * creep_speed(rig)),
+                   1e3 * (end.position - loaded.position).norm(), "mm",
+                   format("bound: 0.5 mm, or 2 s of the %.2g mm/s MuJoCo's soft joint friction "
+                          "lets the arm creep",
+                          1e3 * creep_speed(rig)))},
           rig.samples()};
 }
 
@@ -154,6 +184,15 @@ Outcome compliance(const RobotSetup& robot, const MomentCallback& moment) {
   };
   // The loading/unloading average cancels the friction band only while it is a small part of
   // the load: below 5 times the band the 5 % tolerance would not hold.
+  // What friction leaves of that average: critically damped, each approach comes to rest on
+  // its own side of F / K, where the spring's excess falls inside the band b the joints'
+  // friction holds, so within b / K of F / K; the average of the two rests lies within b / 2K.
+  // On an arm with weak joints (low derived K) this is most of the error: generated arm seed 11
+  // measured 19.15 mm for 20.41 mm at 3.47 N = 5 b, 170 N/m (b / 2K = 2 mm); 5 % on top for
+  // the arm's nonlinearity over the travel.
+  const auto friction_share = [](double band_held, double stiffness) {
+    return 0.5 * band_held / stiffness;
+  };
   const auto too_weak = [&](double load, double held, const char* unit) {
     return format("%.2g %s is not 5 x the %.2g %s the joints' friction holds", load, unit, held,
                   unit);
@@ -181,8 +220,10 @@ Outcome compliance(const RobotSetup& robot, const MomentCallback& moment) {
                      "%.0f mm)",
                      measured, force, soft, expected)});
     }
-    outcome.results.push_back(compare("compliance", quantity, expected, measured, "mm",
-                                      0.05 * expected, load_note(20.0, force, "N")));
+    outcome.results.push_back(
+        compare("compliance", quantity, expected, measured, "mm",
+                0.05 * expected + 1e3 * friction_share(band.force_along[axis], soft),
+                load_note(20.0, force, "N")));
   }
   for (int axis = 0; axis < 3; ++axis) {
     const double torque =
@@ -203,7 +244,8 @@ Outcome compliance(const RobotSetup& robot, const MomentCallback& moment) {
     const double measured =
         respond(rig, Eigen::Vector3d::Zero(), torque * direction).rotation.dot(direction);
     outcome.results.push_back(compare("compliance", quantity, expected, measured, "rad",
-                                      0.05 * expected, load_note(5.0, torque, "Nm")));
+                                      0.05 * expected + friction_share(band.torque, soft_rotation),
+                                      load_note(5.0, torque, "Nm")));
   }
   // A sweep along x (or the first direction the arm moves in): displacement against force is a
   // line of slope 1 / K.
@@ -230,7 +272,8 @@ Outcome compliance(const RobotSetup& robot, const MomentCallback& moment) {
     const double measured =
         1e3 * respond(rig, sweep * unit, Eigen::Vector3d::Zero()).displacement.dot(unit);
     outcome.results.push_back(
-        compare("compliance sweep", quantity, expected, measured, "mm", 0.05 * expected));
+        compare("compliance sweep", quantity, expected, measured, "mm",
+                0.05 * expected + 1e3 * friction_share(band.force_along[along], soft)));
   }
   // Doubling K online (filtered) halves the displacement under the same push.
   const double soft_travel =
@@ -332,13 +375,42 @@ Outcome reference_step(const RobotSetup& robot, const MomentCallback& moment) {
        // linear (the task-space inertia changes along the way), and at least 1 mm.
        at_most("reference step", "overshoot along the step at damping ratio 1",
                std::max(1.0, 1e3 * 0.01 * step.norm()), 1e3 * std::max(overshoot, 0.0), "mm"),
-       at_most("reference step", "overshoot of the turn at damping ratio 1", 0.003,
-               std::max(turn_overshoot, 0.0), "rad"),
+       // Zero for the turn alone (critically damped; measured 0 on the generated arms), 1 % of
+       // the tuned 0.3 rad for the arm's nonlinearity. The step turns the flange too (the law
+       // shapes no inertia, and the task-space inertia couples translation and rotation:
+       // generated arm seed 11 at 5 Nm/rad turned 0.1 rad about z under the step alone), so with
+       // both the turn may cross its target (seed 11: 0.013 rad); the spring then pulls it back
+       // against the joints' friction, which holds it anywhere within band.torque / K_rot of the
+       // target (0.034 rad there). That much is allowed on top.
+       at_most("reference step", "overshoot of the turn at damping ratio 1",
+               0.003 + band.torque / parameters.stiffness.rotation.maxCoeff(),
+               std::max(turn_overshoot, 0.0), "rad",
+               "bound: 0.003 rad + what joint friction can hold against the spring"),
        at_most("reference step", "largest torque rate / limit", 1.0 + 1e-9,
                rig.largest_rate_fraction(), "")},
       rig.samples(),
       overrides(robot, parameters)};
 }
+
+namespace {
+// Whether a link of the chain other than the flange's body touches the environment now. Links
+// the simulation names otherwise (an MJCF's bodies) are not asked. Bodies welded to the flange
+// report its contact force (Simulation::contact_wrench), so they count as the flange.
+bool other_link_touches(Rig& rig) {
+  const Eigen::Vector3d flange_contact = rig.contact_force();
+  for (const std::string& link : rig.model().joint_links()) {
+    try {
+      const Eigen::Vector3d contact = rig.sim().contact_wrench(link).head<3>();
+      if (contact.norm() > 0.0 && (contact - flange_contact).norm() > 1e-9 * contact.norm()) {
+        return true;
+      }
+    } catch (const Error&) {
+      // not a body of this simulation
+    }
+  }
+  return false;
+}
+}  // namespace
 
 // 5. Wrench: with the vertical stiffness released, a commanded downward force presses on a table
 // with exactly that force.
@@ -380,10 +452,50 @@ Outcome wrench_on_table(const RobotSetup& robot, const MomentCallback& moment) {
             {}};
   }
   // A table whose top is 3 cm under the flange: the commanded force takes it down there against
-  // nothing but damping.
-  const sim::Box table = sim::Box::table(flange.position.head<2>(), Eigen::Vector2d(0.15, 0.15),
-                                         flange.position.z() - 0.03, "table");
-  Rig rig(robot, parameters, {table});
+  // nothing but damping. Only the flange may touch it: an arm whose elbow hangs lower than the
+  // flange beside it (generated arm seed 7: 0.13 m beside it, at z = 0.01 m) would start inside
+  // the table, and the contact solver would throw it off before it pressed; one whose forearm
+  // slants down past the flange (seed 12) would rest the forearm on it. So the footprint shrinks
+  // until only the flange touches; where a link passes under the flange itself (seed 12: the
+  // upper arm, 0.07 m below it), a 2 cm plate above that link takes the table's place. What the
+  // table must leave free is the arm's geometry along the descent, not the controller's motion:
+  // a broken controller's flailing then cannot make the scenario not apply.
+  const double table_top = flange.position.z() - 0.03;
+  std::vector<sim::Box> candidates;
+  for (const double half_size : {0.15, 0.1, 0.07, 0.05, 0.03}) {
+    candidates.push_back(sim::Box::table(flange.position.head<2>(),
+                                         Eigen::Vector2d::Constant(half_size), table_top, "table"));
+  }
+  for (const double half_size : {0.05, 0.03, 0.02}) {
+    sim::Box plate;
+    plate.name = "table";
+    plate.center << flange.position.head<2>(), table_top - 0.01;
+    plate.half_size << half_size, half_size, 0.01;
+    candidates.push_back(plate);
+  }
+  // The joint motion of the 3 cm descent, to first order (J^+ dx): the geometry the table must
+  // leave free, checked in MuJoCo (which finds contacts at a set state) whatever the engine.
+  RobotSetup geometry = robot;
+  geometry.engine = sim::Engine::mujoco;
+  const Eigen::MatrixXd step_down =
+      Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(jacobian_now(probe)).pseudoInverse() *
+      six(0, 0, -0.03, 0, 0, 0);
+  const auto fits = std::find_if(candidates.begin(), candidates.end(), [&](const sim::Box& box) {
+    Rig check(geometry, parameters, {box});
+    for (int k = 0; k <= 4; ++k) {
+      check.sim().set_state(probe.sim().q() + step_down * (k / 4.0),
+                            JointVector::Zero(probe.model().num_joints()));
+      if (other_link_touches(check)) return false;
+    }
+    return true;
+  });
+  if (fits == candidates.end()) {
+    return {{not_applicable("wrench", quantity_any,
+                            "another link of the arm would touch every table or plate (down to "
+                            "4 x 4 cm) 3 cm under the flange before the flange does")},
+            {}};
+  }
+  Rig rig(robot, parameters, {*fits});
   rig.run(0.2);
   rig.loop().set_stiffness(six(parameters.stiffness.translation.x(),
                                parameters.stiffness.translation.y(), 0.0,
@@ -474,8 +586,16 @@ Outcome nullspace(const RobotSetup& robot, const MomentCallback& moment) {
          {format("the joints moved %.2f rad toward the new nullspace target; the flange stayed "
                  "within %.1f mm",
                  elbow, 1e3 * worst)});
-  return {{at_most("nullspace", "largest end-effector motion while the elbow moves", 2.0,
-                   1e3 * worst, "mm"),
+  // 2 mm for the task spring's give under the arm's own coupled inertia as the elbow swings;
+  // plus what the moving joints' Coulomb friction pushes the flange with: sliding, each joint's
+  // friction torque f_i opposes its motion, and the part of it outside the null space reaches
+  // the flange as a force up to the friction band, which the task spring takes up by band / K
+  // (generated arm seed 18, K at its derived limit: 3.5 mm).
+  const double band = friction_band(rig).force;
+  const double task_stiffness = parameters.stiffness.translation.minCoeff();
+  return {{at_most("nullspace", "largest end-effector motion while the elbow moves",
+                   2.0 + 1e3 * band / task_stiffness, 1e3 * worst, "mm",
+                   "bound: 2 mm + what joint friction can push against the task spring"),
            // A third of the target's distance: the nullspace spring fights the joints' friction.
            at_least("nullspace", "joint motion toward the new nullspace target", amplitude / 3.0,
                     elbow, "rad")},
