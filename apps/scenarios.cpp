@@ -336,9 +336,18 @@ Outcome reference_step(const RobotSetup& robot, const MomentCallback& moment) {
   turn *= fraction;
   target.position += step;
   target.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(turn, axis)) * start.orientation;
+  // The nullspace target moves with the reference, to the joints that reach it to first order
+  // (J^+ times the step). Left at the start, its spring pulls back: on an arm without redundancy
+  // the damped projector (nullspace.pseudo_inverse_damping) lets a small part of it into the
+  // task, which on a weak arm's soft spring is as large as the joints' friction (measured: 9.96 mm
+  // short of a 108 mm step on a 6-joint arm at 170 N/m, still creeping after 16 s).
+  twist << step, turn * axis;
+  const JointVector q_goal =
+      can.q + can.jacobian.completeOrthogonalDecomposition().pseudoInverse() * twist;
   rig.remember_pose("at the start");
   rig.phase("step to a new reference");
   rig.loop().set_reference_pose(target);
+  rig.loop().set_nullspace_target(q_goal);
   // Overshoot: how far the flange goes past the target along the step, and past the target
   // orientation about the turn's axis.
   double overshoot = -kForever, turn_overshoot = -kForever;
