@@ -322,26 +322,29 @@ void CartesianImpedanceController::shape_torque(const RobotState& robot,
   JointVector& tau = state_.tau;
   if ((tau.array().abs() <= bound.array()).all()) return;
   Law& law = *law_;
+  // tau = gravity + damping + wrench + spring + nullspace: what is kept when a term gives way is
+  // the law's torque less that term and those before it, so each stage costs one subtraction and
+  // the spring's own torque is computed only if the nullspace alone cannot make room.
+  JointVector& kept = law.tau_kept;
+  const auto give_way = [&](const JointVector& part, TorqueShaping term) {
+    const double scale = largest_fitting_scale(kept, part, bound);
+    if (scale < 0.0) return false;
+    tau = kept + scale * part;
+    limits.torque_shaping = term;
+    limits.torque_shaping_scale = scale;
+    return true;
+  };
+  kept = tau - state_.tau_nullspace;
+  if (give_way(state_.tau_nullspace, TorqueShaping::nullspace)) return;
   jacobian_transpose_times(robot.jacobian, law.spring_force, law.tau_spring);
-  law.tau_damping = state_.tau_cartesian - law.tau_spring;
-  const JointVector& gravity = state_.tau_gravity;
-  const JointVector* const parts[] = {&state_.tau_nullspace, &law.tau_spring, &state_.tau_wrench,
-                                      &law.tau_damping};
-  constexpr TorqueShaping kGivesWay[] = {TorqueShaping::nullspace, TorqueShaping::spring,
-                                         TorqueShaping::wrench, TorqueShaping::damping};
-  // kept = gravity + the parts after the one giving way.
-  for (int giving_way = 0; giving_way < 4; ++giving_way) {
-    law.tau_kept = gravity;
-    for (int kept = giving_way + 1; kept < 4; ++kept) law.tau_kept += *parts[kept];
-    const double scale = largest_fitting_scale(law.tau_kept, *parts[giving_way], bound);
-    if (scale >= 0.0) {
-      tau = law.tau_kept + scale * *parts[giving_way];
-      limits.torque_shaping = kGivesWay[giving_way];
-      limits.torque_shaping_scale = scale;
-      return;
-    }
-  }
-  tau = gravity;
+  kept -= law.tau_spring;
+  if (give_way(law.tau_spring, TorqueShaping::spring)) return;
+  kept -= state_.tau_wrench;
+  if (give_way(state_.tau_wrench, TorqueShaping::wrench)) return;
+  law.tau_damping = kept - state_.tau_gravity;
+  kept = state_.tau_gravity;
+  if (give_way(law.tau_damping, TorqueShaping::damping)) return;
+  tau = state_.tau_gravity;
   limits.torque_shaping = TorqueShaping::gravity;
   limits.torque_shaping_scale = 0.0;
 }
