@@ -16,6 +16,7 @@ namespace ci = cartesian_impedance;
 
 struct Torques {
   Eigen::VectorXd cartesian, nullspace, wrench, total;
+  Eigen::VectorXd spring;  // the spring's part of `cartesian`, J^T (-K e)
 };
 
 struct Targets {
@@ -77,7 +78,8 @@ inline Torques law(const Eigen::VectorXd& q, const Eigen::VectorXd& dq,
       frame * (2.0 * zeta_root * sqrt_psd(targets.stiffness) * zeta_root) * frame.transpose();
 
   Torques torques;
-  torques.cartesian = jacobian.transpose() * (-stiffness * error - damping * (jacobian * dq));
+  torques.spring = jacobian.transpose() * (-stiffness * error);
+  torques.cartesian = torques.spring - jacobian.transpose() * (damping * (jacobian * dq));
 
   const Eigen::VectorXd nullspace_damping =
       2.0 * targets.nullspace_damping_ratio * targets.nullspace_stiffness.cwiseSqrt();
@@ -102,8 +104,14 @@ inline Torques law(const Eigen::VectorXd& q, const Eigen::VectorXd& dq,
 // (tests compare with wide limits), torque saturation and the rate limit of each joint.
 class Controller {
  public:
-  Controller(int num_joints, const ci::Parameters& parameters)
-      : n_(num_joints), parameters_(parameters) {
+  // How a torque beyond limits.joint_torque is limited: shaped in task space as the library does
+  // (the cross-checks), or clipped joint by joint as a plain implementation of the published law
+  // with a torque bound would (the benchmark's baseline).
+  enum class Shaping { task_space, per_joint };
+
+  Controller(int num_joints, const ci::Parameters& parameters,
+             Shaping shaping = Shaping::task_space)
+      : n_(num_joints), parameters_(parameters), shaping_(shaping) {
     commanded_.stiffness = Eigen::MatrixXd::Zero(6, 6);
     commanded_.stiffness.diagonal() << parameters.stiffness.translation,
         parameters.stiffness.rotation;
@@ -158,11 +166,9 @@ class Controller {
 
     const Torques torques = law(q, dq, position, orientation, jacobian, filtered_, parameters_);
     const double torque_limit = parameters_.limits.joint_torque[0];
-    Eigen::VectorXd tau = shape(
-        torques,
-        law(q, Eigen::VectorXd::Zero(n_), position, orientation, jacobian, filtered_, parameters_)
-            .cartesian,
-        torque_limit);
+    Eigen::VectorXd tau = shaping_ == Shaping::task_space
+                              ? shape(torques, torques.spring, torque_limit)
+                              : torques.total;
     const double max_step = parameters_.limits.joint_torque_rate[0] * dt;
     for (Eigen::Index i = 0; i < n_; ++i) {
       tau[i] = std::clamp(tau[i], -torque_limit, torque_limit);
@@ -174,7 +180,7 @@ class Controller {
 
   // The task-space shaping of a torque beyond the bound, written as its definition: the terms
   // give way in the order nullspace, spring, wrench, damping, each scaled by the largest factor
-  // (found by bisection) that makes the sum fit. `spring` is the Cartesian torque at dq = 0.
+  // (found by bisection) that makes the sum fit.
   static Eigen::VectorXd shape(const Torques& torques, const Eigen::VectorXd& spring,
                                double limit) {
     const auto fits = [limit](const Eigen::VectorXd& tau) {
@@ -201,6 +207,7 @@ class Controller {
  private:
   int n_;
   ci::Parameters parameters_;
+  Shaping shaping_;
   Targets commanded_, filtered_;
   Eigen::VectorXd tau_previous_;
 };
