@@ -264,4 +264,14 @@ std::vector<std::string> overrides(const RobotSetup& robot, const Parameters& us
   return out;
 }
 
+void set_stiffness_within_limits(Parameters& parameters, double translation, double rotation,
+                                 double nullspace) {
+  const LimitParameters& limits = parameters.limits;
+  parameters.stiffness.translation.setConstant(
+      std::min(translation, limits.stiffness.translation.max));
+  parameters.stiffness.rotation.setConstant(std::min(rotation, limits.stiffness.rotation.max));
+  parameters.nullspace.stiffness =
+      JointVector::Constant(1, std::min(nullspace, limits.nullspace_stiffness.max));
+}
+
 }  // namespace cartesian_impedance::scenarios::detail

@@ -74,6 +74,11 @@ FrictionBand friction_band(Rig& rig);
 /// What the arm can do at the rig's current configuration, from its URDF (efforts, position
 /// limits) and the parameters in force (limits.joint_torque): the scenarios size their pushes,
 /// steps, table and trajectory by it, so that they fit an arm nobody tuned them for.
+/// Sets the task stiffness to `translation` [N/m] and `rotation` [Nm/rad] and the nullspace
+/// stiffness to `nullspace` [Nm/rad], each lowered to its limits.* maximum where that is lower.
+void set_stiffness_within_limits(Parameters& parameters, double translation, double rotation,
+                                 double nullspace);
+
 struct Capacity {
   double reach = 0.0;  ///< distance from the base origin to the flange [m]
   /// Per joint: what is left of min(URDF effort, limits.joint_torque) once g(q) is held [Nm]. The

@@ -536,12 +536,7 @@ Outcome wrench_on_table(const RobotSetup& robot, const MomentCallback& moment) {
 Outcome nullspace(const RobotSetup& robot, const MomentCallback& moment) {
   Parameters parameters = base_parameters(robot);
   // Stiff in the task, within limits.stiffness, so that the flange stays while the elbow moves.
-  parameters.stiffness.translation.setConstant(
-      std::min(1500.0, parameters.limits.stiffness.translation.max));
-  parameters.stiffness.rotation.setConstant(
-      std::min(150.0, parameters.limits.stiffness.rotation.max));
-  parameters.nullspace.stiffness =
-      JointVector::Constant(1, std::min(10.0, parameters.limits.nullspace_stiffness.max));
+  set_stiffness_within_limits(parameters, 1500.0, 150.0, 10.0);
   parameters.filter.nullspace.time = 1.0;
   Rig rig(robot, parameters);
   const TaskDirections directions = task_directions(rig);

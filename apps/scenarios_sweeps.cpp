@@ -15,14 +15,9 @@ namespace cartesian_impedance::scenarios::detail {
 // 8. Trajectory: tracked, and reported finished only once the robot is there.
 Outcome trajectory(const RobotSetup& robot, const MomentCallback& moment) {
   Parameters parameters = base_parameters(robot);
-  parameters.stiffness.translation.setConstant(
-      std::min(1500.0, parameters.limits.stiffness.translation.max));
-  parameters.stiffness.rotation.setConstant(
-      std::min(150.0, parameters.limits.stiffness.rotation.max));
   // The redundant joint is held by the nullspace spring alone: against 0.1-0.2 Nm of joint
   // friction, 50 Nm/rad keeps it within a few mrad of the goal.
-  parameters.nullspace.stiffness =
-      JointVector::Constant(1, std::min(50.0, parameters.limits.nullspace_stiffness.max));
+  set_stiffness_within_limits(parameters, 1500.0, 150.0, 50.0);
   {
     // The joints' friction tau_f can hold each joint short of the goal by up to
     // (J^T K J + N^T K_n N)^-1 tau_f (the springs the law puts on the joints: the Cartesian one

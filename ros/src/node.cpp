@@ -6,11 +6,9 @@
 
 #include <cstdio>
 #include <cstring>
-#include <sstream>
 #include <string>
 
 #include <cartesian_impedance/core/error.hpp>
-#include <cartesian_impedance/model/start_configuration.hpp>
 #include <cartesian_impedance/node/temporary_file.hpp>
 
 #include "node.hpp"
@@ -56,21 +54,13 @@ CartesianImpedanceNode::CartesianImpedanceNode(const ros::NodeHandle& node,
     // The simulated firmware compensates gravity like the real robots, unless the controller is
     // configured to do it itself (then it would be compensated twice).
     options.gravity_compensation = !configuration_.parameters.dynamics.gravity_compensation;
-    options.start_q = Eigen::Map<const Eigen::VectorXd>(
-        settings_.start_q.data(), static_cast<Eigen::Index>(settings_.start_q.size()));
     options.engine = settings_.engine;
-    if (options.start_q.size() == 0 && settings_.mjcf_path.empty()) {
-      // A URDF has no start of its own and q = 0 is singular on most arms: choose one.
-      try {
-        const ci::StartChoice choice = ci::find_start_configuration(*model_);
-        options.start_q = choice.q;
-        std::ostringstream q;
-        q << choice.q.transpose().format(Eigen::IOFormat(5, Eigen::DontAlignCols, ", ", ", "));
-        ROS_INFO("start configuration (chosen, no start_q set: %s): q = [%s]",
-                 choice.description.c_str(), q.str().c_str());
-      } catch (const ci::Error& error) {
-        ROS_WARN("start configuration: %s; starting at q = 0", error.what());
-      }
+    const ci::node::SimulationStart start = ci::node::simulation_start(settings_, *model_);
+    options.start_q = start.q;
+    if (start.warning) {
+      ROS_WARN("%s", start.message.c_str());
+    } else if (!start.message.empty()) {
+      ROS_INFO("%s", start.message.c_str());
     }
     if (settings_.mjcf_path.empty()) {
       // Without an MJCF the engine simulates the URDF itself; its loaders read files.

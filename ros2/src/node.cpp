@@ -5,11 +5,9 @@
 #include <chrono>
 #include <cstring>
 #include <optional>
-#include <sstream>
 #include <vector>
 
 #include <cartesian_impedance/core/error.hpp>
-#include <cartesian_impedance/model/start_configuration.hpp>
 #include <cartesian_impedance/node/status_reports.hpp>
 #include <cartesian_impedance/node/temporary_file.hpp>
 
@@ -95,22 +93,11 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
     // The simulated firmware compensates gravity like the real robots, unless the controller is
     // configured to do it itself (then it would be compensated twice).
     options.gravity_compensation = !configuration_.common.parameters.dynamics.gravity_compensation;
-    options.start_q = Eigen::Map<const Eigen::VectorXd>(
-        settings_.start_q.data(), static_cast<Eigen::Index>(settings_.start_q.size()));
     options.engine = settings_.engine;
-    if (options.start_q.size() == 0 && settings_.mjcf_path.empty()) {
-      // A URDF has no start of its own and q = 0 is singular on most arms: choose one.
-      try {
-        const ci::StartChoice choice = ci::find_start_configuration(*model_);
-        options.start_q = choice.q;
-        std::ostringstream q;
-        q << choice.q.transpose().format(Eigen::IOFormat(5, Eigen::DontAlignCols, ", ", ", "));
-        log(LogLevel::info, "start configuration (chosen, no start_q set: " + choice.description +
-                                "): q = [" + q.str() + "]");
-      } catch (const ci::Error& error) {
-        log(LogLevel::warn,
-            std::string("start configuration: ") + error.what() + "; starting at q = 0");
-      }
+    const ci::node::SimulationStart start = ci::node::simulation_start(settings_, *model_);
+    options.start_q = start.q;
+    if (!start.message.empty()) {
+      log(start.warning ? LogLevel::warn : LogLevel::info, start.message);
     }
     // Without an MJCF, the engine simulates the URDF itself.
     simulation_.emplace(settings_.mjcf_path.empty()

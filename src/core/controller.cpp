@@ -549,7 +549,7 @@ Status CartesianImpedanceController::cycle(const RobotState& robot, double dt,
   filter_targets();
   Fault fault;
   if (!evaluate_law(robot, fault)) return fail_closed(Status::numerical_error, fault, dt);
-  limit_torque(robot, dt);
+  limit_torque(dt, &robot);
   state_.status = Status::ok;
   state_.fault = Fault{};
   return state_.status;

@@ -272,35 +272,24 @@ double largest_fitting_scale(const JointVector& kept, const JointVector& part,
 }  // namespace
 
 // The bound in force ramps down toward limits.joint_torque at the rate limit (and never sits
-// below it), so a lowered limit is reached as fast as the rate limit allows.
-JointVector& CartesianImpedanceController::ramp_torque_bound(double dt) noexcept {
+// below it), so a lowered limit is reached as fast as the rate limit allows. The law's torque
+// (`law_robot` given) is first shaped in task space to fit it; the halt's and a failed cycle's
+// (damping and gravity only) are clamped per joint. The torque is clamped to the bound before and
+// after the rate limit: the previous torque lies within the previous bound, so the clamp after
+// the rate limit moves each joint by at most rate * dt.
+void CartesianImpedanceController::limit_torque(double dt, const RobotState* law_robot) noexcept {
   JointVector& bound = state_.joint_torque_limit;
+  ActiveLimits& limits = state_.limits;
   law_->max_step = joint_torque_rate_limit_ * dt;
   bound = (bound - law_->max_step).cwiseMax(joint_torque_limit_);
-  state_.limits.joint_torque_limit_ramping = (bound.array() > joint_torque_limit_.array()).any();
-  return bound;
-}
-
-// The torque of the halt and of a failed cycle (damping and gravity only): clamped per joint.
-void CartesianImpedanceController::limit_torque(double dt) noexcept {
-  const JointVector& bound = ramp_torque_bound(dt);
-  state_.limits.torque_shaping = TorqueShaping::none;
-  state_.limits.torque_shaping_scale = 1.0;
-  state_.limits.joint_torque_saturated = saturate_torque(bound, state_.tau);
-  // The previous torque lies within the previous bound, so the clamp after the rate limit moves
-  // each joint by at most rate * dt.
-  state_.limits.torque_rate_limited = limit_rate(tau_previous_, law_->max_step, state_.tau);
-  saturate_torque(bound, state_.tau);
-  tau_previous_ = state_.tau;
-}
-
-// The law's torque: shaped in task space to fit the bound, then rate limited.
-void CartesianImpedanceController::limit_torque(const RobotState& robot, double dt) noexcept {
-  const JointVector& bound = ramp_torque_bound(dt);
-  shape_torque(robot, bound);
-  state_.limits.joint_torque_saturated = state_.limits.torque_shaping != TorqueShaping::none;
-  saturate_torque(bound, state_.tau);  // acts only where gravity alone does not fit
-  state_.limits.torque_rate_limited = limit_rate(tau_previous_, law_->max_step, state_.tau);
+  limits.joint_torque_limit_ramping = (bound.array() > joint_torque_limit_.array()).any();
+  limits.torque_shaping = TorqueShaping::none;
+  limits.torque_shaping_scale = 1.0;
+  if (law_robot != nullptr) shape_torque(*law_robot, bound);
+  // After the shaping, the clamp acts only where gravity alone does not fit.
+  const bool clamped = saturate_torque(bound, state_.tau);
+  limits.joint_torque_saturated = clamped || limits.torque_shaping != TorqueShaping::none;
+  limits.torque_rate_limited = limit_rate(tau_previous_, law_->max_step, state_.tau);
   saturate_torque(bound, state_.tau);
   tau_previous_ = state_.tau;
 }
@@ -317,8 +306,6 @@ void CartesianImpedanceController::limit_torque(const RobotState& robot, double 
 void CartesianImpedanceController::shape_torque(const RobotState& robot,
                                                 const JointVector& bound) noexcept {
   ActiveLimits& limits = state_.limits;
-  limits.torque_shaping = TorqueShaping::none;
-  limits.torque_shaping_scale = 1.0;
   JointVector& tau = state_.tau;
   if ((tau.array().abs() <= bound.array()).all()) return;
   Law& law = *law_;

@@ -26,16 +26,24 @@ double uniform(std::mt19937& generator) {
   return static_cast<double>(generator()) / 4294967296.0;
 }
 
+// The URDF's efforts, kDefaultJointTorque where a joint has none.
+JointVector urdf_efforts(const RobotModel& model) {
+  JointVector effort = model.limits().effort;
+  for (Eigen::Index i = 0; i < effort.size(); ++i) {
+    if (!std::isfinite(effort[i]) || effort[i] <= 0.0) effort[i] = kDefaultJointTorque;
+  }
+  return effort;
+}
+
 }  // namespace
 
 ArmCapabilities arm_capabilities(const RobotModel& model) {
   const int n = model.num_joints();
   const JointLimits& limits = model.limits();
   ArmCapabilities arm;
-  arm.effort = limits.effort;
+  arm.effort = urdf_efforts(model);
   arm.velocity = limits.velocity;
   for (int i = 0; i < n; ++i) {
-    if (!std::isfinite(arm.effort[i]) || arm.effort[i] <= 0.0) arm.effort[i] = kDefaultJointTorque;
     if (!std::isfinite(arm.velocity[i]) || arm.velocity[i] <= 0.0) {
       arm.velocity[i] = kDefaultJointVelocity;
     }
@@ -81,12 +89,11 @@ Parameters default_parameters(const RobotModel& model) {
   Parameters parameters;
   LimitParameters& limits = parameters.limits;
   limits.joint_torque = arm.effort;
-  limits.joint_torque_rate = arm.effort / kTorqueRiseTime;
+  const ParameterInfo& rate = parameter_info("limits.joint_torque_rate");
+  limits.joint_torque_rate = (arm.effort / kTorqueRiseTime).cwiseMax(rate.min).cwiseMin(rate.max);
   const ParameterInfo& speed = parameter_info("plausibility.joint_velocity");
   parameters.plausibility.joint_velocity =
       (kPlausibleSpeedFactor * arm.velocity).cwiseMax(speed.min).cwiseMin(speed.max);
-  const ParameterInfo& rate = parameter_info("limits.joint_torque_rate");
-  limits.joint_torque_rate = limits.joint_torque_rate.cwiseMax(rate.min).cwiseMin(rate.max);
 
   const double translation =
       round_down_two_digits(kEffortShare * arm.force / limits.pose_error.translation);
@@ -112,10 +119,7 @@ Parameters with_robot_limits(const Parameters& parameters, const RobotModel& mod
   Parameters resolved = parameters;
   JointVector& torque = resolved.limits.joint_torque;
   if (torque.size() == 0) {
-    torque = effort;
-    for (int i = 0; i < n; ++i) {
-      if (!std::isfinite(torque[i]) || torque[i] <= 0.0) torque[i] = kDefaultJointTorque;
-    }
+    torque = urdf_efforts(model);
     return resolved;
   }
   const JointVector given = per_joint(torque, n);

@@ -2,10 +2,12 @@
 
 #include <algorithm>
 #include <optional>
+#include <sstream>
 #include <utility>
 
 #include "cartesian_impedance/core/error.hpp"
 #include "cartesian_impedance/model/robot_limits.hpp"
+#include "cartesian_impedance/model/start_configuration.hpp"
 
 // The shells' common settings, decoded with the parameter decoder's own functions so that their
 // messages read like every other parameter's.
@@ -310,6 +312,25 @@ NodeConfiguration decode_node_configuration(const ParameterValue& tree,
   }
   settings.tf_prefix = reader.name("tf_prefix", "a frame prefix");
   return configuration;
+}
+
+SimulationStart simulation_start(const NodeSettings& settings, const RobotModel& model) {
+  SimulationStart start;
+  start.q = Eigen::Map<const Eigen::VectorXd>(settings.start_q.data(),
+                                              static_cast<Eigen::Index>(settings.start_q.size()));
+  if (start.q.size() != 0 || !settings.mjcf_path.empty()) return start;
+  try {
+    const StartChoice choice = find_start_configuration(model);
+    start.q = choice.q;
+    std::ostringstream q;
+    q << choice.q.transpose().format(Eigen::IOFormat(5, Eigen::DontAlignCols, ", ", ", "));
+    start.message = "start configuration (chosen, no start_q set: " + choice.description +
+                    "): q = [" + q.str() + "]";
+  } catch (const Error& error) {
+    start.message = std::string("start configuration: ") + error.what() + "; starting at q = 0";
+    start.warning = true;
+  }
+  return start;
 }
 
 void apply_robot_defaults(NodeConfiguration& configuration, const RobotModel& model) {

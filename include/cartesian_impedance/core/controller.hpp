@@ -281,9 +281,7 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   bool nullspace(const RobotState& robot, Fault& fault) noexcept;
   void commanded_wrench(const RobotState& robot) noexcept;
   void gravity(const RobotState& robot) noexcept;
-  void limit_torque(double dt) noexcept;
-  void limit_torque(const RobotState& robot, double dt) noexcept;
-  JointVector& ramp_torque_bound(double dt) noexcept;
+  void limit_torque(double dt, const RobotState* law_robot = nullptr) noexcept;
   void shape_torque(const RobotState& robot, const JointVector& bound) noexcept;
 
   int num_joints_;

@@ -140,6 +140,19 @@ NodeConfiguration decode_node_configuration(const ParameterValue& tree,
 ///         index, value, joint and limits.
 void check_start_q(const NodeConfiguration& configuration, const RobotModel& model);
 
+/// Where a node's simulation of the robot starts.
+struct SimulationStart {
+  JointVector q;  ///< empty: the model's own start (the MJCF's keyframe "ready")
+  /// What to log, "" if nothing: the start chosen, or (`warning`) why none could be chosen.
+  std::string message;
+  bool warning = false;
+};
+
+/// start_q if given; else, for a URDF simulated without an MJCF (which has no start of its own,
+/// and q = 0 is singular on most arms), find_start_configuration()'s choice, or q = 0 with a
+/// warning if it finds none; else the MJCF's own.
+SimulationStart simulation_start(const NodeSettings& settings, const RobotModel& model);
+
 /// Reads the given controller parameters again on the defaults derived from `model`'s URDF
 /// (default_parameters() in model/robot_limits.hpp: efforts, rates, stiffness and wrench limits
 /// that suit the arm), as the demo and Python do: what the parameters leave out suits the arm.
