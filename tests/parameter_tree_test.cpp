@@ -247,7 +247,7 @@ TEST(ParameterTree, UnknownRepeatedAndMisplacedKeysAreNamed) {
   EXPECT_EQ(decode_error(map({{"stifness", map({{"translation", number(1)}})}})),
             "unknown parameter 'stifness' (did you mean 'stiffness'? valid top-level names: "
             "stiffness, damping_ratio, minimum_damping, nullspace, wrench, filter, limits, "
-            "dynamics, joint_limit_avoidance, trajectory, plausibility)");
+            "dynamics, joint_limit_avoidance, trajectory, plausibility, safety, payload)");
   EXPECT_EQ(decode_error(map({{"limits", map({{"stiffness", map({{"mxa", number(1)}})}})}})),
             "unknown parameter 'limits.stiffness.mxa' (valid in 'limits.stiffness': "
             "translation, rotation)");

@@ -173,7 +173,7 @@ TEST(YamlConfig, EveryTableRowRejectsNanAndInfinityWithItsLine) {
       }
     }
   }
-  EXPECT_EQ(elements_checked, 6 * 3 + 5 * 7 + 32);
+  EXPECT_EQ(elements_checked, 9 * 3 + 5 * 7 + 41);
 }
 
 TEST(YamlConfig, OutOfRangeValueIsReportedWithFileAndLine) {
@@ -454,6 +454,13 @@ TEST(YamlConfig, RoundTripOfSeededRandomParameters) {
           &p.limits.nullspace_stiffness, &p.plausibility.dt}) {
       if (range->min > range->max) std::swap(range->min, range->max);
     }
+    for (int i = 0; i < 3; ++i) {
+      double& low = p.safety.workspace.min[i];
+      double& high = p.safety.workspace.max[i];
+      if (low > high) std::swap(low, high);
+    }
+    ci::EnergyTankParameters& tank = p.safety.energy_tank;
+    if (tank.initial > tank.capacity) std::swap(tank.initial, tank.capacity);
     ASSERT_NO_THROW(ci::validate(p));
     const std::string yaml = ci::parameters_to_yaml(p);
     ci::Parameters back;

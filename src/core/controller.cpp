@@ -209,7 +209,14 @@ void CartesianImpedanceController::commit(const Parameters& parameters, Targets 
   state_.wrench_frame = parameters.wrench.frame;
   apply_saturation(commanded, state_.limits, commanded_now);
   state_.commanded = commanded;
-  if (!started_) state_.filtered = state_.commanded;
+  if (!started_) {
+    state_.filtered = state_.commanded;
+    state_.safety.payload_mass = parameters.payload.mass;
+    state_.safety.payload_center_of_mass = parameters.payload.center_of_mass;
+    state_.safety.tank_level = parameters.safety.energy_tank.initial;
+  }
+  state_.safety.tank_level =
+      std::min(state_.safety.tank_level, parameters.safety.energy_tank.capacity);
   refresh_damping_mode();
   joint_torque_limit_ = per_joint(parameters.limits.joint_torque, num_joints_, kDefaultJointTorque);
   joint_torque_rate_limit_ = per_joint(parameters.limits.joint_torque_rate, num_joints_);
@@ -251,6 +258,11 @@ void CartesianImpedanceController::start(const RobotState& robot,
   commanded.nullspace_dq.setZero();
   state_.filtered = commanded;
   state_.filtered.wrench.setZero();
+  // The arm already carries its payload: its compensation holds from the first cycle.
+  SafetyState& safety = state_.safety;
+  safety.payload_mass = parameters_.payload.mass;
+  safety.payload_center_of_mass = parameters_.payload.center_of_mass;
+  safety.tank_level = parameters_.safety.energy_tank.initial;
   refresh_damping_mode();
   state_.pose = pose;
   state_.tau = tau_previous;
@@ -363,6 +375,8 @@ void CartesianImpedanceController::filter_targets() noexcept {
   // a_{k+1} = (1 - a) a_k + a a_d, written in this form so that a = 1 lands exactly on a_d.
   const Targets& commanded = state_.commanded;
   Targets& filtered = state_.filtered;
+  law_->reference_before = filtered.pose;
+  law_->stiffness_before = filtered.stiffness;
   const double a_pose = gains_.pose;
   filtered.pose.position =
       (1.0 - a_pose) * filtered.pose.position + a_pose * commanded.pose.position;
@@ -389,6 +403,7 @@ void CartesianImpedanceController::filter_targets() noexcept {
   filtered.nullspace_dq = commanded.nullspace_dq;
   const double a_wrench = gains_.wrench;
   filtered.wrench = (1.0 - a_wrench) * filtered.wrench + a_wrench * commanded.wrench;
+  filter_payload();
 }
 
 void CartesianImpedanceController::track(const Pose& pose_base, const Vector6d& twist_base,
@@ -547,8 +562,10 @@ Status CartesianImpedanceController::cycle(const RobotState& robot, double dt,
 
   update_gains(dt);
   filter_targets();
+  limit_reference_speed(dt);
+  clip_reference_to_workspace();
   Fault fault;
-  if (!evaluate_law(robot, fault)) return fail_closed(Status::numerical_error, fault, dt);
+  if (!evaluate_law(robot, dt, fault)) return fail_closed(Status::numerical_error, fault, dt);
   limit_torque(dt, &robot);
   state_.status = Status::ok;
   state_.fault = Fault{};

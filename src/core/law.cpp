@@ -46,13 +46,19 @@ CartesianImpedanceController::Law::Law(int num_joints)
   forget_damping();
 }
 
-bool CartesianImpedanceController::evaluate_law(const RobotState& robot, Fault& fault) noexcept {
+bool CartesianImpedanceController::evaluate_law(const RobotState& robot, double dt,
+                                                Fault& fault) noexcept {
   measure_pose(robot);
-  if (!compute_damping(robot, fault)) return false;
-  spring_damper(robot);
-  if (!nullspace(robot, fault)) return false;
-  commanded_wrench(robot);
+  pay_stiffness_change();
+  const JointMatrix& mass = mass_with_payload(robot);
+  if (!compute_damping(robot, mass, fault)) return false;
+  spring_damper(robot, dt);
+  if (!nullspace(robot, mass, fault)) return false;
+  commanded_wrench();
+  safety_layer(robot);
+  cartesian_torques(robot);
   gravity(robot);
+  estimate_payload(dt);
   state_.tau = state_.tau_cartesian + state_.tau_nullspace + state_.tau_wrench + state_.tau_gravity;
   if (state_.tau.allFinite()) return true;
   // Name the term that overflowed or became NaN.
@@ -109,7 +115,8 @@ void CartesianImpedanceController::measure_pose(const RobotState& robot) noexcep
 // diagonal K (the common case) needs six square roots; a full one a 6x6 eigen-decomposition,
 // done only while K or zeta move. Shaped by the task-space inertia (the default), it changes with
 // q and is computed every cycle. A schedule() gives D directly.
-bool CartesianImpedanceController::compute_damping(const RobotState& robot, Fault& fault) noexcept {
+bool CartesianImpedanceController::compute_damping(const RobotState& robot, const JointMatrix& mass,
+                                                   Fault& fault) noexcept {
   Law& law = *law_;
   const Targets& filtered = state_.filtered;
   law.damping_diagonal = stiffness_diagonal_;
@@ -118,7 +125,7 @@ bool CartesianImpedanceController::compute_damping(const RobotState& robot, Faul
     law.damping_diagonal = stiffness_diagonal_ && scheduled_damping_diagonal_;
   } else if (parameters_.dynamics.inertia_shaped_damping) {
     const bool in_base = parameters_.stiffness.frame == Frame::base;
-    if (!law.inertia_damping.compute(robot.jacobian, robot.mass,
+    if (!law.inertia_damping.compute(robot.jacobian, mass,
                                      parameters_.nullspace.pseudo_inverse_damping,
                                      in_base ? nullptr : &law.rotation, filtered.stiffness,
                                      filtered.damping_ratio, law.damping_frame)) {
@@ -155,17 +162,18 @@ bool CartesianImpedanceController::compute_damping(const RobotState& robot, Faul
   return true;
 }
 
-// tau_cartesian = J^T (-K e - D (J dq - v_ref)): spring and damper in the stiffness frame; in the
-// end-effector frame the error and velocity are rotated in and the wrench back out. The damper
-// acts on the velocity relative to the reference's (zero unless tracking).
-void CartesianImpedanceController::spring_damper(const RobotState& robot) noexcept {
+// F = -K e - D (J dq - v_ref): spring and damper in the stiffness frame, kept apart (in the base
+// frame) for the safety layer and the torque shaping; in the end-effector frame the error and
+// velocity are rotated in and the forces back out. The damper acts on the velocity relative to
+// the reference's (zero unless tracking). What the damper dissipates fills the energy tank.
+void CartesianImpedanceController::spring_damper(const RobotState& robot, double dt) noexcept {
+  Law& law = *law_;
   const Targets& filtered = state_.filtered;
-  const Eigen::Matrix3d& rotation = law_->rotation;
+  const Eigen::Matrix3d& rotation = law.rotation;
   const bool in_base = parameters_.stiffness.frame == Frame::base;
-  Vector6d velocity;
-  jacobian_times(robot.jacobian, robot.dq, velocity);
-  velocity -= filtered.twist;
-  Vector6d error_frame, velocity_frame, force_frame;
+  jacobian_times(robot.jacobian, robot.dq, law.twist);
+  const Vector6d velocity = law.twist - filtered.twist;
+  Vector6d error_frame, velocity_frame;
   if (in_base) {
     error_frame = state_.pose_error;
     velocity_frame = velocity;
@@ -174,30 +182,35 @@ void CartesianImpedanceController::spring_damper(const RobotState& robot) noexce
     rotate_six_inverse(rotation, velocity, velocity_frame);
   }
   const Matrix6d& damping = state_.damping;
-  Vector6d spring_frame;
-  if (law_->damping_diagonal) {
+  Vector6d spring_frame, damping_frame;
+  if (law.damping_diagonal) {
     spring_frame = -filtered.stiffness.diagonal().cwiseProduct(error_frame);
-    force_frame = spring_frame - damping.diagonal().cwiseProduct(velocity_frame);
+    damping_frame = -damping.diagonal().cwiseProduct(velocity_frame);
   } else {
     spring_frame.noalias() = -filtered.stiffness * error_frame;
-    force_frame = spring_frame;
-    force_frame.noalias() -= damping * velocity_frame;
+    damping_frame.noalias() = -damping * velocity_frame;
   }
-  // The spring alone is kept for the torque shaping, which may scale it apart from the damping.
-  Vector6d force;
   if (in_base) {
-    force = force_frame;
-    law_->spring_force = spring_frame;
+    law.spring_force = spring_frame;
+    law.damping_force = damping_frame;
   } else {
-    rotate_six(rotation, force_frame, force);
-    rotate_six(rotation, spring_frame, law_->spring_force);
+    rotate_six(rotation, spring_frame, law.spring_force);
+    rotate_six(rotation, damping_frame, law.damping_force);
   }
+  fill_tank(-damping_frame.dot(velocity_frame) * dt);
+}
+
+// tau_cartesian = J^T (spring + damping, walls and brake), after the safety layer.
+void CartesianImpedanceController::cartesian_torques(const RobotState& robot) noexcept {
+  const Vector6d force = law_->spring_force + law_->damping_force;
   jacobian_transpose_times(robot.jacobian, force, state_.tau_cartesian);
+  jacobian_transpose_times(robot.jacobian, state_.wrench_base, state_.tau_wrench);
 }
 
 // tau_nullspace = N tau_0, tau_0 = -K_ns (q - q_d) - D_ns (dq - dq_d) + a secondary task's torque:
 // joint impedance projected so that it does not disturb the end effector.
-bool CartesianImpedanceController::nullspace(const RobotState& robot, Fault& fault) noexcept {
+bool CartesianImpedanceController::nullspace(const RobotState& robot, const JointMatrix& mass,
+                                             Fault& fault) noexcept {
   Law& law = *law_;
   const Targets& filtered = state_.filtered;
   const JointVector& stiffness_ns = filtered.nullspace_stiffness;
@@ -212,7 +225,7 @@ bool CartesianImpedanceController::nullspace(const RobotState& robot, Fault& fau
   if (robot.secondary_torque.size() == num_joints_) law.tau_0 += robot.secondary_torque;
   const double lambda = parameters_.nullspace.pseudo_inverse_damping;
   if (parameters_.dynamics.dynamically_consistent_nullspace) {
-    if (!law.projector.project_dynamic(robot.jacobian, robot.mass, lambda, law.tau_0,
+    if (!law.projector.project_dynamic(robot.jacobian, mass, lambda, law.tau_0,
                                        state_.tau_nullspace)) {
       fault = Fault{"nullspace",
                     -1,
@@ -231,22 +244,30 @@ bool CartesianImpedanceController::nullspace(const RobotState& robot, Fault& fau
   return true;
 }
 
-// tau_wrench = J^T F, with F rotated into the base frame when it is given in the end effector's.
-void CartesianImpedanceController::commanded_wrench(const RobotState& robot) noexcept {
+// F in the base frame, rotated there when it is given in the end effector's; tau_wrench = J^T F
+// follows the safety layer (cartesian_torques).
+void CartesianImpedanceController::commanded_wrench() noexcept {
   if (parameters_.wrench.frame == Frame::base) {
     state_.wrench_base = state_.filtered.wrench;
   } else {
     rotate_six(law_->rotation, state_.filtered.wrench, state_.wrench_base);
   }
-  jacobian_transpose_times(robot.jacobian, state_.wrench_base, state_.tau_wrench);
 }
 
-// tau_gravity = g(q) when the law compensates gravity, else zero.
+// tau_gravity = g(q) when the law compensates gravity, else zero; plus J^T of the wrench that
+// holds the payload up.
 void CartesianImpedanceController::gravity(const RobotState& robot) noexcept {
   if (parameters_.dynamics.gravity_compensation) {
     state_.tau_gravity = robot.gravity;
   } else {
     state_.tau_gravity.setZero();
+  }
+  const SafetyState& safety = state_.safety;
+  if (safety.payload_mass > 0.0) {
+    const Vector6d holding = payload_holding_wrench();
+    JointVector& tau_payload = law_->tau_kept;  // free until the torque shaping
+    jacobian_transpose_times(robot.jacobian, holding, tau_payload);
+    state_.tau_gravity += tau_payload;
   }
 }
 

@@ -27,6 +27,20 @@ struct CartesianImpedanceController::Law {
   // shaping (limit_torque) splits the cycle's torque into when it does not fit.
   Vector6d spring_force = Vector6d::Zero();
   JointVector tau_spring, tau_damping, tau_kept;
+  // The rest of the Cartesian force (damping, and the safety layer's walls and brake), base frame,
+  // and the end effector's twist J dq of the cycle.
+  Vector6d damping_force = Vector6d::Zero();
+  Vector6d twist = Vector6d::Zero();
+  // The filtered K before this cycle's filter step: the energy tank pays for the difference.
+  Matrix6d stiffness_before = Matrix6d::Zero();
+  // The filtered reference before this cycle's filter step: the speed cap limits the step.
+  Pose reference_before;
+  // M(q) with the payload's inertia (payload.mass > 0 and a dynamic option on), and the
+  // velocity map of the payload's centre of mass, J_v - [r]x J_w.
+  JointMatrix mass;
+  Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::ColMajor, 3, kMaxJoints> payload_map;
+  // How long the end effector has been still [s], for the payload estimate.
+  double still_for = 0.0;
 
   // The damping must be computed anew at the next cycle (K, zeta or the mode changed).
   void forget_damping() noexcept {

@@ -194,6 +194,50 @@ std::vector<ParameterInfo> make_table() {
        "how far a measured position may lie outside the URDF's limits before the cycle fails "
        "closed (checked by the control loop, which knows the limits)",
        [](Parameters& p) { return field_of(&p.plausibility.joint_position_margin); }},
+      {"safety.max_speed.translation", "m/s", 0, 10, false,
+       "speed cap of the end effector: the reference moves no faster, the spring and wrench stop "
+       "accelerating at it, the excess is braked; 0 = off",
+       [](Parameters& p) { return field_of(&p.safety.max_speed.translation); }},
+      {"safety.max_speed.rotation", "rad/s", 0, 30, false,
+       "angular speed cap of the end effector, as for translation; 0 = off",
+       [](Parameters& p) { return field_of(&p.safety.max_speed.rotation); }},
+      {"safety.max_force.force", "N", 0, kMaxForce, false,
+       "largest norm of the force the controller presses with (spring + commanded wrench); "
+       "0 = off",
+       [](Parameters& p) { return field_of(&p.safety.max_force.force); }},
+      {"safety.max_force.torque", "Nm", 0, kMaxTorque, false,
+       "largest norm of the torque the controller presses with (spring + commanded wrench); "
+       "0 = off",
+       [](Parameters& p) { return field_of(&p.safety.max_force.torque); }},
+      {"safety.workspace.min", "m", -100, 100, false,
+       "lower corner of the box (base frame) references are clipped into and walls keep the end "
+       "effector in",
+       [](Parameters& p) { return field_of(&p.safety.workspace.min); }},
+      {"safety.workspace.max", "m", -100, 100, false, "upper corner of the box (base frame)",
+       [](Parameters& p) { return field_of(&p.safety.workspace.max); }},
+      {"safety.workspace.stiffness", "N/m", 0, kMaxTranslationalStiffness, false,
+       "stiffness of the walls outside the box, also while teaching; 0 = no walls",
+       [](Parameters& p) { return field_of(&p.safety.workspace.stiffness); }},
+      {"safety.workspace.damping", "N s/m", 0, 1e4, false,
+       "damping of the walls, on motion out of the box",
+       [](Parameters& p) { return field_of(&p.safety.workspace.damping); }},
+      {"safety.energy_tank.enabled", "", 0, 0, false,
+       "energy tank: a stiffness raise is paid from the tank (1/2 e^T dK e), which the damping "
+       "fills; an empty tank makes the raise wait, so no stiffness schedule pumps up motion",
+       [](Parameters& p) { return field_of(&p.safety.energy_tank.enabled); }},
+      {"safety.energy_tank.capacity", "J", 0, 1e3, false,
+       "most energy the tank holds: how far stiffness changes may grow the motion's energy",
+       [](Parameters& p) { return field_of(&p.safety.energy_tank.capacity); }},
+      {"safety.energy_tank.initial", "J", 0, 1e3, false,
+       "tank level at start (at most the capacity)",
+       [](Parameters& p) { return field_of(&p.safety.energy_tank.initial); }},
+      {"payload.mass", "kg", 0, 1e3, false,
+       "mass carried at the end effector: its gravity is compensated and its inertia shapes the "
+       "damping; filtered with filter.wrench",
+       [](Parameters& p) { return field_of(&p.payload.mass); }},
+      {"payload.center_of_mass", "m", -10, 10, false,
+       "centre of mass of the payload in the end-effector frame",
+       [](Parameters& p) { return field_of(&p.payload.center_of_mass); }},
   };
 }
 
@@ -338,6 +382,19 @@ void validate(const Parameters& parameters, int num_joints) {
   check_ranges(limits.damping_ratio, "limits.damping_ratio", "");
   check_ranges(limits.nullspace_stiffness, "limits.nullspace_stiffness", "Nm/rad");
   check_ranges(parameters.plausibility.dt, "plausibility.dt", "s");
+  const WorkspaceParameters& box = parameters.safety.workspace;
+  for (int i = 0; i < 3; ++i) {
+    if (box.min[i] > box.max[i]) {
+      throw Error(std::string("safety.workspace.min") + kAxisSuffix[i] + " = " +
+                  with_unit(box.min[i], "m") + " is greater than safety.workspace.max" +
+                  kAxisSuffix[i] + " = " + with_unit(box.max[i], "m"));
+    }
+  }
+  const EnergyTankParameters& tank = parameters.safety.energy_tank;
+  if (tank.initial > tank.capacity) {
+    throw Error("safety.energy_tank.initial = " + with_unit(tank.initial, "J") +
+                " is greater than safety.energy_tank.capacity = " + with_unit(tank.capacity, "J"));
+  }
 }
 
 std::string value_text(const Parameters& parameters, const ParameterInfo& info) {

@@ -287,6 +287,17 @@ inline ci::Parameters other_valid_parameters() {
   p.plausibility.dt = {2e-5, 0.015};
   p.plausibility.joint_velocity = joints({5, 5, 5, 5, 6, 6, 6});
   p.plausibility.joint_position_margin = 0.3;
+  p.safety.max_speed = {0.25, 1.5};
+  p.safety.max_force = {40.0, 8.0};
+  p.safety.workspace.min = Eigen::Vector3d(-0.8, -0.7, 0.05);
+  p.safety.workspace.max = Eigen::Vector3d(0.8, 0.7, 1.1);
+  p.safety.workspace.stiffness = 1500.0;
+  p.safety.workspace.damping = 80.0;
+  p.safety.energy_tank.enabled = false;
+  p.safety.energy_tank.capacity = 0.02;
+  p.safety.energy_tank.initial = 0.01;
+  p.payload.mass = 0.7;
+  p.payload.center_of_mass = Eigen::Vector3d(0.0, 0.01, 0.05);
   return p;
 }
 

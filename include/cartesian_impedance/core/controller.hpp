@@ -111,6 +111,44 @@ struct ActiveLimits {
   bool holding = false;
 };
 
+/// What the safety layer (parameters safety.*, payload.*) did in the last cycle. A scale is the
+/// fraction of a quantity that was kept (1: untouched).
+struct SafetyState {
+  /// safety.max_speed: the reference was held back (it moves toward the commanded pose no faster
+  /// than the cap), the spring and wrench were kept from accelerating the end effector near the
+  /// cap (the drive scales: the fraction of their push along the motion that was kept), and the
+  /// end effector was faster than a cap, so its excess speed was braked.
+  bool reference_speed_limited = false;
+  double translation_drive_scale = 1.0;
+  double rotation_drive_scale = 1.0;
+  bool braking = false;
+  /// safety.max_force: the fraction of spring + commanded wrench kept [0, 1].
+  double force_scale = 1.0;
+  double torque_scale = 1.0;
+  /// safety.workspace: the reference was clipped into the box; the end effector's origin is
+  /// outside it by `workspace_penetration` [m] (base frame, zero inside), pushed back by
+  /// `wall_force` [N].
+  bool reference_clipped = false;
+  Eigen::Vector3d workspace_penetration = Eigen::Vector3d::Zero();
+  Eigen::Vector3d wall_force = Eigen::Vector3d::Zero();
+  /// safety.energy_tank: its level [J], the energy a stiffness change drew from it this cycle
+  /// (negative: returned to it) [J], and the fraction of the cycle's stiffness change that was
+  /// applied (below 1: the tank could not pay for all of it, the change waits).
+  double tank_level = 0.0;
+  double tank_draw = 0.0;
+  double stiffness_change_scale = 1.0;
+  /// The payload being compensated (payload.*, filtered) [kg; m, end-effector frame].
+  double payload_mass = 0.0;
+  Eigen::Vector3d payload_center_of_mass = Eigen::Vector3d::Zero();
+  /// What the controller holds up at rest, read as a payload: the mass [kg] and the centre of
+  /// mass across gravity [m, end-effector frame] that explain the static force it commands
+  /// (spring + payload compensation, the commanded wrench excluded), averaged while the end
+  /// effector is still. Valid once it has been still for kPayloadSettleTime.
+  bool payload_estimate_valid = false;
+  double payload_estimate_mass = 0.0;
+  Eigen::Vector3d payload_estimate_center_of_mass = Eigen::Vector3d::Zero();
+};
+
 /// Snapshot written by every update().
 struct ControllerState {
   Status status = Status::not_started;
@@ -125,12 +163,14 @@ struct ControllerState {
   JointVector tau_cartesian;            ///< J^T (-K e - D J dq) [Nm]
   JointVector tau_nullspace;            ///< N tau_0 [Nm]
   JointVector tau_wrench;               ///< J^T F [Nm]
-  JointVector tau_gravity;              ///< g(q) if dynamics.gravity_compensation, else 0 [Nm]
-  JointVector tau;                      ///< commanded torque after torque and rate limits [Nm]
+  /// g(q) if dynamics.gravity_compensation, else 0, plus the payload's gravity torque [Nm]
+  JointVector tau_gravity;
+  JointVector tau;  ///< commanded torque after torque and rate limits [Nm]
   /// Torque bound in force per joint [Nm]: limits.joint_torque, or above it while ramping down
   /// to a lowered limit (|tau| never exceeds this, and this never falls faster than the rate).
   JointVector joint_torque_limit;
   ActiveLimits limits;
+  SafetyState safety;
   /// Why the last cycle failed closed (empty when status is ok): the input ("dq", index 4, ...),
   /// or the term of the law that could not be evaluated ("damping", "tau_nullspace", ...).
   Fault fault;
@@ -163,6 +203,13 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   static constexpr double kHoldWindow = 1.0;
   static constexpr double kRestSpeed = 0.05;
   static constexpr double kRestTime = 0.1;
+  /// The payload estimate (SafetyState) is valid after the end effector has been still (slower
+  /// than kStillSpeed [m/s] and kStillAngularSpeed [rad/s]) for this long [s].
+  static constexpr double kPayloadSettleTime = 0.5;
+  static constexpr double kStillSpeed = 0.005;
+  static constexpr double kStillAngularSpeed = 0.02;
+  /// Standard gravity [m/s^2]; the payload's weight acts along the base frame's -z.
+  static constexpr double kGravity = 9.81;
 
   /// @throws Error if num_joints is outside [1, kMaxJoints] or the parameters are invalid.
   explicit CartesianImpedanceController(int num_joints, const Parameters& parameters = {});
@@ -273,14 +320,28 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   void filter_targets() noexcept;
   // The law, one function per term (law.cpp); a term that cannot be evaluated returns false and
   // names its cause in `fault`.
-  bool evaluate_law(const RobotState& robot, Fault& fault) noexcept;
+  bool evaluate_law(const RobotState& robot, double dt, Fault& fault) noexcept;
   bool evaluate_halt(const RobotState& robot, Fault& fault) noexcept;
   void measure_pose(const RobotState& robot) noexcept;
-  bool compute_damping(const RobotState& robot, Fault& fault) noexcept;
-  void spring_damper(const RobotState& robot) noexcept;
-  bool nullspace(const RobotState& robot, Fault& fault) noexcept;
-  void commanded_wrench(const RobotState& robot) noexcept;
+  bool compute_damping(const RobotState& robot, const JointMatrix& mass, Fault& fault) noexcept;
+  void spring_damper(const RobotState& robot, double dt) noexcept;
+  bool nullspace(const RobotState& robot, const JointMatrix& mass, Fault& fault) noexcept;
+  void commanded_wrench() noexcept;
+  void cartesian_torques(const RobotState& robot) noexcept;
   void gravity(const RobotState& robot) noexcept;
+  // The safety layer (safety.cpp).
+  void limit_reference_speed(double dt) noexcept;
+  void clip_reference_to_workspace() noexcept;
+  void filter_payload() noexcept;
+  void pay_stiffness_change() noexcept;
+  void fill_tank(double energy) noexcept;
+  const JointMatrix& mass_with_payload(const RobotState& robot) noexcept;
+  void safety_layer(const RobotState& robot) noexcept;
+  void cap_force() noexcept;
+  void govern_speed() noexcept;
+  void push_back_from_walls() noexcept;
+  Vector6d payload_holding_wrench() const noexcept;
+  void estimate_payload(double dt) noexcept;
   void limit_torque(double dt, const RobotState* law_robot = nullptr) noexcept;
   void shape_torque(const RobotState& robot, const JointVector& bound) noexcept;
 

@@ -148,6 +148,59 @@ struct LimitParameters {
   JointVector joint_torque_rate = JointVector::Constant(1, 1000.0);
 };
 
+/// The speed of the end effector the commands may cause (0 switches a cap off). The reference
+/// moves toward a commanded pose no faster than this, the spring and the commanded wrench stop
+/// accelerating the end effector as its speed reaches the cap, and beyond it the damping is
+/// doubled on the excess: a push from outside is braked, not fought with stiffness.
+struct MaxSpeedParameters {
+  double translation = 0.0;  ///< [m/s] speed of the end effector's origin
+  double rotation = 0.0;     ///< [rad/s] angular speed of the end effector
+};
+
+/// The force and torque the controller presses with at the end effector (0 switches a cap off):
+/// the norm of spring + commanded wrench is scaled down to these, keeping its direction.
+struct MaxForceParameters {
+  double force = 0.0;   ///< [N]
+  double torque = 0.0;  ///< [Nm]
+};
+
+/// A box in the base frame the end effector is kept in: references outside it are clipped into
+/// it, and outside it a wall spring with damping pushes the end effector's origin back (also
+/// while teaching). A wall stiffness of 0 switches the walls off (references are still clipped).
+struct WorkspaceParameters {
+  Eigen::Vector3d min = Eigen::Vector3d::Constant(-10.0);  ///< [m] lower corner, base frame
+  Eigen::Vector3d max = Eigen::Vector3d::Constant(10.0);   ///< [m] upper corner, base frame
+  double stiffness = 0.0;                                  ///< [N/m] wall spring
+  double damping = 100.0;  ///< [N s/m] wall damper, acting only on motion out of the box
+};
+
+/// The energy tank that keeps the controller passive while its stiffness changes: raising the
+/// stiffness while the pose error is e stores 1/2 e^T dK e in the spring, which is drawn from
+/// the tank; the tank is filled by what the Cartesian damping dissipates, up to its capacity;
+/// when it cannot pay, the stiffness change waits (it is applied as far as the energy allows).
+struct EnergyTankParameters {
+  bool enabled = true;
+  double capacity = 0.005;  ///< [J] the most the tank holds
+  double initial = 0.005;   ///< [J] its level at start()
+};
+
+/// The safety layer: caps on what any valid command can make the arm do.
+struct SafetyParameters {
+  MaxSpeedParameters max_speed;
+  MaxForceParameters max_force;
+  WorkspaceParameters workspace;
+  EnergyTankParameters energy_tank;
+};
+
+/// A load carried at the end effector whose gravity the controller compensates (J^T of the wrench
+/// that holds it up; the base frame's -z is taken as down) and whose inertia enters the task-space
+/// inertia of the damping and the dynamically consistent projector. Changes are filtered with
+/// filter.wrench.
+struct PayloadParameters {
+  double mass = 0.0;                                         ///< [kg]
+  Eigen::Vector3d center_of_mass = Eigen::Vector3d::Zero();  ///< [m] end-effector frame
+};
+
 /// The complete configuration. Defaults are the values of a default-constructed object.
 struct Parameters {
   /// Its name as a command (command.hpp), which replaces the whole configuration.
@@ -163,6 +216,8 @@ struct Parameters {
   JointLimitAvoidanceParameters joint_limit_avoidance;
   TrajectoryParameters trajectory;
   PlausibilityParameters plausibility;
+  SafetyParameters safety;
+  PayloadParameters payload;
 };
 
 /// Pointer to the storage of one parameter inside a Parameters object.
