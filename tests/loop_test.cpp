@@ -708,6 +708,46 @@ TEST(ControlLoop, TeachingLetsThePushMoveTheArmAndItStays) {
   EXPECT_LT((sim.pose().position - left.position).norm(), 1e-3) << "and it stays";
 }
 
+// While teaching, a 30 N push that turns the base joint toward its limit (the push follows the
+// flange's motion, so it keeps driving the joint) is held inside the avoidance margin by the
+// joint-space wall: the largest reach into the margin is what the push's torque compresses a wall
+// of the joint's bound / margin (87 Nm / 0.1 rad) by, plus what the damped wall lets the arm's
+// momentum add. Without the avoidance the same push drives the joint past its limit. Every other
+// joint must stay off its limits too.
+TEST(ControlLoop, TeachingKeepsEveryJointOffItsLimitUnderAPush) {
+  const ci::RobotModel model = panda();
+  const auto push_toward_the_limit = [&](double avoidance_stiffness) {
+    ci::Parameters parameters;
+    parameters.joint_limit_avoidance = {0.1, avoidance_stiffness};
+    ci::ControlLoop loop(model, parameters);
+    ci::JointVector q = panda_ready();
+    q[0] = model.limits().position_upper[0] - 0.4;
+    model_simulation::Simulation sim(model, q);
+    loop.start(sim.q, sim.dq);
+    loop.start_teaching();
+    run(loop, sim, 0.5);
+    double closest = 1e9;  // smallest distance of any joint to either of its limits [rad]
+    bool wall_seen = false;
+    for (int k = 0; k < 3000; ++k) {
+      const ci::Jacobian jacobian = sim.jacobian();
+      const Eigen::Vector3d direction = jacobian.col(0).head<3>().normalized();
+      sim.external = jacobian.topRows<3>().transpose() * (30.0 * direction);
+      sim.step(loop.step(sim.q, sim.dq, 0.001), 0.001);
+      wall_seen = wall_seen || loop.state().controller.safety.joint_limit_wall;
+      const ci::JointVector to_upper = model.limits().position_upper - sim.q;
+      const ci::JointVector to_lower = sim.q - model.limits().position_lower;
+      closest = std::min({closest, to_upper.minCoeff(), to_lower.minCoeff()});
+    }
+    return std::pair{closest, wall_seen};
+  };
+  const auto [closest, wall_seen] = push_toward_the_limit(20.0);
+  EXPECT_TRUE(wall_seen);
+  // 30 N at the flange about the base axis: at most 30 N x 0.9 m = 27 Nm, 0.031 rad into the wall.
+  EXPECT_GT(closest, 0.1 - 27.0 / 870.0 - 0.02) << "the wall holds the joint in the margin";
+  const auto [closest_without, unused] = push_toward_the_limit(0.0);
+  EXPECT_LT(closest_without, 0.0) << "without the wall the push reaches the limit";
+}
+
 // ---- several robots
 // ------------------------------------------------------------------------------
 

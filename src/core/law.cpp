@@ -200,10 +200,14 @@ void CartesianImpedanceController::spring_damper(const RobotState& robot, double
   fill_tank(-damping_frame.dot(velocity_frame) * dt);
 }
 
-// tau_cartesian = J^T (spring + damping, walls and brake), after the safety layer.
+// tau_cartesian = J^T (spring + damping, walls and brake), after the safety layer, plus the
+// joint-limit walls (in joint space, unprojected).
 void CartesianImpedanceController::cartesian_torques(const RobotState& robot) noexcept {
   const Vector6d force = law_->spring_force + law_->damping_force;
   jacobian_transpose_times(robot.jacobian, force, state_.tau_cartesian);
+  const bool walls = robot.joint_wall_torque.size() == num_joints_;
+  if (walls) state_.tau_cartesian += robot.joint_wall_torque;
+  state_.safety.joint_limit_wall = walls && !robot.joint_wall_torque.isZero(0.0);
   jacobian_transpose_times(robot.jacobian, state_.wrench_base, state_.tau_wrench);
 }
 

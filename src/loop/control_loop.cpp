@@ -403,17 +403,39 @@ void ControlLoop::joint_limit_torque() noexcept {
   // end effector does not feel it. Joints without limits (continuous) have infinite bounds.
   const JointLimitAvoidanceParameters& avoidance = controller_.parameters().joint_limit_avoidance;
   JointVector& torque = robot_.secondary_torque;
+  JointVector& wall = robot_.joint_wall_torque;
   if (!(avoidance.stiffness > 0.0)) {
     torque.resize(0);
+    wall.resize(0);
     return;
   }
   torque.setZero(num_joints());
+  // While teaching nothing holds the end effector, so a push moves the joints in task space,
+  // where a projected torque cannot act: a joint-space wall takes over in the margin. It rises
+  // to the joint's torque bound at the limit and is critically damped (with M(q)'s diagonal,
+  // 1 kg m^2 without a model) on motion toward the limit, so a push the joint can hold stops
+  // inside the margin instead of at the limit (where the robot's own safety would stop).
+  const ControllerState& state = controller_.state();
+  const bool teaching = avoidance.margin > 0.0 && state.commanded.stiffness.isZero(0.0);
+  if (teaching) {
+    wall.setZero(num_joints());
+  } else {
+    wall.resize(0);
+  }
+  const bool with_mass = robot_.mass.rows() == num_joints();
   for (int i = 0; i < num_joints(); ++i) {
     const double upper = upper_limits_[i] - avoidance.margin;
     const double lower = lower_limits_[i] + avoidance.margin;
     const double q = robot_.q[i];
-    if (q > upper) torque[i] = -avoidance.stiffness * (q - upper);
-    if (q < lower) torque[i] = avoidance.stiffness * (lower - q);
+    const double depth = q > upper ? q - upper : (q < lower ? q - lower : 0.0);
+    if (depth == 0.0) continue;
+    torque[i] = -avoidance.stiffness * depth;
+    if (!teaching) continue;
+    const double stiffness = state.joint_torque_limit[i] / avoidance.margin;
+    const double inertia = with_mass ? robot_.mass(i, i) : 1.0;
+    const double dq = robot_.dq[i];
+    wall[i] = -stiffness * depth;
+    if (dq * depth > 0.0) wall[i] -= 2.0 * std::sqrt(stiffness * inertia) * dq;
   }
 }
 

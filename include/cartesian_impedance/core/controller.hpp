@@ -131,6 +131,10 @@ struct SafetyState {
   bool reference_clipped = false;
   Eigen::Vector3d workspace_penetration = Eigen::Vector3d::Zero();
   Eigen::Vector3d wall_force = Eigen::Vector3d::Zero();
+  /// While teaching (zero commanded Cartesian stiffness), a joint inside its
+  /// joint_limit_avoidance.margin is held off its limit by a joint-space wall
+  /// (RobotState::joint_wall_torque, added to tau_cartesian): true while one acts.
+  bool joint_limit_wall = false;
   /// safety.energy_tank: its level [J], the energy a stiffness change drew from it this cycle
   /// (negative: returned to it) [J], and the fraction of the cycle's stiffness change that was
   /// applied (below 1: the tank could not pay for all of it, the change waits).

@@ -55,6 +55,10 @@ struct RobotState {
   /// Torque of a secondary task [Nm] (e.g. joint-limit avoidance), added to the nullspace
   /// torque tau_0 before the projection, so it acts only in the nullspace.
   JointVector secondary_torque;
+  /// Joint-space torque added to the command as it is, not projected [Nm]: the joint-limit walls
+  /// that hold a joint off its limit while teaching (the control loop fills it; see
+  /// joint_limit_avoidance). It joins the damping in the torque shaping.
+  JointVector joint_wall_torque;
 };
 
 /// Returns a RobotState sized for `num_joints` with every value zero and an identity pose.
