@@ -144,7 +144,10 @@ Outcome stability_grid(const RobotSetup& robot, const MomentCallback&) {
       Parameters parameters = base_parameters(robot);
       parameters.stiffness.translation.setConstant(kt);
       parameters.stiffness.rotation.setConstant(kr);
-      parameters.filter.pose.time = 0.0;  // a true step: the spring energy is known at once
+      // A true step: the spring energy is known at once (the speed cap would ramp the reference,
+      // feeding the energy in over the ramp).
+      parameters.filter.pose.time = 0.0;
+      parameters.safety.max_speed = {0.0, 0.0};
       parameters.limits.pose_error = {1.0, 1.0};
       Rig rig(robot, parameters);
       // 3 cm along x and 0.05 rad about y, or along and about directions the arm can move in;

@@ -498,6 +498,31 @@ TEST(Rendering, CaptionIsWrittenInTheTopLeftCorner) {
   EXPECT_GT(white, 100);
 }
 
+// A workspace box is drawn by its edges in its colour (pure blue here: nothing in the Panda's
+// scene is), and a box that is not finite is refused naming it.
+TEST(Rendering, BoxIsDrawnByItsEdges) {
+  std::string reason;
+  if (!sim::offscreen_rendering_available(&reason)) {
+    GTEST_SKIP() << "offscreen rendering unavailable here: " << reason;
+  }
+  const sim::Simulation s = sim::Simulation::from_mjcf_file(kPandaXml);
+  const auto blue = [](const PngInfo& info) {
+    int count = 0;
+    for (std::size_t i = 0; i + 2 < info.rgb.size(); i += 3) {
+      const int r = info.rgb[i], g = info.rgb[i + 1], b = info.rgb[i + 2];
+      count += b > 150 && r < 80 && g < 80;
+    }
+    return count;
+  };
+  sim::RenderOverlay overlay;
+  overlay.boxes.push_back({Eigen::Vector3d(-0.4, -0.4, 0.0), Eigen::Vector3d(0.6, 0.4, 0.9),
+                           Eigen::Vector4f(0.0f, 0.0f, 1.0f, 1.0f), "workspace"});
+  EXPECT_LT(blue(render(s, {})), 20);
+  EXPECT_GT(blue(render(s, overlay)), 300);
+  overlay.boxes[0].max.x() = NAN;
+  EXPECT_ERROR([&] { s.render_png("/tmp/x.png", 10, 10, overlay); }, {"boxes[0].max"});
+}
+
 TEST(Rendering, GhostAndFrameShowAnotherPose) {
   std::string reason;
   if (!sim::offscreen_rendering_available(&reason)) {
@@ -526,7 +551,9 @@ TEST(Rendering, GhostAndFrameShowAnotherPose) {
   EXPECT_GT(greenish(same), 1000);
   EXPECT_ERROR(
       [&] {
-        s.render_png("/tmp/x.png", 10, 10, sim::RenderOverlay{{}, {}, {}, JointVector::Zero(3)});
+        sim::RenderOverlay wrong;
+        wrong.ghost_q = JointVector::Zero(3);
+        s.render_png("/tmp/x.png", 10, 10, wrong);
       },
       {"ghost_q", "3 entries", "7"});
 

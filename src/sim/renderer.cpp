@@ -270,6 +270,36 @@ void add_arrow(mjvScene& scene, const Eigen::Vector3d& from, const Eigen::Vector
   }
 }
 
+// The twelve edges of an axis-aligned box as thin cylinders.
+void add_box_edges(mjvScene& scene, const RenderBox& box, double width) {
+  const float rgba[4] = {box.rgba[0], box.rgba[1], box.rgba[2], box.rgba[3]};
+  const auto corner = [&](int bits) {
+    return Eigen::Vector3d((bits & 1) ? box.max.x() : box.min.x(),
+                           (bits & 2) ? box.max.y() : box.min.y(),
+                           (bits & 4) ? box.max.z() : box.min.z());
+  };
+  for (int from = 0; from < 8; ++from) {
+    for (int axis = 0; axis < 3; ++axis) {
+      if (from & (1 << axis)) continue;  // each edge once, from its lower end
+      const Eigen::Vector3d a = corner(from), b = corner(from | (1 << axis));
+      if ((b - a).norm() < 1e-9) continue;
+      if (mjvGeom* geom = add_geom(scene)) {
+        mjv_initGeom(geom, mjGEOM_CYLINDER, nullptr, nullptr, nullptr, rgba);
+        mjv_makeConnector(geom, mjGEOM_CYLINDER, width, a.x(), a.y(), a.z(), b.x(), b.y(), b.z());
+        geom->category = mjCAT_DECOR;
+        geom->transparent = rgba[3] < 1.0f;
+      }
+    }
+  }
+  if (box.label.empty()) return;
+  if (mjvGeom* text = add_geom(scene)) {
+    const mjtNum position[3] = {box.max.x(), box.max.y(), box.max.z()};
+    mjv_initGeom(text, mjGEOM_LABEL, nullptr, position, nullptr, rgba);
+    text->category = mjCAT_DECOR;
+    set_label(*text, box.label);
+  }
+}
+
 // What the free camera must keep in view: a sphere.
 struct Extent {
   Eigen::Vector3d center;
@@ -440,6 +470,7 @@ void Renderer::render_png(mjModel* model, mjData* data, const std::string& path,
     add_arrow(s.scene, arrow.from, arrow.from + arrow.scale * arrow.vector, width_scale, rgba,
               arrow.label);
   }
+  for (const RenderBox& box : overlay.boxes) add_box_edges(s.scene, box, 0.4 * width_scale);
   for (const RenderFrame& frame : overlay.frames) {
     const Eigen::Matrix3d axes = frame.pose.orientation.normalized().toRotationMatrix();
     for (int k = 0; k < 3; ++k) {
@@ -487,6 +518,9 @@ void Renderer::render_png(mjModel* model, mjData* data, const std::string& path,
     for (const RenderArrow& arrow : overlay.arrows) {
       extents.push_back({arrow.from + arrow.scale * arrow.vector,
                          std::max(3 * width_scale, label_radius(arrow.label))});
+    }
+    for (const RenderBox& box : overlay.boxes) {
+      extents.push_back({0.5 * (box.min + box.max), 0.5 * (box.max - box.min).norm()});
     }
     for (const RenderFrame& frame : overlay.frames) {
       extents.push_back(

@@ -696,6 +696,11 @@ void Simulation::render_png(const std::string& path, int width, int height,
     check_finite(overlay.frames[i].pose.position, field + ".pose.position");
     check_finite(overlay.frames[i].pose.orientation.coeffs(), field + ".pose.orientation");
   }
+  for (std::size_t i = 0; i < overlay.boxes.size(); ++i) {
+    const std::string field = "render_png overlay.boxes[" + std::to_string(i) + "]";
+    check_finite(overlay.boxes[i].min, field + ".min");
+    check_finite(overlay.boxes[i].max, field + ".max");
+  }
   if (!s.renderer) s.renderer = std::make_unique<detail::Renderer>();
   s.update_kinematics();
   // The ghost is the same model at other joint positions: its own data, with the kinematics of

@@ -77,6 +77,14 @@ struct RenderArrow {
   std::string label;  ///< written at the arrow's head ("" none)
 };
 
+/// An axis-aligned box drawn by its twelve edges, e.g. the safety layer's workspace.
+struct RenderBox {
+  Eigen::Vector3d min = Eigen::Vector3d::Zero();  ///< lower corner, world frame [m]
+  Eigen::Vector3d max = Eigen::Vector3d::Zero();  ///< upper corner, world frame [m]
+  Eigen::Vector4f rgba = Eigen::Vector4f(0.95f, 0.75f, 0.1f, 1.0f);
+  std::string label;  ///< written at the upper corner ("" none)
+};
+
 /// A pose drawn as an axes triad: x red, y green, z blue.
 struct RenderFrame {
   Pose pose;             ///< world frame
@@ -99,6 +107,7 @@ struct RenderOverlay {
   /// the robot's right side. The distance is always chosen to fit the whole scene.
   double azimuth = std::numeric_limits<double>::quiet_NaN();
   double elevation = std::numeric_limits<double>::quiet_NaN();
+  std::vector<RenderBox> boxes;
 };
 
 /// A simulated robot. Movable, not copyable, not thread-safe (one thread drives it). Loading and
