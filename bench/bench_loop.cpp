@@ -11,6 +11,7 @@
 #include "cartesian_impedance/core/error.hpp"
 #include "cartesian_impedance/loop/control_loop.hpp"
 #include "support/allocation_counter.hpp"
+#include "support/safety_caps.hpp"
 
 namespace ci = cartesian_impedance;
 
@@ -58,6 +59,47 @@ void BM_LoopStep(benchmark::State& state, ci::ModelBackend backend) {
 }
 BENCHMARK_CAPTURE(BM_LoopStep, native, ci::ModelBackend::native);
 BENCHMARK_CAPTURE(BM_LoopStep, kdl, ci::ModelBackend::kdl);
+
+// The same step with every part of the safety layer acting every cycle (support/safety_caps.hpp:
+// the speed caps far below the flange's speed, so the reference is held back, the push along
+// the motion taken away and the excess braked; the force and torque caps; the flange outside a
+// small workspace box and moving out of it; the energy tank paying for a stiffness raise it
+// cannot afford; a declared payload in gravity and M(q)). Its flags are checked at the end, so
+// the figure cannot silently time a cheaper path. Compare with BM_LoopStep/native.
+void BM_LoopStepEveryCap(benchmark::State& state) {
+  const ci::RobotModel model = panda();
+  ci::JointVector q = ready(), dq = ci::JointVector::Constant(7, 0.01);
+  const safety_caps::Scene scene = safety_caps::scene(model, q, dq);
+  ci::ControlLoop loop(model, scene.parameters);
+  loop.start(q, dq);
+  for (const ci::Command& command : scene.commands) loop.send(command);
+  loop.step(q, dq, 0.001);  // applies the commands; the reference is clipped into the box
+  safety_caps::Acted first;
+  first.record(loop.state().controller.safety);
+  // The wrench ramps in through its filter (0.2 s): from then on every cap acts in every step.
+  for (int k = 0; k < 1000; ++k) loop.step(q, dq, 0.001);
+  allocation_counter::Scope allocations;
+  for (auto _ : state) {
+    q.array() += kDrift;
+    benchmark::DoNotOptimize(loop.step(q, dq, 0.001).data());
+  }
+  state.counters["allocs_per_step"] =
+      static_cast<double>(allocations.allocations()) / static_cast<double>(state.iterations());
+  const ci::ControllerState& last = loop.state().controller;
+  state.counters["torque_shaped"] = last.limits.joint_torque_saturated ? 1.0 : 0.0;
+  // Every part but the payload estimate (the arm moves) acted in the last step; the clip, which
+  // moves the reference into the box once, in the first.
+  safety_caps::Acted in_last;
+  in_last.record(last.safety);
+  in_last.reference_clipped = first.reference_clipped;
+  const std::string missing = in_last.missing(false);
+  if (last.status != ci::Status::ok) {
+    state.SkipWithError(ci::to_string(last.fault).c_str());
+  } else if (!missing.empty()) {
+    state.SkipWithError(("did not act in the last step: " + missing).c_str());
+  }
+}
+BENCHMARK(BM_LoopStepEveryCap);
 
 // The published controller's unit-mass damping: kinematics only, no M(q).
 void BM_LoopStepUnitMassDamping(benchmark::State& state, ci::ModelBackend backend) {

@@ -1,6 +1,6 @@
 // Python bindings of the enumerations, Pose, the states the controller and the loop report
-// (RobotState, Targets, ActiveLimits, Fault, ControllerState, TrajectoryProgress, LoopState) and
-// CartesianImpedanceController.
+// (RobotState, Targets, ActiveLimits, SafetyState, Fault, ControllerState, TrajectoryProgress,
+// LoopState) and CartesianImpedanceController.
 
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
@@ -275,6 +275,71 @@ void bind_states(py::module_& m) {
         return "ActiveLimits(" + (active.empty() ? std::string("none") : active) + ")";
       });
 
+  py::class_<ci::SafetyState>(
+      m, "SafetyState",
+      "What the safety layer (parameters safety.*, payload.*) did in the last cycle. A scale is "
+      "the fraction of a quantity that was kept (1: untouched).")
+      .def_readonly("reference_speed_limited", &ci::SafetyState::reference_speed_limited,
+                    "safety.max_speed: the reference was held back (it moves toward the commanded "
+                    "pose no faster than the cap).")
+      .def_readonly("translation_drive_scale", &ci::SafetyState::translation_drive_scale,
+                    "safety.max_speed.translation: fraction of the spring + wrench push along "
+                    "the end effector's linear velocity that was kept [0, 1] (below 1 from 0.8 "
+                    "x the cap, 0 at the cap).")
+      .def_readonly("rotation_drive_scale", &ci::SafetyState::rotation_drive_scale,
+                    "safety.max_speed.rotation: the same along the angular velocity [0, 1].")
+      .def_readonly("braking", &ci::SafetyState::braking,
+                    "safety.max_speed: the end effector was faster than a cap, so its excess "
+                    "speed was braked.")
+      .def_readonly("force_scale", &ci::SafetyState::force_scale,
+                    "safety.max_force.force: fraction of the spring + commanded force kept "
+                    "[0, 1].")
+      .def_readonly("torque_scale", &ci::SafetyState::torque_scale,
+                    "safety.max_force.torque: fraction of the spring + commanded torque kept "
+                    "[0, 1].")
+      .def_readonly("reference_clipped", &ci::SafetyState::reference_clipped,
+                    "safety.workspace: the reference was clipped into the box.")
+      .def_property_readonly(
+          "workspace_penetration",
+          [](const ci::SafetyState& s) { return vector_array(s.workspace_penetration); },
+          "How far the end effector's origin is outside the box (3,) [m], base frame (zero "
+          "inside).")
+      .def_property_readonly(
+          "wall_force", [](const ci::SafetyState& s) { return vector_array(s.wall_force); },
+          "Force of the workspace walls on the end effector (3,) [N], base frame.")
+      .def_readonly("tank_level", &ci::SafetyState::tank_level,
+                    "safety.energy_tank: the tank's level [J].")
+      .def_readonly("tank_draw", &ci::SafetyState::tank_draw,
+                    "Energy this cycle's stiffness change drew from the tank [J] (negative: "
+                    "returned to it).")
+      .def_readonly("stiffness_change_scale", &ci::SafetyState::stiffness_change_scale,
+                    "Fraction of this cycle's stiffness change that was applied [0, 1] (below "
+                    "1: the tank could not pay for all of it, the change waits).")
+      .def_readonly("payload_mass", &ci::SafetyState::payload_mass,
+                    "The payload being compensated (payload.mass, filtered) [kg].")
+      .def_property_readonly(
+          "payload_center_of_mass",
+          [](const ci::SafetyState& s) { return vector_array(s.payload_center_of_mass); },
+          "Its centre of mass (payload.center_of_mass, filtered) (3,) [m], end-effector frame.")
+      .def_readonly("payload_estimate_valid", &ci::SafetyState::payload_estimate_valid,
+                    "The end effector has been still long enough for the payload estimate.")
+      .def_readonly("payload_estimate_mass", &ci::SafetyState::payload_estimate_mass,
+                    "The payload mass that explains the static force the controller commands at "
+                    "rest [kg] (the commanded wrench excluded).")
+      .def_property_readonly(
+          "payload_estimate_center_of_mass",
+          [](const ci::SafetyState& s) { return vector_array(s.payload_estimate_center_of_mass); },
+          "Its centre of mass across gravity (3,) [m], end-effector frame.")
+      .def("__repr__", [](const ci::SafetyState& s) {
+        return "SafetyState(drive_scale=" + ci::format_number(s.translation_drive_scale) + "/" +
+               ci::format_number(s.rotation_drive_scale) +
+               ", force_scale=" + ci::format_number(s.force_scale) + "/" +
+               ci::format_number(s.torque_scale) + ", braking=" + (s.braking ? "True" : "False") +
+               ", reference_clipped=" + (s.reference_clipped ? "True" : "False") +
+               ", tank_level=" + ci::format_number(s.tank_level) +
+               " J, payload_mass=" + ci::format_number(s.payload_mass) + " kg)";
+      });
+
   py::class_<ci::Fault>(m, "Fault", "Which input made a cycle fail closed.")
       .def_property_readonly(
           "input", [](const ci::Fault& f) { return std::string(f.input); },
@@ -332,6 +397,8 @@ void bind_states(py::module_& m) {
           "tau", [](const ci::ControllerState& s) { return vector_array(s.tau); },
           "Commanded torque after the torque and rate limits (n,) [Nm].")
       .def_readonly("limits", &ci::ControllerState::limits)
+      .def_readonly("safety", &ci::ControllerState::safety,
+                    "What the safety layer (safety.*, payload.*) did in the last cycle.")
       .def(
           "stiffness_base",
           [](const ci::ControllerState& s) { return matrix_array(s.stiffness_base()); },

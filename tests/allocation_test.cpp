@@ -1,14 +1,18 @@
 // The control cycle allocates nothing: malloc and operator new are counted (support/
-// allocation_counter) over 10,000 cycles with every feature on.
+// allocation_counter) over 10,000 cycles with every feature on, and with every part of the
+// safety layer acting.
 
 #include <gtest/gtest.h>
 
 #include <random>
+#include <variant>
 
 #include "cartesian_impedance/compat/cartesian_impedance_controller.hpp"
 #include "cartesian_impedance/core/controller.hpp"
+#include "cartesian_impedance/model/robot_model.hpp"
 #include "support/allocation_counter.hpp"
 #include "support/random_cases.hpp"
+#include "support/safety_caps.hpp"
 
 namespace ci = cartesian_impedance;
 using namespace random_cases;
@@ -91,6 +95,88 @@ TEST_P(AllocationFree, UpdateAllocatesNothingWithEveryFeatureOn) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Joints, AllocationFree, ::testing::Values(6, 7));
+
+// The controller's safety layer with every part acting (support/safety_caps.hpp), on the Panda's
+// model: the default diagonal stiffness in the base frame, and a full (coupled) stiffness raise
+// in the end-effector frame, which the tank charges through the whole matrix and the rotated
+// error. The joints move as commanded (q integrates dq), faster than the speed caps, the flange
+// outside the workspace box and leaving it; then still, so the payload estimate runs.
+class SafetyAllocationFree : public ::testing::TestWithParam<bool> {};
+
+TEST_P(SafetyAllocationFree, UpdateAllocatesNothingWithEverySafetyCapActing) {
+  const bool full_stiffness = GetParam();
+  const ci::RobotModel model = ci::RobotModel::from_urdf_file(
+      std::string(CARTESIAN_IMPEDANCE_SOURCE_DIR) + "/models/panda/panda.urdf", "panda_link0",
+      "panda_link8");
+  ci::JointVector q(7);
+  q << 0, -M_PI / 4, 0, -3 * M_PI / 4, 0, M_PI / 2, M_PI / 4;
+  ci::JointVector dq = ci::JointVector::Constant(7, 0.01);
+  ci::Parameters parameters;
+  if (full_stiffness) {
+    parameters.stiffness.frame = ci::Frame::end_effector;
+    parameters.wrench.frame = ci::Frame::end_effector;
+  }
+  const safety_caps::Scene scene = safety_caps::scene(model, q, dq, parameters);
+  ci::ModelWorkspace workspace(model);
+  ci::Kinematics kinematics = workspace.make_kinematics();
+  ci::RobotState robot = ci::make_robot_state(7);
+  const auto measure = [&] {
+    ASSERT_TRUE(workspace.compute(q, dq, kinematics, ci::ModelTerms::mass));
+    robot.q = q;
+    robot.dq = dq;
+    robot.pose = kinematics.pose;
+    robot.jacobian = kinematics.jacobian;
+    robot.mass = kinematics.mass;
+  };
+  measure();
+  ci::CartesianImpedanceController controller(7, scene.parameters);
+  controller.start(robot);
+  for (const ci::Command& command : scene.commands) {
+    // The scene's wrench is in the base frame: say so when the configured frame is another.
+    if (const auto* wrench = std::get_if<ci::Wrench>(&command)) {
+      controller.apply(ci::Wrench(wrench->wrench, ci::Frame::base));
+    } else {
+      controller.apply(command);
+    }
+  }
+  if (full_stiffness) {
+    // A raise over the scene's soft start (200 N/m, 10 Nm/rad) along every axis, coupled.
+    const Eigen::Matrix3d axes =
+        Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+    ci::Matrix6d stiffness = ci::Matrix6d::Zero();
+    stiffness.topLeftCorner<3, 3>() =
+        axes * Eigen::Vector3d(1000, 600, 300).asDiagonal() * axes.transpose();
+    stiffness.bottomRightCorner<3, 3>() =
+        axes * Eigen::Vector3d(50, 30, 20).asDiagonal() * axes.transpose();
+    controller.apply(ci::Stiffness(stiffness));
+  }
+
+  safety_caps::Acted moving, still;
+  long allocations = 0;
+  int failed = 0;
+  const auto cycle = [&](safety_caps::Acted& acted) {
+    measure();
+    allocation_counter::Scope scope;
+    const ci::Status status = controller.update(robot, 0.001);
+    allocations += scope.allocations();
+    if (status != ci::Status::ok) ++failed;
+    acted.record(controller.state().safety);
+    q += 0.001 * dq;
+  };
+  for (int k = 0; k < 2000; ++k) cycle(moving);
+  dq.setZero();
+  for (int k = 0; k < 700; ++k) cycle(still);  // kPayloadSettleTime (0.5 s) and more
+
+  EXPECT_EQ(allocations, 0);
+  EXPECT_EQ(failed, 0) << ci::to_string(controller.state().fault);
+  EXPECT_EQ(moving.missing(false), "") << "these parts of the safety layer never acted";
+  EXPECT_TRUE(still.payload_estimate) << "the payload estimate never became valid";
+}
+
+INSTANTIATE_TEST_SUITE_P(Stiffness, SafetyAllocationFree, ::testing::Values(false, true),
+                         [](const ::testing::TestParamInfo<bool>& info) {
+                           return info.param ? "FullInEndEffectorFrame" : "DiagonalInBaseFrame";
+                         });
 
 // The compatibility API: its own overload allocates nothing per call, filters and rate limit
 // running, bad measurements included; the published signature allocates exactly its returned

@@ -1,6 +1,7 @@
 // ControlLoop::step() allocates nothing with every option on: dynamics (gravity compensation,
 // inertia-shaped damping, dynamically consistent projector), joint-limit avoidance, a trajectory
-// being executed, commands arriving through the inbox, the state being published, and bad input.
+// being executed, commands arriving through the inbox, the state being published, and bad input;
+// and with every part of the safety layer acting.
 
 #include <gtest/gtest.h>
 
@@ -9,6 +10,7 @@
 #include "cartesian_impedance/loop/control_loop.hpp"
 #include "support/allocation_counter.hpp"
 #include "support/model_simulation.hpp"
+#include "support/safety_caps.hpp"
 
 namespace ci = cartesian_impedance;
 
@@ -66,4 +68,45 @@ TEST(LoopAllocation, StepAllocatesNothingWithEveryOptionOn) {
   EXPECT_GE(loop.state().commands_applied, 12u);
   EXPECT_NE(loop.state().trajectory.state, ci::TrajectoryState::idle);
   EXPECT_GT(loop.state().controller.tau_gravity.norm(), 1.0);
+}
+
+// The safety layer allocates nothing either, with every part of it acting (support/
+// safety_caps.hpp): the flange outside a small workspace box and moving further out, faster
+// than the speed caps, the force caps below spring + wrench, the energy tank short of a stiffness
+// raise, a payload declared; then held still, so the payload estimate runs too. The joints move
+// as commanded (q integrates dq), so the speed is above the caps whatever the torque.
+TEST(LoopAllocation, StepAllocatesNothingWithEverySafetyCapActing) {
+  const ci::RobotModel model = ci::RobotModel::from_urdf_file(
+      std::string(CARTESIAN_IMPEDANCE_SOURCE_DIR) + "/models/panda/panda.urdf", "panda_link0",
+      "panda_link8");
+  ci::JointVector q(7);
+  q << 0, -M_PI / 4, 0, -3 * M_PI / 4, 0, M_PI / 2, M_PI / 4;
+  ci::JointVector dq = ci::JointVector::Constant(7, 0.01);
+  const safety_caps::Scene scene = safety_caps::scene(model, q, dq);
+  ci::ControlLoop loop(model, scene.parameters);
+  loop.start(q, dq);
+  for (const ci::Command& command : scene.commands) loop.send(command);
+
+  safety_caps::Acted moving, still;
+  long allocations = 0;
+  int failed = 0;
+  const auto step = [&](safety_caps::Acted& acted) {
+    allocation_counter::Scope scope;
+    loop.step(q, dq, 0.001);
+    allocations += scope.allocations();
+    if (loop.state().controller.status != ci::Status::ok) ++failed;
+    acted.record(loop.state().controller.safety);
+    q += 0.001 * dq;
+  };
+  for (int k = 0; k < 2000; ++k) step(moving);
+  dq.setZero();
+  // kPayloadSettleTime (0.5 s) still, and some more.
+  for (int k = 0; k < 700; ++k) step(still);
+
+  EXPECT_EQ(allocations, 0);
+  EXPECT_EQ(failed, 0) << "cycles not ok, the last: "
+                       << ci::to_string(loop.state().controller.fault);
+  EXPECT_EQ(moving.missing(false), "") << "these parts of the safety layer never acted";
+  EXPECT_TRUE(still.payload_estimate) << "the payload estimate never became valid";
+  EXPECT_GE(loop.state().commands_applied, 3u);
 }

@@ -12,13 +12,21 @@ import cartesian_impedance as ci
 from conftest import PANDA_YAML
 
 
+# Rows that bound another row from above (safety.energy_tank.initial <= .capacity): lowering
+# them below the other's default would be refused, so their other value lies above the default.
+UPPER_BOUNDS = {"safety.energy_tank.capacity"}
+
+
 def other_value(row):
-    """A valid value different from the row's default, whatever kind the row is."""
+    """A valid value different from the row's default, whatever kind the row is, also with every
+    other row at its default."""
     default = row["default"]
     if row["kind"] == "frame":
         return "end_effector" if default == "base" else "base"
     if row["kind"] == "switch":
         return not default
+    if row["name"] in UPPER_BOUNDS:
+        return (default + row["max"]) / 2
 
     low, high = max(row["min"], 0.0), row["max"]
 

@@ -3,6 +3,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
 #include <iterator>
 #include <string>
@@ -11,6 +12,7 @@
 #include <cartesian_impedance/config/yaml.hpp>
 #include <cartesian_impedance/core/error.hpp>
 #include <cartesian_impedance/core/parameter_tree.hpp>
+#include <cartesian_impedance/loop/control_loop.hpp>
 #include <cartesian_impedance/node/temporary_file.hpp>
 
 #include "arguments.hpp"
@@ -448,6 +450,76 @@ TEST(Ros2Messages, FramesAreNamedWithOrWithoutTheTfPrefix) {
   EXPECT_NO_THROW(reference_from_message(pose, frames));
   pose.header.frame_id = const_cast<char*>("right/panda_link0");
   EXPECT_THROW(reference_from_message(pose, frames), ci::Error);
+}
+
+// full_state carries the torque shaping, the hold and every field of the safety layer, each in
+// its own field of the generated C type: every value distinct, so a field filled from the wrong
+// member shows.
+TEST(Ros2Messages, FullStateCarriesTheLimitsAndTheSafetyLayer) {
+  const ci::RobotModel model = ci::RobotModel::from_urdf_file(
+      std::string(CARTESIAN_IMPEDANCE_SOURCE_DIR) + "/models/panda/panda.urdf", "panda_link0",
+      "panda_link8");
+  ci::ControlLoop loop(model);
+  ci::JointVector q(7);
+  q << 0, -M_PI / 4, 0, -3 * M_PI / 4, 0, M_PI / 2, M_PI / 4;
+  loop.start(q, ci::JointVector::Zero(7));
+  loop.step(q, ci::JointVector::Zero(7), 0.001);
+  ci::LoopState state = loop.state();
+  state.controller.limits.torque_shaping = ci::TorqueShaping::damping;
+  state.controller.limits.torque_shaping_scale = 0.35;
+  state.controller.limits.holding = true;
+  ci::SafetyState& safety = state.controller.safety;
+  safety.reference_speed_limited = true;
+  safety.translation_drive_scale = 0.41;
+  safety.rotation_drive_scale = 0.42;
+  safety.braking = true;
+  safety.force_scale = 0.43;
+  safety.torque_scale = 0.44;
+  safety.reference_clipped = true;
+  safety.workspace_penetration = {0.045, -0.046, 0.047};
+  safety.wall_force = {-48.0, 49.0, -50.0};
+  safety.tank_level = 0.0051;
+  safety.tank_draw = -0.0052;
+  safety.stiffness_change_scale = 0.53;
+  safety.payload_mass = 2.54;
+  safety.payload_center_of_mass = {0.055, 0.056, 0.057};
+  safety.payload_estimate_valid = true;
+  safety.payload_estimate_mass = 2.58;
+  safety.payload_estimate_center_of_mass = {0.059, 0.060, 0.061};
+
+  OutgoingMessages messages(model, Frames{"panda_link0", "panda_link8", ""});
+  messages.fill(state, ci::runtime::ControlThreadStatistics{}, nullptr);
+  const FullState& m = messages.full_state();
+  using V = std::vector<double>;
+  const auto xyz = [](const geometry_msgs_msg_dds__Vector3_& v) { return V{v.x, v.y, v.z}; };
+  EXPECT_STREQ(m.torque_shaping, "damping");
+  EXPECT_EQ(m.torque_shaping_scale, 0.35);
+  EXPECT_TRUE(m.holding);
+  EXPECT_TRUE(m.reference_speed_limited);
+  EXPECT_EQ(m.translation_drive_scale, 0.41);
+  EXPECT_EQ(m.rotation_drive_scale, 0.42);
+  EXPECT_TRUE(m.braking);
+  EXPECT_EQ(m.force_scale, 0.43);
+  EXPECT_EQ(m.torque_scale, 0.44);
+  EXPECT_TRUE(m.reference_clipped);
+  EXPECT_EQ(xyz(m.workspace_penetration), (V{0.045, -0.046, 0.047}));
+  EXPECT_EQ(xyz(m.wall_force), (V{-48.0, 49.0, -50.0}));
+  EXPECT_EQ(m.tank_level, 0.0051);
+  EXPECT_EQ(m.tank_draw, -0.0052);
+  EXPECT_EQ(m.stiffness_change_scale, 0.53);
+  EXPECT_EQ(m.payload_mass, 2.54);
+  EXPECT_EQ(xyz(m.payload_center_of_mass), (V{0.055, 0.056, 0.057}));
+  EXPECT_TRUE(m.payload_estimate_valid);
+  EXPECT_EQ(m.payload_estimate_mass, 2.58);
+  EXPECT_EQ(xyz(m.payload_estimate_center_of_mass), (V{0.059, 0.060, 0.061}));
+
+  // A longer name in the same string field afterwards (its storage grows), then a shorter one.
+  state.controller.limits.torque_shaping = ci::TorqueShaping::nullspace;
+  messages.fill(state, ci::runtime::ControlThreadStatistics{}, nullptr);
+  EXPECT_STREQ(messages.full_state().torque_shaping, "nullspace");
+  messages.fill(loop.state(), ci::runtime::ControlThreadStatistics{}, nullptr);
+  EXPECT_STREQ(messages.full_state().torque_shaping, "none");
+  EXPECT_EQ(messages.full_state().tank_level, ci::Parameters{}.safety.energy_tank.initial);
 }
 
 }  // namespace

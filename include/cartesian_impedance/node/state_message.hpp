@@ -12,8 +12,8 @@
 ///     out.clear(field)                             // an empty float64[] field
 ///     out.names(field, const std::vector<std::string>&)  // a string[] field
 ///
-/// Pose and Wrench fields (position.x, orientation.w, force.x, ...) are set directly. Header and
-/// timing fields are the caller's.
+/// Pose, Wrench and Vector3 fields (position.x, orientation.w, force.x, x, ...) are set directly.
+/// Header and timing fields are the caller's.
 
 #include <algorithm>
 #include <string>
@@ -37,6 +37,14 @@ void fill_pose(const Pose& pose, PoseMessage& message) {
   message.orientation.w = pose.orientation.w();
 }
 
+/// Sets a geometry_msgs Vector3's fields.
+template <typename Vector3Message>
+void fill_vector3(const Eigen::Vector3d& vector, Vector3Message& message) {
+  message.x = vector.x();
+  message.y = vector.y();
+  message.z = vector.z();
+}
+
 /// Sets a geometry_msgs Wrench's fields from [force; torque] (also stiffness and damping
 /// diagonals).
 template <typename WrenchMessage>
@@ -49,7 +57,8 @@ void fill_wrench(const Vector6d& vector, WrenchMessage& message) {
   message.torque.z = vector[5];
 }
 
-/// Every field of ControllerState.msg but the header and the timing fields. `measured` gives the
+/// Every field of ControllerState.msg but the header and the timing fields (the limits', the safety
+/// layer's and the trajectory's included). `measured` gives the
 /// efforts the robot reported (may be null or have none).
 template <typename Message, typename Out>
 void fill_state_message(const LoopState& state, const std::vector<std::string>& joint_names,
@@ -119,6 +128,29 @@ void fill_state_message(const LoopState& state, const std::vector<std::string>& 
                                     ? std::clamp(trajectory.time / trajectory.duration, 0.0, 1.0)
                                     : (trajectory.state == TrajectoryState::finished ? 1.0 : 0.0);
   message.trajectory_goal_error = trajectory.goal_error;
+
+  out.text(message.torque_shaping, to_string(limits.torque_shaping));
+  message.torque_shaping_scale = limits.torque_shaping_scale;
+  message.holding = limits.holding;
+
+  const SafetyState& safety = controller.safety;
+  message.reference_speed_limited = safety.reference_speed_limited;
+  message.translation_drive_scale = safety.translation_drive_scale;
+  message.rotation_drive_scale = safety.rotation_drive_scale;
+  message.braking = safety.braking;
+  message.force_scale = safety.force_scale;
+  message.torque_scale = safety.torque_scale;
+  message.reference_clipped = safety.reference_clipped;
+  fill_vector3(safety.workspace_penetration, message.workspace_penetration);
+  fill_vector3(safety.wall_force, message.wall_force);
+  message.tank_level = safety.tank_level;
+  message.tank_draw = safety.tank_draw;
+  message.stiffness_change_scale = safety.stiffness_change_scale;
+  message.payload_mass = safety.payload_mass;
+  fill_vector3(safety.payload_center_of_mass, message.payload_center_of_mass);
+  message.payload_estimate_valid = safety.payload_estimate_valid;
+  message.payload_estimate_mass = safety.payload_estimate_mass;
+  fill_vector3(safety.payload_estimate_center_of_mass, message.payload_estimate_center_of_mass);
 }
 
 /// The timing fields of ControllerState.msg from the control thread's statistics since it

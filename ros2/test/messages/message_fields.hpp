@@ -252,6 +252,26 @@ void visit(V& v, cartesian_impedance_msgs_msg_dds__ControllerState_& m) {
   v.float64(m.period_max_us);
   v.uint64(m.stale_episodes);
   v.boolean(m.realtime);
+  v.string(m.torque_shaping);
+  v.float64(m.torque_shaping_scale);
+  v.boolean(m.holding);
+  v.boolean(m.reference_speed_limited);
+  v.float64(m.translation_drive_scale);
+  v.float64(m.rotation_drive_scale);
+  v.boolean(m.braking);
+  v.float64(m.force_scale);
+  v.float64(m.torque_scale);
+  v.boolean(m.reference_clipped);
+  v.nested(m.workspace_penetration);  // geometry_msgs/Vector3
+  v.nested(m.wall_force);             // geometry_msgs/Vector3
+  v.float64(m.tank_level);
+  v.float64(m.tank_draw);
+  v.float64(m.stiffness_change_scale);
+  v.float64(m.payload_mass);
+  v.nested(m.payload_center_of_mass);  // geometry_msgs/Vector3
+  v.boolean(m.payload_estimate_valid);
+  v.float64(m.payload_estimate_mass);
+  v.nested(m.payload_estimate_center_of_mass);  // geometry_msgs/Vector3
 }
 
 }  // namespace ros2_messages_test

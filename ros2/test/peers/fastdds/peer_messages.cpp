@@ -164,8 +164,33 @@ std::string json(const cic::ControllerState_& m) {
       .add("cartesian_velocity", m.cartesian_velocity())
       .str();
 }
-// This project's full state: the fields the tests look at, not all fifty.
+std::string json_bool(bool value) {
+  return value ? "true" : "false";
+}
+// This project's full state: the fields the tests look at, not all seventy; of the fields
+// appended after the timing (the torque shaping, the hold and the safety layer) every one, the
+// last of them the message's last field.
 std::string json(const cim::ControllerState_& m) {
+  const std::string safety =
+      Object()
+          .add("reference_speed_limited", json_bool(m.reference_speed_limited()))
+          .add("translation_drive_scale", m.translation_drive_scale())
+          .add("rotation_drive_scale", m.rotation_drive_scale())
+          .add("braking", json_bool(m.braking()))
+          .add("force_scale", m.force_scale())
+          .add("torque_scale", m.torque_scale())
+          .add("reference_clipped", json_bool(m.reference_clipped()))
+          .add("workspace_penetration", json(m.workspace_penetration()))
+          .add("wall_force", json(m.wall_force()))
+          .add("tank_level", m.tank_level())
+          .add("tank_draw", m.tank_draw())
+          .add("stiffness_change_scale", m.stiffness_change_scale())
+          .add("payload_mass", m.payload_mass())
+          .add("payload_center_of_mass", json(m.payload_center_of_mass()))
+          .add("payload_estimate_valid", json_bool(m.payload_estimate_valid()))
+          .add("payload_estimate_mass", m.payload_estimate_mass())
+          .add("payload_estimate_center_of_mass", json(m.payload_estimate_center_of_mass()))
+          .str();
   return header(m.header())
       .add("status", json_string(m.status()))
       .add("cycle", static_cast<double>(m.cycle()))
@@ -178,6 +203,10 @@ std::string json(const cim::ControllerState_& m) {
       .add("commanded_torques", json_numbers(m.commanded_torques()))
       .add("trajectory_state", json_string(m.trajectory_state()))
       .add("overruns", static_cast<double>(m.overruns()))
+      .add("torque_shaping", json_string(m.torque_shaping()))
+      .add("torque_shaping_scale", m.torque_shaping_scale())
+      .add("holding", json_bool(m.holding()))
+      .add("safety", safety)
       .str();
 }
 std::string json(const tj::JointTrajectory_& m) {

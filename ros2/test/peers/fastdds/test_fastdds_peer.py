@@ -28,6 +28,7 @@ JOINTS = ["panda_joint%d" % i for i in range(1, 8)]
 READY_Q = [0, -math.pi / 4, 0, -3 * math.pi / 4, 0, math.pi / 2, math.pi / 4]
 READY_FLANGE = (0.3069, 0.0, 0.5903)  # Craig DH of the Panda at READY_Q
 TORQUE_LIMITS = [87, 87, 87, 87, 12, 12, 12]  # [Nm], the Panda's
+TANK_CAPACITY = 0.005  # [J], the library's default safety.energy_tank.capacity
 
 # The converged pose is checked to 5 mm. The joints' Coulomb friction (frictionloss 0.1 Nm on
 # J1-J4, 0.05 Nm on J5-J7 in panda.xml) holds the arm wherever the Cartesian spring force is
@@ -234,8 +235,39 @@ def case_reference_pose(h):
     h.stop_node(node)
 
 
+def check_full_state_at_rest(h, ns):
+    """full_state through Fast DDS's decoder, to the fields appended after the timing (the torque
+    shaping, the hold, the safety layer; the last of them the message's last field): an arm at
+    rest with the library's defaults, nothing shaped, held or capped, the energy tank within its
+    capacity and not drawn from. Exact values: a field read from the wrong place of the sample
+    would not give 1.0, 0.0 or "none"."""
+    code, events = h.peer("echo", ns + "/full_state", "cartesian_impedance_msgs/msg/ControllerState",
+                          "--count", 1, "--timeout", 10)
+    samples = [e["data"] for e in events if e["event"] == "sample"]
+    assert code == 0 and len(samples) == 1, events[-2:]
+    state = samples[0]
+    h.log("full_state: torque_shaping %s, holding %s, safety %s"
+          % (state["torque_shaping"], state["holding"], state["safety"]))
+    assert state["status"] == "ok", state["status"]
+    assert (state["torque_shaping"], state["torque_shaping_scale"], state["holding"]) == (
+        "none", 1.0, False), state
+    safety = state["safety"]
+    expected = {"reference_speed_limited": False, "translation_drive_scale": 1.0,
+                "rotation_drive_scale": 1.0, "braking": False, "force_scale": 1.0,
+                "torque_scale": 1.0, "reference_clipped": False,
+                "workspace_penetration": [0.0, 0.0, 0.0], "wall_force": [0.0, 0.0, 0.0],
+                "tank_draw": 0.0, "stiffness_change_scale": 1.0, "payload_mass": 0.0,
+                "payload_center_of_mass": [0.0, 0.0, 0.0]}
+    wrong = {k: safety[k] for k, v in expected.items() if safety[k] != v}
+    assert not wrong, wrong
+    assert 0.0 < safety["tank_level"] <= TANK_CAPACITY, safety["tank_level"]
+    estimate = [safety["payload_estimate_mass"]] + safety["payload_estimate_center_of_mass"]
+    assert len(estimate) == 4 and all(map(math.isfinite, estimate)), safety
+
+
 def case_echo(h):
-    """(b) Fast DDS reads the node's joint_states and commanded_torques (in a namespace)."""
+    """(b) Fast DDS reads the node's joint_states, commanded_torques and full_state (in a
+    namespace)."""
     node = h.start_node(ns="/left")
     h.states(1, ns="/left" + FQ)
     code, events = h.peer("echo", "/left/joint_states", "sensor_msgs/msg/JointState",
@@ -260,6 +292,8 @@ def case_echo(h):
     assert code == 0 and len(torques) == 20
     for tau in torques:
         assert len(tau) == 7 and all(abs(t) <= limit for t, limit in zip(tau, TORQUE_LIMITS)), tau
+    if not h.standin:
+        check_full_state_at_rest(h, "/left" + FQ)
     h.stop_node(node)
 
 

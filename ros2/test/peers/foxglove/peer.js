@@ -6,7 +6,8 @@
 // (cartesian_impedance_msgs/msg/ControllerState), and prints one JSON object per line:
 //   {"event": "participant" | "matched" | "target", ...}   discovery, and the target chosen
 //   {"topic": "controller_state", "position": [x, y, z], "distance": d, ...}
-//   {"topic": "full_state", "status": ..., "cycle": ..., "cartesian_stiffness": {...}}
+//   {"topic": "full_state", "status": ..., "cycle": ..., "cartesian_stiffness": {...},
+//    "limits": {...}, "safety": {...}}
 //   {"result": "reached" | "timeout", ...}                 last line; exit code 0 or 1
 // State lines are thinned to one per --print-period. Message definitions come from this
 // repository's .msg files (--msg-dir, repeatable), parsed by @foxglove/rosmsg; samples are
@@ -336,6 +337,29 @@ function emit(object) {
 const position = (pose) => [pose.position.x, pose.position.y, pose.position.z];
 const vector3 = (v) => [v.x, v.y, v.z];
 const wrench = (w) => ({ force: vector3(w.force), torque: vector3(w.torque) });
+// The fields appended to the full state after the timing (ControllerState.msg): the torque
+// shaping, the hold and the safety layer, the last of them the message's last field.
+const limitsOf = (m) => ({ torque_shaping: m.torque_shaping,
+                           torque_shaping_scale: m.torque_shaping_scale, holding: m.holding });
+const safetyOf = (m) => ({
+  reference_speed_limited: m.reference_speed_limited,
+  translation_drive_scale: m.translation_drive_scale,
+  rotation_drive_scale: m.rotation_drive_scale,
+  braking: m.braking,
+  force_scale: m.force_scale,
+  torque_scale: m.torque_scale,
+  reference_clipped: m.reference_clipped,
+  workspace_penetration: vector3(m.workspace_penetration),
+  wall_force: vector3(m.wall_force),
+  tank_level: m.tank_level,
+  tank_draw: m.tank_draw,
+  stiffness_change_scale: m.stiffness_change_scale,
+  payload_mass: m.payload_mass,
+  payload_center_of_mass: vector3(m.payload_center_of_mass),
+  payload_estimate_valid: m.payload_estimate_valid,
+  payload_estimate_mass: m.payload_estimate_mass,
+  payload_estimate_center_of_mass: vector3(m.payload_estimate_center_of_mass),
+});
 
 async function main() {
   let options;
@@ -446,7 +470,9 @@ async function main() {
         emit({ topic: "full_state", status: message.status, cycle: message.cycle,
                time: message.time, position: position(message.current_pose),
                joints: message.joint_state.name.length,
-               cartesian_stiffness: wrench(message.cartesian_stiffness) });
+               cartesian_stiffness: wrench(message.cartesian_stiffness),
+               realtime: message.realtime, limits: limitsOf(message),
+               safety: safetyOf(message) });
       }
     });
   }

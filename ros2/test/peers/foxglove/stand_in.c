@@ -2,7 +2,8 @@
  * node is not built: plain Cyclone DDS with the generated C types and the node's wire rules (topic
  * "rt" + fully-qualified name, reliable, volatile, keep-last 10, XCDR1 only). Its arm is ideal:
  * <fq>/controller_state reports current_pose = the last <fq>/reference_pose received, at 100 Hz,
- * and <fq>/full_state the stiffness given on the command line, with status "ok" and a cycle count.
+ * and <fq>/full_state the stiffness given on the command line, with status "ok", a cycle count and
+ * the safety layer of an arm at rest.
  *   stand_in DOMAIN FQ_NAME STIFFNESS_TRANSLATION STIFFNESS_ROTATION   (runs until SIGINT/SIGTERM)
  */
 #include <signal.h>
@@ -83,11 +84,20 @@ int main(int argc, char** argv) {
   cartesian_impedance_msgs_msg_dds__ControllerState_ full;
   memset(&state, 0, sizeof state);
   memset(&full, 0, sizeof full);
-  char empty[] = "", ok[] = "ok", base[] = "base", idle[] = "idle";
+  char empty[] = "", ok[] = "ok", base[] = "base", idle[] = "idle", none[] = "none";
   state.header.frame_id = full.header.frame_id = empty;
   full.status = ok;
   full.stiffness_frame = full.wrench_frame = base;
   full.trajectory_state = idle;
+  /* The limits and the safety layer of an arm at rest: nothing shaped or capped, the energy tank
+   * full (config/panda.yaml: 5 mJ), no payload declared and none estimated. */
+  full.torque_shaping = none;
+  full.torque_shaping_scale = 1.0;
+  full.translation_drive_scale = full.rotation_drive_scale = 1.0;
+  full.force_scale = full.torque_scale = 1.0;
+  full.tank_level = 0.005;
+  full.stiffness_change_scale = 1.0;
+  full.payload_estimate_valid = true;
   wrench(&state.cartesian_stiffness, atof(argv[3]), atof(argv[4]));
   full.cartesian_stiffness = full.commanded_cartesian_stiffness = state.cartesian_stiffness;
   /* Seven joints' worth of names and arrays: full_state about as large as the node's (1.5 kB). */

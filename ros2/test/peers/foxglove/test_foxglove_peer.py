@@ -8,14 +8,16 @@
 Cases:
   reference_pose  the peer publishes a reference 5 cm from the pose it first reads on
                   <fq>/controller_state; the arm (500 N/m) must settle within 5 mm of it
-  full_state      <fq>/full_state decodes: status "ok", the cycle counter advances, and the
+  full_state      <fq>/full_state decodes: status "ok", the cycle counter advances, the
                   Cartesian stiffness is the one the parameters file set (rotation 40 Nm/rad, not
-                  config/panda.yaml's 50)
+                  config/panda.yaml's 50), and the fields appended after the timing (torque
+                  shaping, hold, safety layer) read as an arm at rest reports them
 Exit 77 (ctest SKIP_RETURN_CODE) when the peer's npm packages are not installed (scripts/setup).
 """
 
 import argparse
 import json
+import math
 import os
 import signal
 import subprocess
@@ -28,6 +30,7 @@ SKIP = 77
 HERE = Path(__file__).resolve().parent
 TRANSLATION_STIFFNESS = 500.0  # [N/m]
 ROTATION_STIFFNESS = 40.0  # [Nm/rad]; config/panda.yaml has 50: proves the file was applied
+TANK_CAPACITY = 0.005  # [J], config/panda.yaml's safety.energy_tank.capacity
 # Loopback only, no multicast: Cyclone sends discovery (SPDP) to the unicast discovery ports of
 # participant indices 0..30 on 127.0.0.1 and listens on its own; peer.js announces itself to
 # those same ports (see its header), and Cyclone answers it there.
@@ -44,6 +47,35 @@ MAX_PARTICIPANT_INDEX = 30
 def fail(message):
     print(f"FAIL: {message}", flush=True)
     sys.exit(1)
+
+
+def check_limits_and_safety(state):
+    """The fields appended to the message after the timing (the torque shaping, the hold, the
+    safety layer; the last of them the message's last field) decode to what an arm at rest under
+    config/panda.yaml reports: nothing shaped, held or capped, the energy tank within its
+    capacity and not drawn from, no payload declared. Exact values: a field read from the wrong
+    place of the sample would not give 1.0, 0.0 or "none"."""
+    limits, safety = state.get("limits"), state.get("safety")
+    if limits != {"torque_shaping": "none", "torque_shaping_scale": 1.0, "holding": False}:
+        fail(f"full_state limits {limits}")
+    if safety is None:
+        fail("full_state has no safety fields")
+    expected = {"reference_speed_limited": False, "translation_drive_scale": 1.0,
+                "rotation_drive_scale": 1.0, "braking": False, "force_scale": 1.0,
+                "torque_scale": 1.0, "reference_clipped": False,
+                "workspace_penetration": [0.0, 0.0, 0.0], "wall_force": [0.0, 0.0, 0.0],
+                "tank_draw": 0.0, "stiffness_change_scale": 1.0, "payload_mass": 0.0,
+                "payload_center_of_mass": [0.0, 0.0, 0.0]}
+    wrong = {name: safety.get(name) for name, value in expected.items()
+             if safety.get(name) != value}
+    if wrong:
+        fail(f"full_state safety fields {wrong}, expected {expected}")
+    if not 0.0 < safety["tank_level"] <= TANK_CAPACITY:
+        fail(f"full_state tank_level {safety['tank_level']} J outside (0, {TANK_CAPACITY}]")
+    estimate = [safety["payload_estimate_mass"]] + safety["payload_estimate_center_of_mass"]
+    if not isinstance(safety["payload_estimate_valid"], bool) or len(estimate) != 4 or \
+            not all(math.isfinite(value) for value in estimate):
+        fail(f"full_state payload estimate {safety}")
 
 
 def parameters_file(directory, source):
@@ -180,8 +212,9 @@ def main():
     # 1e-6 of the value, so 1e-3 relative only allows for rounding.
     if any(abs(m - e) > 1e-3 * e for m, e in zip(measured, expected)):
         fail(f"full_state cartesian_stiffness {measured}, expected {expected}")
+    check_limits_and_safety(states[-1])
     print(f"PASS: {len(states)} full_state lines, status ok, cycles {cycles[0]}..{cycles[-1]}, "
-          f"stiffness {measured}")
+          f"stiffness {measured}, safety {states[-1]['safety']}")
     return 0
 
 

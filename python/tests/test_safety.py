@@ -1,0 +1,210 @@
+"""The safety layer from Python: ControllerState.safety (every field, NumPy arrays, documented
+with units), what it reports when each part acts, and the safety.* and payload.* parameters
+through Parameters."""
+
+import math
+
+import numpy as np
+import pytest
+
+import cartesian_impedance as ci
+from conftest import PANDA_YAML
+
+# Every field of the C++ SafetyState, with the unit its docstring must name ("" for flags and
+# scales, which are fractions).
+SAFETY_FIELDS = {
+    "reference_speed_limited": "",
+    "translation_drive_scale": "[0, 1]",
+    "rotation_drive_scale": "[0, 1]",
+    "braking": "",
+    "force_scale": "[0, 1]",
+    "torque_scale": "[0, 1]",
+    "reference_clipped": "",
+    "workspace_penetration": "[m]",
+    "wall_force": "[N]",
+    "tank_level": "[J]",
+    "tank_draw": "[J]",
+    "stiffness_change_scale": "[0, 1]",
+    "payload_mass": "[kg]",
+    "payload_center_of_mass": "[m]",
+    "payload_estimate_valid": "",
+    "payload_estimate_mass": "[kg]",
+    "payload_estimate_center_of_mass": "[m]",
+}
+VECTORS = {"workspace_penetration", "wall_force", "payload_center_of_mass",
+           "payload_estimate_center_of_mass"}
+FLAGS = {"reference_speed_limited", "braking", "reference_clipped", "payload_estimate_valid"}
+
+
+def rotation(axis, angle):
+    """Rodrigues: the rotation matrix of `angle` [rad] about the unit vector `axis`."""
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * k @ k
+
+
+def test_safety_state_has_every_field_documented_with_its_unit():
+    names = {name for name in dir(ci.SafetyState) if not name.startswith("_")}
+    assert names == set(SAFETY_FIELDS)
+    for name, unit in SAFETY_FIELDS.items():
+        doc = getattr(ci.SafetyState, name).__doc__
+        assert doc and len(doc) > 20, name
+        assert unit in doc, f"{name}: {doc!r} does not name {unit}"
+    assert "safety" in ci.ControllerState.safety.__doc__
+    assert ci.SafetyState.__doc__
+
+
+def test_a_loop_at_rest_reports_nothing_capped_and_a_full_tank(panda, ready):
+    loop = ci.ControlLoop(panda)
+    loop.start(ready, np.zeros(7))
+    loop.step(ready, np.zeros(7), 0.001)
+    safety = loop.state.controller.safety
+    for name in SAFETY_FIELDS:
+        value = getattr(safety, name)
+        if name in VECTORS:
+            assert isinstance(value, np.ndarray) and value.shape == (3,) and value.dtype == float
+            assert np.all(value == 0.0), name
+        elif name in FLAGS:
+            assert value is False, name
+    assert safety.translation_drive_scale == safety.rotation_drive_scale == 1.0
+    assert safety.force_scale == safety.torque_scale == safety.stiffness_change_scale == 1.0
+    assert safety.tank_level == ci.Parameters()["safety.energy_tank.initial"]
+    assert safety.tank_draw == 0.0 and safety.payload_mass == 0.0
+    assert "tank_level=0.005 J" in repr(safety)
+    # A returned array is a copy: changing it changes nothing in the state.
+    safety.wall_force[0] = 5.0
+    assert loop.state.controller.safety.wall_force[0] == 0.0
+
+
+def test_every_part_of_the_safety_layer_reports_when_it_acts(panda, ready):
+    """The arm moves as commanded (q integrates dq: open loop, the speed is what we say), faster
+    than tiny speed caps, away from a small workspace box 10 cm behind the flange; the force caps
+    are below spring + wrench, a stiffness raise is more than the energy tank holds, a payload is
+    declared. Then it stands still long enough for the payload estimate."""
+    dq = np.full(7, 0.01)
+    start = panda.compute(ready)
+    twist = start.jacobian @ dq
+    along = twist[:3] / np.linalg.norm(twist[:3])
+    turning = twist[3:] / np.linalg.norm(twist[3:])
+    center = start.pose.position - 0.1 * along
+    wall_stiffness, wall_damping = 500.0, 100.0
+    parameters = {
+        "safety.max_speed.translation": 1e-4, "safety.max_speed.rotation": 1e-3,
+        "safety.max_force.force": 10.0, "safety.max_force.torque": 2.0,
+        "safety.workspace.min": center - 0.03, "safety.workspace.max": center + 0.03,
+        "safety.workspace.stiffness": wall_stiffness, "safety.workspace.damping": wall_damping,
+        "payload.mass": 1.0, "payload.center_of_mass": [0.0, 0.0, 0.1],
+        "stiffness.translation": 200.0, "stiffness.rotation": 10.0,
+    }
+    loop = ci.ControlLoop(panda, parameters)
+    q = ready.copy()
+    loop.start(q, dq)
+    reference = np.eye(4)
+    reference[:3, :3] = rotation(turning, 3.0) @ start.pose.rotation_matrix()
+    reference[:3, 3] = start.pose.position - along  # a metre behind: clipped into the box
+    loop.set_reference_pose(reference)
+    loop.set_stiffness([1000, 1000, 1000, 50, 50, 50])
+    loop.set_wrench(np.concatenate([60.0 * along, 15.0 * turning]), "base")
+
+    lower, upper = center - 0.03, center + 0.03
+    clipped_once = False
+    for k in range(2000):
+        loop.step(q, dq, 0.001)
+        state = loop.state.controller
+        assert state.status == ci.Status.ok, state.fault
+        safety = state.safety
+        clipped_once |= safety.reference_clipped
+        # The commanded reference is inside the box, every cycle.
+        position = state.commanded.pose.position
+        assert np.all(position >= lower - 1e-15) and np.all(position <= upper + 1e-15)
+        if k % 500 == 499:
+            # What the state says against what the physics says, from this cycle's pose.
+            flange = state.pose.position
+            penetration = flange - np.clip(flange, lower, upper)
+            np.testing.assert_allclose(safety.workspace_penetration, penetration, atol=1e-15)
+            assert np.linalg.norm(penetration) > 0.02  # outside by at least 2 cm
+            velocity = (panda.compute(q).jacobian @ dq)[:3]
+            outward = velocity * penetration > 0
+            expected = -wall_stiffness * penetration - wall_damping * velocity * outward
+            np.testing.assert_allclose(safety.wall_force, expected, rtol=1e-9, atol=1e-12)
+            assert outward.any()  # the damper acts too
+            # Far above the speed caps: all of the push along the motion removed, braking.
+            assert safety.translation_drive_scale == 0.0 and safety.rotation_drive_scale == 0.0
+            assert safety.braking and safety.reference_speed_limited
+            assert 0.0 < safety.force_scale < 1.0 and 0.0 < safety.torque_scale < 1.0
+            # The raise costs more than the tank holds: it is applied only as far as it pays.
+            assert 0.0 <= safety.stiffness_change_scale < 1.0 and safety.tank_draw > 0.0
+            assert 0.0 <= safety.tank_level <= ci.Parameters()["safety.energy_tank.capacity"]
+            # Declared at start and applied at once (the filter then holds it).
+            assert safety.payload_mass == pytest.approx(1.0, abs=1e-12)
+            np.testing.assert_allclose(safety.payload_center_of_mass, [0, 0, 0.1], atol=1e-12)
+            assert not safety.payload_estimate_valid  # moving
+        q = q + 0.001 * dq
+    assert clipped_once
+
+    dq = np.zeros(7)
+    valid_after = None
+    for k in range(700):
+        loop.step(q, dq, 0.001)
+        if valid_after is None and loop.state.controller.safety.payload_estimate_valid:
+            valid_after = (k + 1) * 0.001
+    # Still for kPayloadSettleTime (0.5 s), to the cycle.
+    assert valid_after == pytest.approx(0.5, abs=1.5e-3)
+    safety = loop.state.controller.safety
+    assert not safety.braking and safety.translation_drive_scale == 1.0
+    assert math.isfinite(safety.payload_estimate_mass)
+    assert safety.payload_estimate_center_of_mass.shape == (3,)
+
+
+def test_parameters_read_and_write_the_safety_and_payload_rows(tmp_path, panda, ready):
+    shipped = ci.Parameters.load(PANDA_YAML)
+    assert shipped["safety.max_speed.translation"] == 1.0
+    assert shipped["safety.max_force.force"] == 100.0
+    np.testing.assert_array_equal(shipped["safety.workspace.min"], [-0.9, -0.9, 0.0])
+    assert shipped["safety.energy_tank.enabled"] is True
+    assert shipped["payload.mass"] == 0.0
+
+    p = ci.Parameters()
+    p["safety.max_speed.rotation"] = 1.5
+    p["safety.workspace.max"] = [0.5, 0.6, 0.7]
+    p.update({"safety": {"max_force": {"torque": 8.0}, "energy_tank": {"capacity": 0.02}},
+              "payload.mass": 0.75, "payload": {"center_of_mass": [0.0, 0.01, 0.05]}})
+    assert p["safety.max_speed.rotation"] == 1.5
+    np.testing.assert_array_equal(p["safety.workspace.max"], [0.5, 0.6, 0.7])
+    assert p["safety.max_force.torque"] == 8.0 and p["safety.energy_tank.capacity"] == 0.02
+    assert p["payload.mass"] == 0.75
+    np.testing.assert_array_equal(p["payload.center_of_mass"], [0.0, 0.01, 0.05])
+    nested = p.to_dict(nested=True)
+    assert nested["safety"]["max_force"]["torque"] == 8.0 and nested["payload"]["mass"] == 0.75
+    path = tmp_path / "safety.yaml"
+    p.save(path)
+    again = ci.Parameters.load(path)
+    for name in ("safety.max_speed.rotation", "safety.workspace.max", "safety.max_force.torque",
+                 "safety.energy_tank.capacity", "payload.mass", "payload.center_of_mass"):
+        np.testing.assert_array_equal(again[name], p[name])
+    assert "payload.mass" in repr(p) and "safety.max_force.torque" in repr(p)
+
+    # Bad values name the parameter, the value and the bound, and change nothing.
+    before = p.to_dict()
+    with pytest.raises(ci.Error, match=r"safety\.max_speed\.translation.*-1.*0"):
+        p["safety.max_speed.translation"] = -1.0
+    with pytest.raises(ci.Error, match=r"safety\.workspace\.min.*greater than safety\.workspace"):
+        p.update({"safety.workspace.min": [0.8, 0.0, 0.0]})  # above max.x = 0.5
+    with pytest.raises(ci.Error, match=r"safety\.energy_tank\.initial.*capacity"):
+        p["safety.energy_tank.initial"] = 0.5
+    with pytest.raises(TypeError):
+        p["safety.energy_tank.enabled"] = "yes"
+    with pytest.raises(ci.Error, match=r"payload\.mass"):
+        p["payload.mass"] = -0.1
+    after = p.to_dict()
+    assert before.keys() == after.keys()
+    assert all(np.array_equal(before[k], after[k]) for k in before)
+
+    # A loop made from them reports them.
+    loop = ci.ControlLoop(panda, p)
+    loop.start(ready, np.zeros(7))
+    loop.step(ready, np.zeros(7), 0.001)
+    assert loop.latest_parameters()["payload.mass"] == 0.75
+    safety = loop.state.controller.safety
+    assert safety.payload_mass == pytest.approx(0.75, abs=1e-12)
+    np.testing.assert_allclose(safety.payload_center_of_mass, [0.0, 0.01, 0.05], atol=1e-12)
+    assert safety.tank_level == p["safety.energy_tank.initial"]
