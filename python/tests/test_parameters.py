@@ -35,8 +35,6 @@ def other_value(row):
         # a little above it): different from the default and valid.
         return (d + low) / 2 if d > low else min(low + 0.25 * (i + 1) * max(low, 1e-3), high)
 
-    if row["name"] == "safety.energy_tank.capacity":
-        return min(2 * default, high)  # lowered, it would fall below the tank's initial level
     if row["kind"] == "number":
         return number(default)
     if row["kind"] == "xyz":
