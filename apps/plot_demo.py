@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Plots of the demo's CSV logs: pose error, torques, filtered vs commanded targets (every
 quantity the scenario commands), contact force, displacement against force for the compliance
-sweep, the stability grid's map and both arms of the two-arm scene. Each time plot shades the
-scenario's phases and names them. Usage: plot_demo.py OUTPUT_DIR
+sweep, the stability grid's map, both arms of the two-arm scene, and the energy with and without
+the energy tank. Each time plot shades the scenario's phases and names them.
+Usage: plot_demo.py OUTPUT_DIR
 """
 import csv
 import math
@@ -317,11 +318,49 @@ def plot_two_arms(path, out):
     save(figure, out / "two_arms_motion.png")
 
 
+def plot_energy_tank(path, out):
+    """Issue 30's stiffness schedule with and without the energy tank: the pose error, the total
+    energy (kinetic + spring + tank) of each run, and what the total is made of with the tank."""
+    log = read(path)
+    if not log:
+        return
+    t = log["time"]
+    figure, (error, total, parts) = plt.subplots(3, 1, figsize=(9, 9), sharex=True)
+    error.plot(t, log["without_error_mm"], color="tab:red", linewidth=1, label="without the tank")
+    error.plot(t, log["with_error_mm"], color="tab:blue", linewidth=1.5, label="with the tank")
+    bound = log["with_error_mm"][0] + 2.0
+    error.axhline(bound, color="k", linestyle="--", linewidth=1,
+                  label=f"initial error + 2 mm = {bound:.1f} mm (issue 30's bound)")
+    error.set_ylabel("pose error |e| [mm]")
+    error.legend(fontsize="small", loc="upper left")
+    soft, stiff = min(log["without_stiffness"]), max(log["without_stiffness"])
+    error.set_title(f"energy tank: {soft:.0f} N/m while |e| grows, {stiff:.0f} N/m while it "
+                    f"shrinks, from a {log['with_error_mm'][0]:.0f} mm offset", fontsize=10)
+    total.semilogy(t, log["without_total"], color="tab:red", linewidth=1,
+                   label="without the tank: kinetic + spring")
+    total.semilogy(t, log["with_total"], color="tab:blue", linewidth=1.5,
+                   label="with the tank: kinetic + spring + tank")
+    total.axhline(log["with_total"][0], color="tab:blue", linestyle=":", linewidth=1,
+                  label=f"with the tank at the start: {1e3 * log['with_total'][0]:.1f} mJ")
+    total.set_ylabel("total energy [J]")
+    total.legend(fontsize="small", loc="upper left")
+    millijoules = {key: [1e3 * v for v in log[f"with_{key}"]]
+                   for key in ("kinetic", "spring", "tank")}
+    parts.stackplot(t, millijoules["kinetic"], millijoules["spring"], millijoules["tank"],
+                    colors=("#f4b6b0", "#b9e4b0", "#b0c8f4"),
+                    labels=("kinetic 1/2 dq^T M dq", "spring 1/2 e^T K e", "tank level"))
+    parts.set_ylabel("with the tank [mJ]")
+    parts.set_xlabel("time since the schedule started [s]")
+    parts.legend(fontsize="small", loc="upper right")
+    save(figure, out / "energy_tank_energy.png")
+
+
 def main():
     if len(sys.argv) != 2:
         sys.exit(__doc__)
     out = pathlib.Path(sys.argv[1])
-    tables = {"stability_grid_grid.csv": plot_grid, "two_arms_motion.csv": plot_two_arms}
+    tables = {"stability_grid_grid.csv": plot_grid, "two_arms_motion.csv": plot_two_arms,
+              "energy_tank_energy.csv": plot_energy_tank}
     for path in sorted(out.glob("*.csv")):
         if path.name in tables:
             tables[path.name](path, out)

@@ -104,8 +104,11 @@ sim::Simulation make_simulation(const RobotSetup& robot, const RobotModel& model
   return sim::make_scene(robot.mjcf.empty() ? robot.urdf : robot.mjcf, boxes, options);
 }
 
-Parameters with_armature_of(Parameters parameters, const sim::Simulation& sim) {
+// The controller's parameters in the simulation: its rotor inertia, and the mutation of the
+// parameters a broken controller gets.
+Parameters for_simulation(Parameters parameters, const sim::Simulation& sim, Mutation mutation) {
   if (!configures_armature(parameters)) parameters.dynamics.armature = sim.armature();
+  if (mutation == Mutation::no_energy_tank) parameters.safety.energy_tank.enabled = false;
   return parameters;
 }
 }  // namespace
@@ -114,7 +117,8 @@ Rig::Rig(const RobotSetup& robot, const Parameters& parameters, const std::vecto
     : robot_(robot),
       model_(RobotModel::from_urdf_file(robot.urdf, robot.base_link, robot.tip_link)),
       sim_(make_simulation(robot, model_, parameters, boxes)),
-      loop_(std::make_unique<ControlLoop>(model_, with_armature_of(parameters, sim_))),
+      loop_(
+          std::make_unique<ControlLoop>(model_, for_simulation(parameters, sim_, robot.mutation))),
       runner_(sim_, *loop_) {
   // The tip is a site in the project's MJCF files; a robot simulated from its URDF has only
   // bodies, named like its links.
@@ -329,6 +333,7 @@ const std::vector<std::pair<std::string, Scenario>>& registry() {
       {"stability_grid", stability_grid},
       {"convergence", convergence},
       {"two_arms", two_arms},
+      {"energy_tank", energy_tank},
   };
   return scenarios;
 }

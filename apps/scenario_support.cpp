@@ -13,6 +13,7 @@ namespace cartesian_impedance::scenarios::detail {
 void set_mutation(sim::ClosedLoopRunner& runner, Mutation mutation) {
   switch (mutation) {
     case Mutation::none:
+    case Mutation::no_energy_tank:  // a mutation of the parameters: the Rig applies it
       runner.set_torque_hook({});
       break;
     case Mutation::zero_torque:

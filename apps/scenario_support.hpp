@@ -123,5 +123,7 @@ Outcome trajectory(const RobotSetup& robot, const MomentCallback& moment);
 Outcome stability_grid(const RobotSetup& robot, const MomentCallback& moment);
 Outcome convergence(const RobotSetup& robot, const MomentCallback& moment);
 Outcome two_arms(const RobotSetup& robot, const MomentCallback& moment);
+// In scenarios_energy_tank.cpp.
+Outcome energy_tank(const RobotSetup& robot, const MomentCallback& moment);
 
 }  // namespace cartesian_impedance::scenarios::detail

@@ -20,6 +20,9 @@ enum class Mutation {
   none,          ///< the controller as it is
   zero_torque,   ///< a dead controller: zero torque (the simulated firmware still holds gravity)
   flipped_sign,  ///< the law with its sign flipped: -tau
+  /// The controller without its energy tank (safety.energy_tank.enabled = false), whatever the
+  /// scenario configures: the mutant of the tank's own checks.
+  no_energy_tank,
 };
 
 /// A robot as the scenarios need it: the URDF for the controller's model, the MJCF (or the URDF

@@ -11,6 +11,14 @@ namespace cartesian_impedance {
 
 namespace {
 
+// The energy that raising the stiffness by dK stores in the spring, per unit of e_c^T dK e_c, for
+// an error of `length` clipped at `clip`: 1/2 within the clip, and 1/2 + (length - clip) / clip
+// beyond it, where the spring's force no longer grows (the clipped spring's energy is then
+// 1/2 e_c^T K e_c + (length - clip) / clip e_c^T K e_c).
+double spring_energy_weight(double length, double clip) noexcept {
+  return length > clip && clip > 0.0 ? 0.5 + (length - clip) / clip : 0.5;
+}
+
 // The speed cap's governor starts taking the push along the motion away at this fraction of the
 // cap and has taken all of it at the cap. The band keeps the loop gain (push / band width, an
 // extra damping near the cap) a few times the law's own damping, so the discrete loop stays far
@@ -90,8 +98,15 @@ void CartesianImpedanceController::pay_stiffness_change() noexcept {
   // stiffness raised at rest, costs nothing; a raise while the arm is away from its reference
   // costs what it stores.
   Vector6d error = pose_error(state_.pose, law_->reference_before);
-  clip_norm(error.head<3>(), parameters_.limits.pose_error.translation);
-  clip_norm(error.tail<3>(), parameters_.limits.pose_error.rotation);
+  // Beyond limits.pose_error the spring pulls with its force at the clip, so its energy grows by
+  // c u^T K u for every metre further (c the clip, u the error's direction): a raise there stores
+  // (|e| / c - 1/2) e_c^T dK e_c, not 1/2 e_c^T dK e_c. (That is the clipped spring's energy for an
+  // isotropic K; for another, clipping keeps the force's size, not a potential.)
+  const PoseErrorLimits& clip = parameters_.limits.pose_error;
+  const double translation_weight = spring_energy_weight(error.head<3>().norm(), clip.translation);
+  const double rotation_weight = spring_energy_weight(error.tail<3>().norm(), clip.rotation);
+  clip_norm(error.head<3>(), clip.translation);
+  clip_norm(error.tail<3>(), clip.rotation);
   if (parameters_.stiffness.frame == Frame::end_effector) {
     const Eigen::Matrix3d& rotation = law_->rotation;
     error.head<3>() = rotation.transpose() * error.head<3>().eval();
@@ -99,19 +114,32 @@ void CartesianImpedanceController::pay_stiffness_change() noexcept {
   }
   double cost;
   if (stiffness_diagonal_) {
-    cost = 0.5 * (stiffness.diagonal() - before.diagonal()).dot(error.cwiseAbs2());
+    const Vector6d change = stiffness.diagonal() - before.diagonal();
+    const Vector6d squared = error.cwiseAbs2();
+    cost = translation_weight * change.head<3>().dot(squared.head<3>()) +
+           rotation_weight * change.tail<3>().dot(squared.tail<3>());
   } else {
-    cost = 0.5 * error.dot((stiffness - before) * error);
+    const Matrix6d change = stiffness - before;
+    cost = 0.5 * error.dot(change * error) +
+           (translation_weight - 0.5) *
+               error.head<3>().dot(change.topLeftCorner<3, 3>() * error.head<3>()) +
+           (rotation_weight - 0.5) *
+               error.tail<3>().dot(change.bottomRightCorner<3, 3>() * error.tail<3>());
   }
   if (cost > safety.tank_level) {
-    const double scale = std::max(safety.tank_level, 0.0) / cost;
+    // What the tank holds pays for the part of the change it covers, and the tank is then empty:
+    // exactly, as level - cost * (level / cost) may round below zero.
+    const double level = std::max(safety.tank_level, 0.0);
+    const double scale = level / cost;
     if (stiffness_diagonal_) {
       stiffness.diagonal() = before.diagonal() + scale * (stiffness.diagonal() - before.diagonal());
     } else {
       stiffness = before + scale * (stiffness - before);
     }
     safety.stiffness_change_scale = scale;
-    cost *= scale;
+    safety.tank_draw = level;
+    safety.tank_level = 0.0;
+    return;
   }
   safety.tank_draw = cost;
   safety.tank_level = std::min(safety.tank_level - cost, tank.capacity);
