@@ -329,6 +329,7 @@ const std::vector<std::pair<std::string, Scenario>>& registry() {
       {"stability_grid", stability_grid},
       {"convergence", convergence},
       {"two_arms", two_arms},
+      {"safety", safety},
   };
   return scenarios;
 }

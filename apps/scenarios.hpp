@@ -20,6 +20,13 @@ enum class Mutation {
   none,          ///< the controller as it is
   zero_torque,   ///< a dead controller: zero torque (the simulated firmware still holds gravity)
   flipped_sign,  ///< the law with its sign flipped: -tau
+  // The safety layer with one of its caps removed, in the `safety` scenario's parameters (the
+  // torque is the controller's own; the other scenarios run as they are): each check of that
+  // cap must then fail.
+  no_speed_cap,  ///< safety.max_speed 0
+  no_force_cap,  ///< safety.max_force 0
+  no_workspace,  ///< no box: safety.workspace.min/max the defaults (+-10 m), no walls
+  no_payload,    ///< the payload not declared (payload.mass 0)
 };
 
 /// A robot as the scenarios need it: the URDF for the controller's model, the MJCF (or the URDF
