@@ -41,7 +41,7 @@ constexpr const char* kUsage = R"(Usage: cartesian_impedance_demo [options]
 
 Runs the controller on a simulated robot through a scripted tour (reference motion, push and
 compliance, stiffness change, wrench against a table, nullspace motion, teaching, trajectory,
-stability grid, two arms, energy tank) and prints, for each scenario, what theory predicts and
+stability grid, two arms, energy tank, safety caps) and prints, for each scenario, what theory predicts and
 what was measured. Writes CSV logs, plots and rendered pictures to the output folder.
 
 Options:

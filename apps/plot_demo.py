@@ -1,8 +1,10 @@
 #!/usr/bin/env python3
 """Plots of the demo's CSV logs: pose error, torques, filtered vs commanded targets (every
 quantity the scenario commands), contact force, displacement against force for the compliance
-sweep, the stability grid's map, both arms of the two-arm scene, and the energy with and without
-the energy tank. Each time plot shades the scenario's phases and names them.
+sweep, the stability grid's map, both arms of the two-arm scene, the safety layer's contact
+force with and without its caps, flange speeds against the speed cap, the workspace box with the
+flange's path, and the energy with and without the energy tank. Each time plot shades the
+scenario's phases and names them.
 Usage: plot_demo.py OUTPUT_DIR
 """
 import csv
@@ -355,11 +357,136 @@ def plot_energy_tank(path, out):
     save(figure, out / "energy_tank_energy.png")
 
 
+def plot_safety_force(path, out):
+    """Contact force on the table with and without the caps, for the reference that jumps 5 cm
+    into the table and for the one moved there at 0.1 m/s, with the force cap drawn."""
+    log = read(path)
+    if not log:
+        return
+    t = log["time"]
+    cap = log["cap"][0]
+    figure, panels = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True)
+    for axes, case, title in ((panels[0], "jump", "reference jumps 5 cm into the table"),
+                              (panels[1], "ramp", "reference moved there at 0.1 m/s")):
+        free, capped = log[f"{case}_without_caps"], log[f"{case}_with_caps"]
+        axes.plot(t, free, color="tab:red", linewidth=1, label="without caps")
+        axes.plot(t, capped, color="tab:blue", linewidth=1.2,
+                  label="with the caps (0.1 m/s, force cap)")
+        axes.axhline(cap, color="tab:blue", linestyle="--", linewidth=0.8,
+                     label=f"force cap {cap:.3g} N")
+        for values, colour in ((free, "tab:red"), (capped, "tab:blue")):
+            finite = [(v, i) for i, v in enumerate(values) if math.isfinite(v)]
+            peak, at = max(finite)
+            settled = [v for v, _ in finite[-500:]]  # the run's last 0.5 s
+            axes.annotate(f"peak {peak:.0f} N, settled {sum(settled) / len(settled):.1f} N",
+                          xy=(t[at], peak), xytext=(8, 10 if colour == "tab:blue" else -4),
+                          textcoords="offset points", fontsize=8, color=colour,
+                          va="bottom" if colour == "tab:blue" else "top")
+        axes.set_ylabel("contact force [N]")
+        axes.set_title(title, fontsize=10)
+        axes.legend(fontsize="small", loc="center right")
+    panels[1].set_xlabel("time [s] (every 1 ms cycle)")
+    figure.suptitle("safety: contact force on a table 10 cm under the flange, 3000 N/m")
+    save(figure, out / "safety_contact_force.png")
+
+
+def plot_safety_speed(path, out):
+    """Flange speed under a 300 mm reference jump without and with the speed cap, a trajectory
+    twice as fast as the cap, a commanded force in free space and a push from outside."""
+    log = read(path)
+    if not log:
+        return
+    t = log["time"]
+    cap, push_cap = log["cap"][0], log["push_cap"][0]
+    figure, axes = plt.subplots(figsize=(9, 4.5))
+    for key, colour, label in (("jump_without_cap", "tab:red", "reference jump, no cap"),
+                               ("jump_with_cap", "tab:blue", "reference jump, cap"),
+                               ("trajectory_with_cap", "tab:purple", "trajectory at 2 x cap"),
+                               ("wrench_with_cap", "tab:green", "commanded force, no spring"),
+                               ("push_with_cap", "tab:orange", "pushed from outside (teaching)")):
+        axes.plot(t, log[key], color=colour, linewidth=1, label=label)
+    axes.axhline(cap, color="0.3", linestyle="--", linewidth=0.8, label=f"cap {cap:.2g} m/s")
+    axes.axhline(1.1 * cap, color="0.3", linestyle=":", linewidth=0.8, label="1.1 x cap")
+    if abs(push_cap - cap) > 1e-9:
+        axes.axhline(push_cap, color="tab:orange", linestyle="--", linewidth=0.8,
+                     label=f"push's cap {push_cap:.2g} m/s")
+    axes.axhline(log["push_unbraked"][0], color="tab:orange", linestyle=":", linewidth=0.8,
+                 label="push without the brake (F / d)")
+    axes.set_xlabel("time since the command [s]")
+    axes.set_ylabel("flange speed [m/s]")
+    axes.legend(fontsize="small", loc="upper right")
+    axes.set_title("safety: flange speed (ground truth, every cycle); the push from outside is "
+                   "braked, not stopped", fontsize=10)
+    save(figure, out / "safety_speed.png")
+
+
+def plot_safety_workspace(path, out):
+    """The box and the flange's path: along the wall's normal over time (pushed toward the wall
+    while teaching; sent to a reference outside the box), and in the plane of that normal and z
+    (base frame), with the box's face."""
+    log = read(path)
+    if not log:
+        return
+    axis = int(log["axis"][0])
+    other = 2 if axis != 2 else 0
+    names = "xyz"
+    a, b = names[axis], names[other]
+    low, high = log[f"min_{a}"][0], log[f"max_{a}"][0]
+    figure, (along, plane) = plt.subplots(2, 1, figsize=(9, 7.5),
+                                          gridspec_kw={"height_ratios": [3, 2]})
+    runs = ((0.0, "tab:orange", "flange, pushed 20 N toward the wall while teaching"),
+            (1.0, "tab:blue", "flange, sent to a reference 10 cm outside"))
+    values = []
+    for run, colour, label in runs:
+        rows = [i for i, r in enumerate(log["run"]) if r == run]
+        t0 = log["time"][rows[0]]
+        t = [log["time"][i] - t0 for i in rows]
+        along.plot(t, [1e3 * log[a][i] for i in rows], color=colour, linewidth=1.5, label=label)
+        plane.plot([1e3 * log[a][i] for i in rows], [1e3 * log[b][i] for i in rows],
+                   color=colour, linewidth=1.5)
+        values += [1e3 * log[a][i] for i in rows]
+        if run == 1.0:
+            along.plot(t, [1e3 * log[f"reference_{a}"][i] for i in rows], "--", color=colour,
+                       linewidth=1, label="its reference as the law used it (clipped)")
+            requested = 1e3 * log[f"requested_{a}"][rows[0]]
+            along.axhline(requested, color=colour, linestyle=":", linewidth=1,
+                          label=f"its reference as requested ({requested:.0f} mm)")
+            plane.plot(requested, 1e3 * log[f"requested_{b}"][rows[0]], "x", color=colour,
+                       markersize=9, label="reference requested")
+            values.append(requested)
+    view = (min(values) - 15, max(values) + 15)
+    for axes, vertical in ((along, False), (plane, True)):
+        for face in (low, high):
+            if view[0] < 1e3 * face < view[1]:
+                (axes.axvline if vertical else axes.axhline)(
+                    1e3 * face, color="tab:red", linewidth=2, label="face of the workspace box")
+        inside = (max(view[0], 1e3 * low), min(view[1], 1e3 * high))
+        for start, end in ((view[0], inside[0]), (inside[1], view[1])):
+            if end > start:
+                (axes.axvspan if vertical else axes.axhspan)(start, end, color="tab:red",
+                                                            alpha=0.08, linewidth=0)
+    along.set_ylim(*view)
+    along.set_xlabel("time since the push / the reference [s]")
+    along.set_ylabel(f"flange {a} [mm], base frame")
+    along.legend(fontsize="small", loc="center right")
+    along.set_title("safety: the workspace wall (red; shaded: outside the box) stops the "
+                    "flange; a reference outside is clipped onto the face", fontsize=10)
+    plane.set_xlim(*view)
+    plane.set_aspect("equal", adjustable="datalim")
+    plane.set_xlabel(f"{a} [mm], base frame")
+    plane.set_ylabel(f"{b} [mm]")
+    plane.legend(fontsize="small", loc="upper left")
+    plane.set_title(f"the flange's path in the {a}-{b} plane", fontsize=10)
+    save(figure, out / "safety_workspace.png")
+
+
 def main():
     if len(sys.argv) != 2:
         sys.exit(__doc__)
     out = pathlib.Path(sys.argv[1])
     tables = {"stability_grid_grid.csv": plot_grid, "two_arms_motion.csv": plot_two_arms,
+              "safety_force.csv": plot_safety_force, "safety_speed.csv": plot_safety_speed,
+              "safety_workspace.csv": plot_safety_workspace,
               "energy_tank_energy.csv": plot_energy_tank}
     for path in sorted(out.glob("*.csv")):
         if path.name in tables:

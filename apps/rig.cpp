@@ -334,6 +334,7 @@ const std::vector<std::pair<std::string, Scenario>>& registry() {
       {"convergence", convergence},
       {"two_arms", two_arms},
       {"energy_tank", energy_tank},
+      {"safety", safety},
   };
   return scenarios;
 }

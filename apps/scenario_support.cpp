@@ -13,7 +13,11 @@ namespace cartesian_impedance::scenarios::detail {
 void set_mutation(sim::ClosedLoopRunner& runner, Mutation mutation) {
   switch (mutation) {
     case Mutation::none:
-    case Mutation::no_energy_tank:  // a mutation of the parameters: the Rig applies it
+    case Mutation::no_energy_tank:
+    case Mutation::no_speed_cap:  // parameters, not the torque: the Rig or the scenario sets them
+    case Mutation::no_force_cap:
+    case Mutation::no_workspace:
+    case Mutation::no_payload:
       runner.set_torque_hook({});
       break;
     case Mutation::zero_torque:
@@ -273,6 +277,110 @@ void set_stiffness_within_limits(Parameters& parameters, double translation, dou
   parameters.stiffness.rotation.setConstant(std::min(rotation, limits.stiffness.rotation.max));
   parameters.nullspace.stiffness =
       JointVector::Constant(1, std::min(nullspace, limits.nullspace_stiffness.max));
+}
+
+// Steps the rig one cycle at a time for `seconds`, calling `each` after every cycle with the
+// flange's speed over that cycle [m/s] (ground truth, from the simulation's poses).
+void run_measured(Rig& rig, double seconds, const std::function<void(double speed)>& each) {
+  Eigen::Vector3d previous = rig.flange().position;
+  const int steps = static_cast<int>(std::lround(seconds / kDt));
+  for (int k = 0; k < steps; ++k) {
+    rig.run(kDt);
+    const Eigen::Vector3d now = rig.flange().position;
+    each((now - previous).norm() / kDt);
+    previous = now;
+  }
+}
+
+// The largest mass a force along `direction` at the flange can meet: every other direction of
+// the flange held (a flat face stuck on a surface), d^T (J M^-1 J^T)^+ d over the six task
+// directions, M with the simulated rotors' inertia.
+double mass_along(Rig& rig, const Eigen::Vector3d& direction) {
+  ModelWorkspace workspace(rig.model());
+  Kinematics kinematics = workspace.make_kinematics();
+  workspace.compute(rig.sim().q(), rig.sim().dq(), kinematics, true);
+  JointMatrix mass = kinematics.mass;
+  mass.diagonal() += rig.sim().armature();
+  const Eigen::MatrixXd& jacobian = kinematics.jacobian;
+  const Eigen::MatrixXd mobility = jacobian * mass.ldlt().solve(jacobian.transpose());
+  const Eigen::MatrixXd inertia =
+      Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(mobility).pseudoInverse();
+  return direction.dot(inertia.topLeftCorner<3, 3>() * direction);
+}
+
+// The joint positions that reach the pose `target` from q by a few Gauss-Newton steps (J^+ e)
+// with every joint `margin` inside its limits on the way, if they do.
+std::optional<JointVector> reach(const RobotModel& model, JointVector q, const Pose& target,
+                                 double margin) {
+  ModelWorkspace workspace(model);
+  Kinematics kinematics = workspace.make_kinematics();
+  const JointLimits& limits = model.limits();
+  for (int iteration = 0; iteration < 30; ++iteration) {
+    workspace.compute(q, JointVector::Zero(q.size()), kinematics);
+    Vector6d error;
+    error << target.position - kinematics.pose.position,
+        orientation_error(target.orientation, kinematics.pose.orientation);
+    if (error.head<3>().norm() < 1e-4 && error.tail<3>().norm() < 1e-3) return q;
+    q += Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(kinematics.jacobian).solve(error);
+    if (((q - limits.position_lower).array() < margin).any() ||
+        ((limits.position_upper - q).array() < margin).any()) {
+      return std::nullopt;
+    }
+  }
+  return std::nullopt;
+}
+
+Move reachable_move(Rig& rig, double longest) {
+  const TaskDirections directions = task_directions(rig);
+  const Pose start = rig.flange();
+  for (double length = longest; length >= longest / 8.0; length *= 0.5) {
+    for (const int axis : {1, 0, 2}) {
+      if (!directions.controlled[static_cast<std::size_t>(axis)]) continue;
+      // Toward the base first: outward an arm runs out of reach before its joints' limits.
+      const double inward = start.position[axis] > 1e-3 ? -1.0 : 1.0;
+      for (const double sense : {inward, -inward}) {
+        Pose target = start;
+        target.position[axis] += sense * length;
+        if (const auto goal = reach(rig.model(), rig.sim().q(), target, 0.1)) {
+          return {sense * Eigen::Vector3d::Unit(axis), length, *goal};
+        }
+      }
+    }
+  }
+  return {};
+}
+
+MomentCallback showing_box_face(const MomentCallback& moment, const std::string& base_link,
+                                const WorkspaceParameters& box, int axis, double face,
+                                const Pose& requested) {
+  if (!moment) return {};
+  return
+      [=](const std::string& label, const sim::Simulation& sim, const sim::RenderOverlay& overlay) {
+        sim::RenderOverlay drawn = overlay;
+        const Pose base = sim.body_pose(base_link);
+        if (requested.position.allFinite()) {
+          drawn.frames.push_back({Pose{base.position + base.orientation * requested.position,
+                                       base.orientation * requested.orientation},
+                                  0.06, 0.4f, "requested"});
+          drawn.caption += "\npale axes: the reference as requested, outside the box";
+        }
+        // The face's four edges, as arrows from corner to corner.
+        const int a = (axis + 1) % 3, b = (axis + 2) % 3;
+        Eigen::Vector3d corners[4];
+        for (int k = 0; k < 4; ++k) {
+          corners[k][axis] = face;
+          corners[k][a] = (k == 0 || k == 3) ? box.min[a] : box.max[a];
+          corners[k][b] = k < 2 ? box.min[b] : box.max[b];
+          corners[k] = base.position + base.orientation * corners[k];
+        }
+        for (int k = 0; k < 4; ++k) {
+          drawn.arrows.push_back({corners[k], corners[(k + 1) % 4] - corners[k], 1.0,
+                                  Eigen::Vector4f(0.9f, 0.15f, 0.1f, 0.7f),
+                                  k == 0 ? "workspace wall" : ""});
+        }
+        drawn.caption += "\nred outline: the face of the workspace box the wall stands on";
+        moment(label, sim, drawn);
+      };
 }
 
 }  // namespace cartesian_impedance::scenarios::detail

@@ -3,8 +3,10 @@
 // to the scenarios library (the demo and the tests include scenarios.hpp).
 
 #include <array>
+#include <functional>
 #include <initializer_list>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -112,7 +114,44 @@ double fitted_load(double tuned, double capacity, double stiffness, double trave
 /// reduced, for the result's note; "" if it was not.
 std::string load_note(double tuned, double used, const char* unit);
 
-// The scenarios, in scenarios.cpp and scenarios_sweeps.cpp.
+/// Whether a link of the chain other than the flange's body touches the environment now.
+bool other_link_touches(Rig& rig);
+
+/// Steps `rig` one cycle at a time for `seconds`, calling `each` after every cycle with the
+/// flange's speed over that cycle [m/s] (ground truth: the simulation's flange poses).
+void run_measured(Rig& rig, double seconds, const std::function<void(double speed)>& each);
+
+/// The largest mass [kg] a force along `direction` (base frame) at the flange can meet at the
+/// rig's state, every other direction of the flange held (as a flat face stuck on a surface
+/// holds it): d^T Lambda d, Lambda = (J M^-1 J^T)^+ the task-space inertia, M with the simulated
+/// rotors' inertia. Holding fewer directions meets less mass.
+double mass_along(Rig& rig, const Eigen::Vector3d& direction);
+
+/// The joint positions [rad or m] that reach the flange pose `target` (base frame) from `q` by
+/// a few Gauss-Newton steps (J^+ e), every joint `margin` [rad or m] inside its limits on the
+/// way; none if they do not.
+std::optional<JointVector> reach(const RobotModel& model, JointVector q, const Pose& target,
+                                 double margin);
+
+/// A move of the flange along one base axis that the arm makes with its orientation kept.
+struct Move {
+  Eigen::Vector3d direction = Eigen::Vector3d::Zero();  ///< unit, along x, y or z
+  double length = 0.0;                                  ///< [m]; 0: none found
+  JointVector goal;                                     ///< the joints there [rad or m]
+};
+/// Sideways (y) if the arm can move its flange so, else along x or z, toward the base first;
+/// `longest` [m], or half, a quarter or an eighth of it, whichever the arm reaches (reach())
+/// first with every joint 0.1 rad inside its limits.
+Move reachable_move(Rig& rig, double longest);
+
+/// `moment` with the face of `box` (base frame) at coordinate `face` [m] across `axis` (0, 1, 2)
+/// drawn as a red outline, and `requested` (if its position is finite) as a pale frame: a
+/// reference requested outside the box. Empty if `moment` is.
+MomentCallback showing_box_face(const MomentCallback& moment, const std::string& base_link,
+                                const WorkspaceParameters& box, int axis, double face,
+                                const Pose& requested);
+
+// The scenarios, in scenarios.cpp, scenarios_sweeps.cpp and scenarios_safety.cpp.
 Outcome hold(const RobotSetup& robot, const MomentCallback& moment);
 Outcome compliance(const RobotSetup& robot, const MomentCallback& moment);
 Outcome reference_step(const RobotSetup& robot, const MomentCallback& moment);
@@ -125,5 +164,7 @@ Outcome convergence(const RobotSetup& robot, const MomentCallback& moment);
 Outcome two_arms(const RobotSetup& robot, const MomentCallback& moment);
 // In scenarios_energy_tank.cpp.
 Outcome energy_tank(const RobotSetup& robot, const MomentCallback& moment);
+// In scenarios_safety.cpp.
+Outcome safety(const RobotSetup& robot, const MomentCallback& moment);
 
 }  // namespace cartesian_impedance::scenarios::detail

@@ -401,7 +401,6 @@ Outcome reference_step(const RobotSetup& robot, const MomentCallback& moment) {
       overrides(robot, parameters)};
 }
 
-namespace {
 // Whether a link of the chain other than the flange's body touches the environment now. Links
 // the simulation names otherwise (an MJCF's bodies) are not asked. Bodies welded to the flange
 // report its contact force (Simulation::contact_wrench), so they count as the flange.
@@ -419,7 +418,6 @@ bool other_link_touches(Rig& rig) {
   }
   return false;
 }
-}  // namespace
 
 // 5. Wrench: with the vertical stiffness released, a commanded downward force presses on a table
 // with exactly that force.

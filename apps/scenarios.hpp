@@ -23,6 +23,13 @@ enum class Mutation {
   /// The controller without its energy tank (safety.energy_tank.enabled = false), whatever the
   /// scenario configures: the mutant of the tank's own checks.
   no_energy_tank,
+  // The safety layer with one of its caps removed, in the `safety` scenario's parameters (the
+  // torque is the controller's own; the other scenarios run as they are): each check of that
+  // cap must then fail.
+  no_speed_cap,  ///< safety.max_speed 0
+  no_force_cap,  ///< safety.max_force 0
+  no_workspace,  ///< no box: safety.workspace.min/max the defaults (+-10 m), no walls
+  no_payload,    ///< the payload not declared (payload.mass 0)
 };
 
 /// A robot as the scenarios need it: the URDF for the controller's model, the MJCF (or the URDF

@@ -63,6 +63,9 @@ TEST(HaltAfterImplausibleMotion, AnOscillationTheRateLimitFeedsEndsAtRestAndHold
   p.stiffness.translation.setConstant(30000.0);
   p.limits.joint_torque_rate = ci::JointVector::Constant(1, 200.0);
   p.plausibility.joint_velocity = ci::JointVector::Constant(1, 4.0);
+  // The shipped caps (1 m/s, 100 N) keep this oscillation from starting; the halt is tested here.
+  p.safety.max_speed = ci::MaxSpeedParameters{};
+  p.safety.max_force = ci::MaxForceParameters{};
   ci::ControlLoop loop(model, p);
   ci::sim::SimulationOptions options;
   options.joint_names = model.joint_names();
@@ -336,12 +339,23 @@ INSTANTIATE_TEST_SUITE_P(Mutants, DartBrokenController,
 // rejected bad commands - with the loop's invariants checked on every one of the 60,000 cycles:
 // a finite torque, no joint faster than its rate limit, no joint above the torque bound in
 // force, a bound that never rises above limits.joint_torque and never falls faster than the rate
-// limit. Every few seconds a reachable reference at a usable stiffness must be approached
-// without the arm running away.
+// limit; and the safety layer's promises with the caps in force (the shipped ones, and tight
+// ones on the Panda): the flange at most 1.1 x the speed cap, spring + commanded wrench at most
+// the force cap, the energy tank within [0, capacity]. Every few seconds a reachable reference
+// at a usable stiffness must be approached without the arm running away.
 
 namespace {
 
+// What the safety layer did over a soak, and the worst of each of its promises.
+struct SafetyFigures {
+  double worst_speed_fraction = 0.0;  // flange speed / safety.max_speed.translation
+  double worst_force_excess = -1e9;   // |spring + wrench| - safety.max_force.force [N]
+  long governed = 0, braked = 0, force_capped = 0, clipped = 0, walled = 0, tank_paid = 0,
+       tank_short = 0;
+};
+
 struct SoakFigures {
+  SafetyFigures safety;
   long cycles = 0;
   long commands = 0;
   long rejected = 0;
@@ -479,11 +493,80 @@ bool random_command(scenarios::Rig& rig, const ci::Parameters& base, std::mt1993
   return true;
 }
 
+// The safety layer's promises on one cycle that ran the law (status ok), with the caps in force:
+// the flange no faster than 1.1 x safety.max_speed.translation (ground truth: the simulation's
+// flange over the cycle); the force the controller presses with (its Cartesian force, from
+// tau_cartesian = J^T F, less the damping, the walls and the brake, plus the commanded wrench:
+// the spring and the wrench the cap scaled) no larger than safety.max_force.force; the tank's
+// level within [0, capacity].
+void check_safety(scenarios::Rig& rig, double speed, SafetyFigures& figures, long cycle) {
+  const ci::LoopState& loop = rig.loop().state();
+  const ci::ControllerState& state = loop.controller;
+  const ci::SafetyParameters& caps = rig.loop().controller().parameters().safety;
+  const ci::SafetyState& safety = state.safety;
+  if (state.status != ci::Status::ok) return;
+  ASSERT_GE(safety.tank_level, 0.0) << "cycle " << cycle;
+  ASSERT_LE(safety.tank_level, caps.energy_tank.capacity) << "cycle " << cycle;
+  ci::ModelWorkspace workspace(rig.model());
+  ci::Kinematics kinematics = workspace.make_kinematics();
+  ASSERT_TRUE(workspace.compute(loop.q, loop.dq, kinematics));
+  const Eigen::MatrixXd& jacobian = kinematics.jacobian;
+  const ci::Vector6d twist = jacobian * loop.dq;
+  if (caps.max_speed.translation > 0.0) {
+    figures.worst_speed_fraction =
+        std::max(figures.worst_speed_fraction, speed / caps.max_speed.translation);
+    ASSERT_LE(speed, 1.1 * caps.max_speed.translation)
+        << "cycle " << cycle << ": trajectory " << static_cast<int>(loop.trajectory.state)
+        << ", drive scale " << safety.translation_drive_scale << ", braking " << safety.braking
+        << ", wall force " << safety.wall_force.transpose() << ", K "
+        << state.filtered.stiffness.diagonal().transpose() << ", wrench "
+        << state.wrench_base.transpose() << ", torque shaping "
+        << static_cast<int>(state.limits.torque_shaping) << ", reference twist "
+        << state.filtered.twist.transpose() << ", penetration "
+        << safety.workspace_penetration.transpose() << ", error " << state.pose_error.transpose()
+        << ", twist " << twist.transpose();
+  }
+  // tau_cartesian = J^T (spring + damping + walls + brake), J of full row rank.
+  const ci::Vector6d cartesian =
+      (jacobian * jacobian.transpose()).ldlt().solve(jacobian * state.tau_cartesian);
+  // Less the damping -D (v - v_ref), the walls and the brake's -D_b (|v| - c) v / |v|: the
+  // spring and the commanded wrench, which the cap holds.
+  ci::Vector6d others = -state.damping_base() * (twist - state.filtered.twist);
+  others.head<3>() += safety.wall_force;
+  if (safety.braking) {
+    for (const auto& [start, cap] :
+         {std::pair{0, caps.max_speed.translation}, {3, caps.max_speed.rotation}}) {
+      const double speed_law = twist.segment<3>(start).norm();
+      if (cap > 0.0 && speed_law > cap) {
+        others.segment<3>(start) -= state.damping.diagonal().segment<3>(start).mean() *
+                                    (speed_law - cap) * twist.segment<3>(start).normalized();
+      }
+    }
+  }
+  const ci::Vector6d pressed = cartesian - others + state.wrench_base;
+  if (caps.max_force.force > 0.0) {
+    const double excess = pressed.head<3>().norm() - caps.max_force.force;
+    figures.worst_force_excess = std::max(figures.worst_force_excess, excess);
+    ASSERT_LE(excess, 1e-6 * (1.0 + cartesian.norm())) << "cycle " << cycle;
+  }
+  figures.governed += safety.translation_drive_scale < 1.0;
+  figures.braked += safety.braking;
+  figures.force_capped += safety.force_scale < 1.0;
+  figures.clipped += safety.reference_clipped;
+  figures.walled += !safety.wall_force.isZero(0.0);
+  figures.tank_paid += safety.tank_draw > 0.0;
+  figures.tank_short += safety.stiffness_change_scale < 1.0;
+}
+
 // Steps one cycle and checks the invariants against the limits in force.
 void checked_step(scenarios::Rig& rig, SoakFigures& figures) {
   const ci::JointVector previous = rig.loop().state().controller.tau;
   const ci::JointVector previous_bound = rig.loop().state().controller.joint_torque_limit;
+  const Eigen::Vector3d flange_before = rig.flange().position;
   rig.run(0.001);
+  check_safety(rig, (rig.flange().position - flange_before).norm() / 0.001, figures.safety,
+               figures.cycles + 1);
+  if (::testing::Test::HasFatalFailure()) return;
   const ci::ControllerState& state = rig.loop().state().controller;
   const ci::Parameters& parameters = rig.loop().controller().parameters();
   const int n = rig.model().num_joints();
@@ -511,14 +594,31 @@ void checked_step(scenarios::Rig& rig, SoakFigures& figures) {
 
 }  // namespace
 
+// "panda", or "panda_tight_caps": the safety layer's caps set where the random commands reach
+// them often (0.25 m/s, 40 N, a box of +-0.25 m about the start with walls).
 class Soak : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(Soak, RandomCommandsForAMinuteKeepEveryBound) {
+  const std::string tight = "_tight_caps";
+  const bool tight_caps =
+      GetParam().size() > tight.size() &&
+      GetParam().compare(GetParam().size() - tight.size(), tight.size(), tight) == 0;
+  const std::string robot_name =
+      tight_caps ? GetParam().substr(0, GetParam().size() - tight.size()) : GetParam();
   const scenarios::RobotSetup robot =
-      scenarios::builtin_robot(GetParam(), CARTESIAN_IMPEDANCE_SOURCE_DIR);
-  const ci::Parameters base = scenarios::base_parameters(robot);
+      scenarios::builtin_robot(robot_name, CARTESIAN_IMPEDANCE_SOURCE_DIR);
+  ci::Parameters base = scenarios::base_parameters(robot);
+  if (tight_caps) {
+    ci::SafetyParameters& safety = base.safety;
+    safety.max_speed = {0.25, 1.0};
+    safety.max_force = {40.0, 8.0};
+    const Eigen::Vector3d start = scenarios::Rig(robot, base).flange().position;
+    safety.workspace.min = start - Eigen::Vector3d::Constant(0.25);
+    safety.workspace.max = start + Eigen::Vector3d::Constant(0.25);
+    safety.workspace.stiffness = 2000.0;
+  }
   scenarios::Rig rig(robot, base);
-  std::mt19937 rng(GetParam() == "panda" ? 1 : 2);
+  std::mt19937 rng(robot_name == "panda" ? 1 : 2);
   SoakFigures figures;
   const ci::JointVector home = rig.sim().q();
   while (figures.cycles < 60000) {
@@ -569,6 +669,25 @@ TEST_P(Soak, RandomCommandsForAMinuteKeepEveryBound) {
   RecordProperty("fastest_reachable", std::to_string(figures.fastest_reachable));
   RecordProperty("worst_reachable_error", std::to_string(figures.worst_reachable_error));
   RecordProperty("largest_torque_fraction", std::to_string(figures.largest_torque_fraction));
+  const SafetyFigures& safety = figures.safety;
+  RecordProperty("worst_speed_fraction", std::to_string(safety.worst_speed_fraction));
+  RecordProperty("worst_force_excess", std::to_string(safety.worst_force_excess));
+  if (tight_caps) {
+    // Every cap was reached, so every promise above was tested (cycles of 60,000).
+    EXPECT_GT(safety.governed, 0);
+    EXPECT_GT(safety.braked, 0);
+    EXPECT_GT(safety.force_capped, 0);
+    EXPECT_GT(safety.clipped, 0);
+    EXPECT_GT(safety.walled, 0);
+    EXPECT_GT(safety.tank_paid, 0);
+    EXPECT_GT(safety.tank_short, 0);
+    RecordProperty("governed", static_cast<int>(safety.governed));
+    RecordProperty("braked", static_cast<int>(safety.braked));
+    RecordProperty("force_capped", static_cast<int>(safety.force_capped));
+    RecordProperty("clipped", static_cast<int>(safety.clipped));
+    RecordProperty("walled", static_cast<int>(safety.walled));
+    RecordProperty("tank_short", static_cast<int>(safety.tank_short));
+  }
 }
 
-INSTANTIATE_TEST_SUITE_P(Robots, Soak, ::testing::Values("panda", "iiwa14"));
+INSTANTIATE_TEST_SUITE_P(Robots, Soak, ::testing::Values("panda", "iiwa14", "panda_tight_caps"));

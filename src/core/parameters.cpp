@@ -195,8 +195,8 @@ std::vector<ParameterInfo> make_table() {
        "closed (checked by the control loop, which knows the limits)",
        [](Parameters& p) { return field_of(&p.plausibility.joint_position_margin); }},
       {"safety.max_speed.translation", "m/s", 0, 10, false,
-       "speed cap of the end effector: the reference moves no faster, the spring and wrench stop "
-       "accelerating at it, the excess is braked; 0 = off",
+       "speed cap of the end effector: the reference (and a trajectory's velocity) moves no "
+       "faster, the spring and wrench stop accelerating at it, the excess is braked; 0 = off",
        [](Parameters& p) { return field_of(&p.safety.max_speed.translation); }},
       {"safety.max_speed.rotation", "rad/s", 0, 30, false,
        "angular speed cap of the end effector, as for translation; 0 = off",
