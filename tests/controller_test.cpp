@@ -7,39 +7,17 @@
 #include <random>
 
 #include "cartesian_impedance/core/controller.hpp"
+#include "support/bare_law.hpp"
 #include "support/law_reference.hpp"
 #include "support/random_cases.hpp"
 
 namespace ci = cartesian_impedance;
 using namespace random_cases;
+using bare_law::bare_parameters;
+using bare_law::cartesian_robot;
+using bare_law::modelless_parameters;
 
 namespace {
-
-// Default parameters for a controller without a model (no M(q)): the unit-mass damping.
-ci::Parameters modelless_parameters() {
-  ci::Parameters p;
-  p.dynamics.inertia_shaped_damping = false;
-  return p;
-}
-
-// Filters off, limits as far out of the way as their ranges allow: one update() evaluates the
-// law on the commands.
-ci::Parameters bare_parameters() {
-  ci::Parameters p = modelless_parameters();
-  p.filter.pose.time = p.filter.stiffness.time = p.filter.nullspace.time = p.filter.wrench.time =
-      0.0;
-  p.limits.pose_error = {10.0, M_PI};
-  p.limits.wrench = {1e4, 1e3};
-  p.limits.joint_torque = ci::JointVector::Constant(1, 1e4);
-  p.limits.joint_torque_rate = ci::JointVector::Constant(1, 1e6);
-  p.nullspace.stiffness = ci::JointVector::Constant(1, 0.0);
-  p.nullspace.pseudo_inverse_damping = 0.0;
-  p.minimum_damping = {0.0, 0.0, 0.0};
-  // The law alone: a stiffness raised while a teleported pose is far from the reference would
-  // wait for the energy tank (its own tests are in safety_test.cpp).
-  p.safety.energy_tank.enabled = false;
-  return p;
-}
 
 ci::Vector6d six(double a, double b, double c, double d, double e, double f) {
   return (ci::Vector6d() << a, b, c, d, e, f).finished();
@@ -48,14 +26,6 @@ ci::Vector6d six(double a, double b, double c, double d, double e, double f) {
 // One unit in the last place of x: the resolution of a stored torque.
 double ulp(double x) {
   return std::nextafter(std::abs(x), INFINITY) - std::abs(x);
-}
-
-// A 6-joint "Cartesian" robot: J = I, so joint torques are the wrench components.
-ci::RobotState cartesian_robot() {
-  ci::RobotState robot = ci::make_robot_state(6);
-  robot.jacobian = ci::Jacobian::Identity(6, 6);
-  robot.pose.position = Eigen::Vector3d(0.4, 0.0, 0.5);
-  return robot;
 }
 
 }  // namespace

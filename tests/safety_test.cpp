@@ -9,6 +9,7 @@
 #include <string>
 
 #include "cartesian_impedance/core/controller.hpp"
+#include "support/bare_law.hpp"
 
 namespace ci = cartesian_impedance;
 
@@ -18,32 +19,15 @@ ci::Vector6d six(double a, double b, double c, double d, double e, double f) {
   return (ci::Vector6d() << a, b, c, d, e, f).finished();
 }
 
-// The law without filters, limits or damping floors, and without the energy tank (each test
-// switches on what it checks).
+// The bare law without damping (each test switches on what it checks).
 ci::Parameters bare() {
-  ci::Parameters p;
-  p.dynamics.inertia_shaped_damping = false;
-  p.filter.pose.time = p.filter.stiffness.time = p.filter.nullspace.time = p.filter.wrench.time =
-      0.0;
-  p.limits.pose_error = {10.0, M_PI};
-  p.limits.wrench = {1e4, 1e3};
-  p.limits.joint_torque = ci::JointVector::Constant(1, 1e4);
-  p.limits.joint_torque_rate = ci::JointVector::Constant(1, 1e6);
-  p.nullspace.stiffness = ci::JointVector::Constant(1, 0.0);
-  p.nullspace.pseudo_inverse_damping = 0.0;
-  p.minimum_damping = {0.0, 0.0, 0.0};
+  ci::Parameters p = bare_law::bare_parameters();
   p.damping_ratio.translation.setZero();
   p.damping_ratio.rotation.setZero();
-  p.safety.energy_tank.enabled = false;
   return p;
 }
 
-ci::RobotState cartesian_robot() {
-  ci::RobotState robot = ci::make_robot_state(6);
-  robot.jacobian = ci::Jacobian::Identity(6, 6);
-  robot.pose.position = Eigen::Vector3d(0.4, 0.0, 0.5);
-  return robot;
-}
+using bare_law::cartesian_robot;
 
 constexpr double kDt = 0.001;
 

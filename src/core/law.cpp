@@ -55,7 +55,7 @@ bool CartesianImpedanceController::evaluate_law(const RobotState& robot, double 
   spring_damper(robot, dt);
   if (!nullspace(robot, mass, fault)) return false;
   commanded_wrench();
-  safety_layer(robot);
+  safety_layer();
   cartesian_torques(robot);
   gravity(robot);
   estimate_payload(dt);

@@ -184,7 +184,7 @@ const JointMatrix& CartesianImpedanceController::mass_with_payload(
   return law.mass;
 }
 
-void CartesianImpedanceController::safety_layer(const RobotState&) noexcept {
+void CartesianImpedanceController::safety_layer() noexcept {
   SafetyState& safety = state_.safety;
   safety.translation_drive_scale = 1.0;
   safety.rotation_drive_scale = 1.0;

@@ -340,7 +340,7 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   void pay_stiffness_change() noexcept;
   void fill_tank(double energy) noexcept;
   const JointMatrix& mass_with_payload(const RobotState& robot) noexcept;
-  void safety_layer(const RobotState& robot) noexcept;
+  void safety_layer() noexcept;
   void cap_force() noexcept;
   void govern_speed() noexcept;
   void push_back_from_walls() noexcept;
