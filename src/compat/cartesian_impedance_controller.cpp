@@ -127,6 +127,10 @@ ci::Parameters native_parameters(double torque_rate) {
 
 }  // namespace
 
+// Nothing here calls the public setters that are inline in the header: they carry the published
+// assertions, which must follow the NDEBUG of the caller's code, and a copy instantiated here
+// would carry this library's.
+
 CartesianImpedanceController::CartesianImpedanceController(Checking checking)
     : checking_(checking), controller_(7, native_parameters(1e5)) {
   setNumberOfJoints(7);
@@ -224,6 +228,7 @@ void CartesianImpedanceController::set_reference_pose(const Eigen::Vector3d& pos
                                                       const Eigen::Quaterniond& orientation_d) {
   if (checking_ == Checking::strict) {
     const ci::Pose pose = ci::checks::pose("setReferencePose", ci::Pose{position_d, orientation_d});
+    begin_call();
     targets_.position_d = pose.position;
     targets_.orientation_d = pose.orientation;
     return;

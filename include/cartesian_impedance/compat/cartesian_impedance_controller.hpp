@@ -77,7 +77,9 @@ class CartesianImpedanceController {
 
   /// Ready for 7 joints, stiffness (200, 200, 200, 20, 20, 20), nullspace stiffness 0, damping
   /// factors 1, no filtering at 1000 Hz, torque delta 100 Nm per call.
-  explicit CartesianImpedanceController(Checking checking = Checking::published);
+  CartesianImpedanceController() : CartesianImpedanceController(Checking::published) {}
+  /// The same, with `checking` for bad input.
+  explicit CartesianImpedanceController(Checking checking);
 
   /// Sets the reference pose, also as the filtered one (no filtering).
   void initDesiredPose(const Eigen::Vector3d& position_d_target,
@@ -98,8 +100,10 @@ class CartesianImpedanceController {
 #ifndef NDEBUG
     if (checking_ == Checking::published) {
       for (int i = 0; i < 7; ++i) {
-        if (stiffness(i) < 0.0)
+        // As published, only inside the test for a negative value: NaN passes the assertion.
+        if (stiffness(i) < 0.0) {
           assert(stiffness(i) >= 0 && "Stiffness values need to be positive.");
+        }
       }
     }
 #endif
@@ -124,7 +128,9 @@ class CartesianImpedanceController {
     if (checking_ == Checking::published) {
       // The published order: the negative factors first, then the rule meets the NaN ones.
       for (int i = 0; i < 7; ++i) {
-        if (factors(i) < 0) assert(factors(i) >= 0 && "Damping factor must not be negative.");
+        if (factors(i) < 0) {
+          assert(factors(i) >= 0 && "Damping factor must not be negative.");
+        }
       }
       for (int i = 0; i < 7; ++i) {
         assert(factors(i) >= 0.0 && "Damping values need to be positive.");
