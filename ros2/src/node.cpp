@@ -158,6 +158,14 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
   wake_ = dds([&] {
     return Entity(check(dds_create_guardcondition(participant_.get()), "guard condition"));
   });
+  node_parameters_.emplace(
+      *loop_, settings_, shell_settings(configuration_), [this] { return accepting_.load(); },
+      arguments_.fully_qualified_name());
+  parameter_services_ = dds([&] {
+    return std::make_unique<ParameterServices>(participant_, arguments_.fully_qualified_name(),
+                                               arguments_.resolve("/parameter_events"),
+                                               *node_parameters_);
+  });
 
   std::string joints;
   for (const std::string& name : model_->joint_names())
@@ -181,6 +189,7 @@ Node::~Node() {
 }
 
 void Node::stop_threads() {
+  if (parameter_services_) parameter_services_->stop();
   if (control_thread_) control_thread_->stop();
   stop_ = true;
   if (wake_.get() > 0) dds_set_guardcondition(wake_.get(), true);
@@ -207,6 +216,7 @@ int Node::run(const std::atomic<bool>& stop) {
   }
   publisher_thread_ = std::thread([this] { publisher_thread(); });
   command_thread_ = std::thread([this] { command_thread(); });
+  parameter_services_->start();
 
   using State = ci::runtime::ControlThread::State;
   ci::node::LogThrottle start_throttle;

@@ -37,6 +37,8 @@
 #include "arguments.hpp"
 #include "dds.hpp"
 #include "messages.hpp"
+#include "node_parameters.hpp"
+#include "parameter_services.hpp"
 #include "parameters.hpp"
 
 namespace cartesian_impedance_ros2 {
@@ -115,6 +117,9 @@ class Node {
   Reader<JointTrajectoryMessage> trajectory_reader_;
   Reader<JointStateMessage> joint_state_reader_;  // topics mode
   Entity wake_;                                   // guard condition: ends the waits
+  // ROS 2's parameter services and /parameter_events, on a thread of their own.
+  std::optional<NodeParameters> node_parameters_;
+  std::unique_ptr<ParameterServices> parameter_services_;
 
   std::atomic<bool> stop_{false};
   std::atomic<bool> accepting_{false};  // commands are applied once the controller runs

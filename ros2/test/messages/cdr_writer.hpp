@@ -24,6 +24,7 @@ class CdrWriter {
   CdrWriter() : bytes_{0x00, 0x01, 0x00, 0x00} {}
 
   void boolean(bool v) { put(v ? 1u : 0u, 1); }
+  void octet(uint8_t v) { put(v, 1); }
   void int32(int32_t v) { put(static_cast<uint32_t>(v), 4); }
   void uint32(uint32_t v) { put(v, 4); }
   void int64(int64_t v) { put(static_cast<uint64_t>(v), 8); }
