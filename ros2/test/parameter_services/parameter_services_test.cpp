@@ -312,7 +312,7 @@ TEST(ParameterServices, AnswersEachServiceAsRclcppDoes) {
 
   // get_parameter_types.
   {
-    std::string a = "stiffness.translation", b = "publish_rate", c = "stiffness_frame";
+    std::string a = "stiffness.translation", b = "publish_rate", c = "stiffness.frame";
     std::vector<char*> pointers = {a.data(), b.data(), c.data()};
     peer_NamesRequest request{};
     point(request.names, pointers.data(), pointers.size());
@@ -321,12 +321,16 @@ TEST(ParameterServices, AnswersEachServiceAsRclcppDoes) {
         services.types, request, [&](const peer_TypesReply& r) {
           types.assign(r.types._buffer, r.types._buffer + r.types._length);
         })));
-    const bool has_frame = cartesian_impedance::find_parameter("stiffness_frame") != nullptr;
-    if (has_frame) {
-      EXPECT_EQ(types, (std::vector<std::uint8_t>{8, 3, 4}));
-    } else {
-      EXPECT_TRUE(types.empty());  // an unknown name: no types at all
-    }
+    EXPECT_EQ(types, (std::vector<std::uint8_t>{8, 3, 4}));
+    std::string d = "no.such.parameter";
+    pointers.push_back(d.data());
+    point(request.names, pointers.data(), pointers.size());
+    types = {1};
+    ASSERT_TRUE((peer.call<peer_NamesRequest, peer_TypesReply>(
+        services.types, request, [&](const peer_TypesReply& r) {
+          types.assign(r.types._buffer, r.types._buffer + r.types._length);
+        })));
+    EXPECT_TRUE(types.empty());  // an unknown name: no types at all, as rclcpp
   }
 
   // set_parameters: one result per parameter, each on its own.
@@ -409,6 +413,231 @@ TEST(ParameterServices, EachClientGetsItsOwnReplies) {
   }
   // Both read every reply on the topic; the other's are skipped by the header.
   EXPECT_GT(a.foreign_replies + b.foreign_replies, 0);
+}
+
+// ---- (c) fuzz: malformed bytes and hostile requests ----------------------------------------
+
+// The payload of a good set_parameters request (header and fields, no encapsulation header),
+// hand-encoded: stiffness.translation = [v, v, v].
+std::vector<uint8_t> good_set_request(double v) {
+  ros2_messages_test::CdrWriter w;
+  w.uint64(0);  // client id: patched by the raw writer's count
+  w.int64(1);
+  w.sequence_length(1);
+  w.string("stiffness.translation");
+  w.octet(8);
+  w.boolean(false);
+  w.int64(0);
+  w.float64(0.0);
+  w.string("");
+  for (int i = 0; i < 3; ++i) w.sequence_length(0);
+  w.sequence_length(3);
+  for (int i = 0; i < 3; ++i) w.float64(v);
+  w.sequence_length(0);
+  std::vector<uint8_t> bytes = w.bytes();
+  bytes.resize(bytes.size() - bytes[3]);  // the final padding
+  return {bytes.begin() + 4, bytes.end()};
+}
+
+TEST(ParameterServices, MalformedAndHostileRequestsLeaveTheNodeAnswering) {
+  test::use_private_domain();
+  NodeProcess node({"--ros-args", "--params-file", sim_params()});
+  StateReader state(node_participant(), "rt" + kNode + "/full_state", &copy_state);
+  ASSERT_TRUE(state.wait(15.0, [](const ArmState& s) { return s.status == "ok"; })) << node.log();
+
+  // Malformed bytes: a writer of the raw type under set_parameters' request type name. Its
+  // 4-byte count is where the node reads the low half of the client id, so any bytes after it
+  // reach the node's deserializer as a request: random ones, every truncation of a good request,
+  // and the good request with random bytes changed.
+  Peer raw(0);
+  const dds_entity_t raw_writer = [&] {
+    dds_qos_t* qos = raw.service_qos();
+    const dds_entity_t topic =
+        dds_create_topic(raw.participant(), raw.named(peer_Raw_desc, request_type("SetParameters")),
+                         ("rq" + kNode + "/set_parametersRequest").c_str(), nullptr, nullptr);
+    const dds_entity_t writer = dds_create_writer(raw.participant(), topic, qos, nullptr);
+    dds_delete_qos(qos);
+    return writer;
+  }();
+  ASSERT_GT(raw_writer, 0);
+  ASSERT_TRUE(test::eventually(10.0, [&] {
+    dds_publication_matched_status_t s{};
+    dds_get_publication_matched_status(raw_writer, &s);
+    return s.current_count > 0;
+  }));
+  const auto send = [&](std::vector<uint8_t> payload) {
+    // payload[0..3] is replaced by the count of the bytes after it.
+    payload.resize(std::max<std::size_t>(payload.size(), 4));
+    peer_Raw sample{};
+    std::vector<uint8_t> rest(payload.begin() + 4, payload.end());
+    point(sample.bytes, rest.data(), rest.size());
+    return dds_write(raw_writer, &sample) >= 0;
+  };
+  const std::vector<uint8_t> good = good_set_request(650.0);
+  std::mt19937_64 random(20261127);
+  int malformed = 0;
+  for (std::size_t k = 4; k < good.size(); ++k) malformed += send({good.begin(), good.begin() + k});
+  for (int i = 0; i < 2000; ++i) {
+    std::vector<uint8_t> bytes(4 + random() % 300);
+    for (uint8_t& b : bytes) b = static_cast<uint8_t>(random());
+    malformed += send(bytes);
+  }
+  for (int i = 0; i < 2000; ++i) {
+    std::vector<uint8_t> bytes = good;
+    for (int j = 0; j < 3; ++j)
+      bytes[4 + random() % (bytes.size() - 4)] = static_cast<uint8_t>(random());
+    malformed += send(bytes);
+  }
+
+  // The good request among them was applied, after every truncation and mutation of it was
+  // refused; a get waits for the raw requests to be taken (the same thread answers both).
+  Peer peer(0x5eed000000000003ull);
+  Services services(peer);
+  ASSERT_TRUE(services.matched(10.0));
+  ASSERT_TRUE(send(good));
+  ++malformed;
+  ASSERT_TRUE(test::eventually(5.0, [&] {
+    const auto v = services.get_values({"stiffness.translation"});
+    return v && v->size() == 1u && (*v)[0].numbers == std::vector<double>{650, 650, 650};
+  }));
+
+  // Hostile but well-formed requests from the independent client: unknown, empty and huge
+  // names, type codes that are none of ROS 2's, NaN and infinity, integers where doubles are
+  // expected, a parameter given twice, many parameters at once.
+  int hostile = 0, refused = 0;
+  const auto try_set = [&](std::vector<Parameter> parameters, bool atomically) {
+    const auto result = services.set_values(std::move(parameters), atomically);
+    ++hostile;
+    EXPECT_TRUE(result.answered);
+    for (const auto& [ok, reason] : result.results) {
+      if (!ok) {
+        ++refused;
+        EXPECT_FALSE(reason.empty());
+      }
+    }
+  };
+  const double nan = std::nan(""), inf = HUGE_VAL;
+  for (const bool atomically : {false, true}) {
+    try_set({Parameter::number("", 1.0)}, atomically);
+    try_set({Parameter::number(std::string(100000, 'x'), 1.0)}, atomically);
+    try_set({Parameter::number("stiffness.translation", nan)}, atomically);
+    try_set({Parameter::numbers_of("stiffness.translation", {inf, 1, 1})}, atomically);
+    try_set({Parameter::numbers_of("stiffness.translation", std::vector<double>(10000, 1.0))},
+            atomically);
+    try_set({Parameter::string_of("stiffness.translation", "500")}, atomically);
+    try_set({Parameter::number("stiffness", 500)}, atomically);
+    try_set({Parameter::number("stiffness.translation", 500),
+             Parameter::number("stiffness.translation", 600)},
+            atomically);
+    Parameter wrong_type = Parameter::number("stiffness.translation", 500);
+    wrong_type.value.type = 200;
+    try_set({wrong_type}, atomically);
+    Parameter not_set = Parameter::number("stiffness.translation", 500);
+    not_set.value.type = 0;
+    try_set({not_set}, atomically);
+    std::vector<Parameter> many;
+    for (int i = 0; i < 1000; ++i)
+      many.push_back(Parameter::number("no.such." + std::to_string(i), i));
+    try_set(std::move(many), atomically);
+  }
+  std::vector<std::string> names(20000, "stiffness.translation");
+  names.push_back(std::string(50000, 'y'));
+  const auto big = services.get_values(names);
+  ++hostile;
+  ASSERT_TRUE(big);
+  EXPECT_TRUE(big->empty());  // one unknown name: no values
+
+  // The node still runs its controller and answers a good request, whose effect holds.
+  EXPECT_TRUE(node.running()) << node.log();
+  EXPECT_TRUE(state.wait(2.0, [](const ArmState& s) { return s.status == "ok"; }));
+  const int before = state.count();
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  state.poll();
+  EXPECT_GT(state.count(), before) << "full_state stopped";
+  // Of the hostile requests only set_parameters' pair of valid values is accepted, one after the
+  // other (rclcpp sets each on its own; set_parameters_atomically refuses the pair as given
+  // twice): the last, 600, is in force.
+  auto values = services.get_values({"stiffness.translation"});
+  ASSERT_TRUE(values && values->size() == 1u);
+  EXPECT_EQ((*values)[0].numbers, (std::vector<double>{600, 600, 600}));
+  const auto set = services.set_values({Parameter::number("stiffness.translation", 640.0)});
+  ASSERT_TRUE(set.answered && set.results.size() == 1u && set.results[0].first);
+  values = services.get_values({"stiffness.translation"});
+  ASSERT_TRUE(values && values->size() == 1u);
+  EXPECT_EQ((*values)[0].numbers, (std::vector<double>{640, 640, 640}));
+  std::printf(
+      "fuzz: %d malformed requests, %d hostile requests (%d refused parameters); "
+      "control period p50 %.1f us after\n",
+      malformed, hostile, refused, state.value().period_p50_us);
+  EXPECT_EQ(malformed, static_cast<int>(good.size() - 4) + 4001);
+}
+
+// ---- (d) closed loop: a set over the service changes what the arm does ------------------------
+
+// Tolerances: the Panda model's joint friction holds the flange within about 1.1 mm of the spring's
+// rest at 500 N/m (node_test.cpp), scaling with 1/K: 1.5 mm at 500 N/m, 0.75 mm at 1000 N/m.
+TEST(ParameterServices, StiffnessSetOverTheServiceChangesTheArmsResponse) {
+  test::use_private_domain();
+  NodeProcess node({"--ros-args", "--params-file", sim_params()});
+  StateReader state(node_participant(), "rt" + kNode + "/full_state", &copy_state);
+  cartesian_impedance_ros2::Writer<cartesian_impedance_ros2::WrenchStamped> wrench(
+      node_participant(), "rt" + kNode + "/set_cartesian_wrench",
+      cartesian_impedance_ros2::TopicQos{});
+  Peer peer(0x5eed000000000004ull);
+  Services services(peer);
+  ASSERT_TRUE(state.wait(15.0, [](const ArmState& s) { return s.status == "ok"; })) << node.log();
+  ASSERT_TRUE(services.matched(10.0));
+  ASSERT_TRUE(test::eventually(5.0, [&] { return wrench.matched() > 0; }));
+  const auto settle = [&](double seconds) {
+    std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+    state.poll();
+    return state.value();
+  };
+  const auto k0 = services.get_values({"stiffness.translation"});
+  ASSERT_TRUE(k0 && k0->size() == 1u);
+  const double k = (*k0)[0].numbers[2];
+  ASSERT_EQ(k, 500.0);  // config/panda.yaml; the tolerances above are for it
+  const ArmState start = settle(0.5);
+
+  // 5 N down: 10 mm at 500 N/m (from the reference, which stays where the controller started).
+  cartesian_impedance_ros2::WrenchStamped push{};
+  push.header.frame_id = const_cast<char*>("");
+  push.wrench.force.z = -5.0;
+  ASSERT_TRUE(wrench.write(push));
+  const double soft = settle(3.0).position.z() - start.position.z();
+  EXPECT_NEAR(soft, -5.0 / k, 1.5e-3);
+
+  // Twice the stiffness over set_parameters, then the same push: half the displacement. The
+  // push is released first: raising the stiffness under a 10 mm error would store
+  // 1/2 dK e^2 = 25 mJ in the spring, more than the energy tank holds (5 mJ), and the change
+  // would wait for the damping to refill it.
+  push.wrench.force.z = 0.0;
+  ASSERT_TRUE(wrench.write(push));
+  settle(3.0);
+  auto set = services.set_values({Parameter::number("stiffness.translation", 2 * k)});
+  ASSERT_TRUE(set.answered && set.results.size() == 1u);
+  ASSERT_TRUE(set.results[0].first) << set.results[0].second;
+  settle(1.0);
+  push.wrench.force.z = -5.0;
+  ASSERT_TRUE(wrench.write(push));
+  const ArmState stiff_state = settle(3.0);
+  const double stiff = stiff_state.position.z() - start.position.z();
+  EXPECT_NEAR(stiff, -5.0 / (2 * k), 0.75e-3);
+  EXPECT_EQ(stiff_state.stiffness_x, 2 * k);
+
+  // A refused set changes nothing: the stiffness in force and the arm stay.
+  set = services.set_values({Parameter::number("stiffness.translation", -100.0)});
+  ASSERT_TRUE(set.answered && set.results.size() == 1u);
+  EXPECT_FALSE(set.results[0].first);
+  std::printf("refused: %s\n", set.results[0].second.c_str());
+  const ArmState after = settle(1.5);
+  EXPECT_EQ(after.stiffness_x, 2 * k);
+  EXPECT_NEAR(after.position.z(), stiff_state.position.z(), 0.3e-3);
+  const auto k1 = services.get_values({"stiffness.translation"});
+  ASSERT_TRUE(k1 && k1->size() == 1u);
+  EXPECT_EQ((*k1)[0].numbers, (std::vector<double>{2 * k, 2 * k, 2 * k}));
+  std::printf("closed loop: 5 N push moves the flange %.3f mm at %g N/m, %.3f mm at %g N/m\n",
+              soft * 1e3, k, stiff * 1e3, 2 * k);
 }
 
 }  // namespace
