@@ -315,7 +315,8 @@ void Node::take_commands() {
   });
   trajectory_reader_.take([&](const JointTrajectoryMessage& message) {
     send("joint_trajectory", [&] {
-      // No services on this node: an empty trajectory stops the running one, as in ros2_control.
+      // No trajectory services on this node: an empty trajectory stops the running one, as in
+      // ros2_control.
       if (message.points._length == 0) {
         loop_->cancel_trajectory();
         log(LogLevel::info, "joint_trajectory: empty, the running trajectory is cancelled");

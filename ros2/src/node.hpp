@@ -16,6 +16,9 @@
 ///   publish_rate and logs status changes; the effort thread (topics mode) writes each cycle's
 ///   torque to the effort controller. The transforms that do not depend on the arm's q
 ///   (tf_static) and robot_description are written once, transient local, at construction.
+/// - the parameter services' thread (ParameterServices) answers ROS 2's six parameter services
+///   and publishes /parameter_events; a set goes through the library's decoder to the loop's
+///   inbox like any command.
 
 #include <atomic>
 #include <chrono>
