@@ -96,8 +96,9 @@ class NodeParameters {
 
   /// rclcpp's list_parameters: every name if `prefixes` is empty and the name has fewer than
   /// `depth` dots (0: any), else the names equal to a prefix or below it (prefix + '.') with
-  /// fewer than `depth` dots after the prefix; `prefixes` of the result: the part before the last
-  /// dot of each name listed, once each. Names in sorted order.
+  /// fewer than `depth` dots after the prefix, the dot that follows the prefix included (as
+  /// rclcpp counts: a prefix's children are at depth 2); `prefixes` of the result: the part
+  /// before the last dot of each name listed, once each. Names in sorted order.
   ListResult list(const std::vector<std::string>& prefixes, std::uint64_t depth) const;
   /// The values of `names` in order; nullopt if one is not a parameter (rclcpp answers an empty
   /// list then).
