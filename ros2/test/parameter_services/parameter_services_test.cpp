@@ -174,7 +174,8 @@ struct ArmState {
   Eigen::Vector3d position = Eigen::Vector3d::Zero();
   double stiffness_x = 0.0;
   double period_p50_us = 0.0;
-  std::uint64_t cycle_count = 0;
+  double period_p99_us = 0.0;
+  std::uint64_t overruns = 0;
 };
 
 ArmState copy_state(const cartesian_impedance_ros2::FullState& m) {
@@ -183,6 +184,8 @@ ArmState copy_state(const cartesian_impedance_ros2::FullState& m) {
   s.position = {m.current_pose.position.x, m.current_pose.position.y, m.current_pose.position.z};
   s.stiffness_x = m.commanded_cartesian_stiffness.force.x;
   s.period_p50_us = m.period_p50_us;
+  s.period_p99_us = m.period_p99_us;
+  s.overruns = m.overruns;
   return s;
 }
 
@@ -573,10 +576,13 @@ TEST(ParameterServices, MalformedAndHostileRequestsLeaveTheNodeAnswering) {
   values = services.get_values({"stiffness.translation"});
   ASSERT_TRUE(values && values->size() == 1u);
   EXPECT_EQ((*values)[0].numbers, (std::vector<double>{640, 640, 640}));
+  // The control thread's timing is reported, not asserted (this machine's 2 cores are shared):
+  // the services' thread is its only competitor here.
   std::printf(
-      "fuzz: %d malformed requests, %d hostile requests (%d refused parameters); "
-      "control period p50 %.1f us after\n",
-      malformed, hostile, refused, state.value().period_p50_us);
+      "fuzz: %d malformed requests, %d hostile requests (%d refused parameters); control "
+      "period since start p50 %.1f us, p99 %.1f us, %llu overruns\n",
+      malformed, hostile, refused, state.value().period_p50_us, state.value().period_p99_us,
+      static_cast<unsigned long long>(state.value().overruns));
   EXPECT_EQ(malformed, static_cast<int>(good.size() - 4) + 4001);
 }
 
