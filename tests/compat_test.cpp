@@ -4,7 +4,11 @@
 //   torques to 1e-9 Nm, cycle by cycle; the oracle is support/published_reference.hpp, the
 //   published semantics written anew with dynamic Eigen types and an SVD pseudo-inverse;
 // - without filters it gives the native API's torques for the equivalent parameters;
-// - invalid input throws the library's error, names the argument, and changes nothing;
+// - the published contract for bad input: a value beyond this library's ranges is clamped, a
+//   value the published library asserts on (or NaN) keeps the last valid one, each reported and
+//   nothing thrown (without NDEBUG the published assertions stop the program; the published
+//   suite itself is compat_published_test.cpp); in strict mode invalid input throws the
+//   library's error, names the argument, and changes nothing;
 // - a bad measurement fails the call closed.
 
 #include <gtest/gtest.h>
@@ -305,7 +309,8 @@ struct Twins {
   MeasurementStream stream{7};
   int k = 0;
 
-  Twins() {
+  explicit Twins(Compat::Checking checking = Compat::Checking::published)
+      : a(checking), b(checking) {
     for (Compat* c : {&a, &b}) {
       const Measurement first = stream.at(0);
       c->setFiltering(1000.0, 0.5, 0.5, 0.5, 0.5);
@@ -335,11 +340,11 @@ struct Twins {
   Eigen::VectorXd ta, tb;
 };
 
-// Runs `call` on twin a, expects cartesian_impedance::Error whose message contains each of
-// `words`, and expects nothing to have changed.
+// Runs `call` on twin a in strict mode, expects cartesian_impedance::Error whose message contains
+// each of `words`, and expects nothing to have changed.
 template <typename Call>
 void expect_rejected(Call call, std::initializer_list<const char*> words) {
-  Twins twins;
+  Twins twins(Compat::Checking::strict);
   try {
     call(twins.a);
     ADD_FAILURE() << "accepted";
@@ -354,7 +359,7 @@ void expect_rejected(Call call, std::initializer_list<const char*> words) {
 
 }  // namespace
 
-TEST(CompatBadInput, SettersThrowTheLibraryErrorNamingTheArgumentAndChangeNothing) {
+TEST(CompatStrict, SettersThrowTheLibraryErrorNamingTheArgumentAndChangeNothing) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   expect_rejected([](Compat& c) { c.setStiffness(-100.0, 500.0, 500.0, 40.0, 40.0, 40.0, 5.0); },
                   {"setStiffness", "t_x", "-100"});
@@ -371,6 +376,8 @@ TEST(CompatBadInput, SettersThrowTheLibraryErrorNamingTheArgumentAndChangeNothin
   expect_rejected([nan](Compat& c) { c.setFiltering(1000.0, 0.5, 0.5, nan, 0.5); },
                   {"filter_params_pose", "not finite"});
   expect_rejected([](Compat& c) { c.setMaxTorqueDelta(-2.0); }, {"setMaxTorqueDelta", "-2"});
+  expect_rejected([](Compat& c) { c.setMaxTorqueDelta(1e9); },
+                  {"setMaxTorqueDelta: d = 1000000000 Nm per call", "limits.joint_torque_rate"});
   expect_rejected([nan](Compat& c) { c.setMaxTorqueDelta(nan); }, {"setMaxTorqueDelta"});
   expect_rejected([](Compat& c) { c.setMaxTorqueDelta(2.0, -100.0); }, {"update_frequency"});
   expect_rejected([](Compat& c) { c.setNullspaceConfig(Eigen::VectorXd::Zero(6)); },
@@ -400,12 +407,20 @@ TEST(CompatBadInput, SettersThrowTheLibraryErrorNamingTheArgumentAndChangeNothin
   expect_rejected([](Compat& c) { c.setNumberOfJoints(0); }, {"setNumberOfJoints", "0"});
   expect_rejected([](Compat& c) { c.setNumberOfJoints(static_cast<size_t>(-7)); },
                   {"n_joints = -7"});
+  // Switched on after construction too.
+  expect_rejected(
+      [](Compat& c) {
+        c.setChecking(Compat::Checking::strict);
+        c.setStiffness(2e5, 500.0, 500.0, 40.0, 40.0, 40.0, 5.0);
+      },
+      {"setStiffness: t_x = 200000 N/m"});
 }
 
-// A frequency the torque delta cannot be scaled to is the setFiltering() call's fault, named as
-// such (it used to be reported as setMaxTorqueDelta's, which the caller did not call).
-TEST(CompatBadInput, AFrequencyTheTorqueDeltaCannotFollowNamesSetFiltering) {
-  Compat c;
+// In strict mode a frequency the torque delta cannot be scaled to is the setFiltering() call's
+// fault, named as such (it used to be reported as setMaxTorqueDelta's, which the caller did not
+// call).
+TEST(CompatStrict, AFrequencyTheTorqueDeltaCannotFollowNamesSetFiltering) {
+  Compat c(Compat::Checking::strict);
   c.setMaxTorqueDelta(5.0);  // 5000 Nm/s at the default 1 kHz
   try {
     c.setFiltering(1e6, 0.5, 0.5, 0.5, 0.5);
@@ -486,4 +501,200 @@ TEST(CompatBadInput, AWronglySizedOutputComputesNothing) {
       ci::Status::invalid_robot_state);
   EXPECT_EQ(std::string(twins.a.fault().input), "tau");
   twins.expect_unchanged();
+}
+
+namespace {
+
+using Action = Compat::InputReport::Action;
+
+// Expects the last call of `c` to have adjusted `input` first, by `action`, with `value` given.
+void expect_report(const Compat& c, Action action, const char* input, double value) {
+  const Compat::InputReport& report = c.inputReport();
+  EXPECT_EQ(report.action, action) << input;
+  EXPECT_EQ(std::string(report.fault.input), input);
+  if (std::isnan(value)) {
+    EXPECT_TRUE(std::isnan(report.fault.value)) << input;
+  } else {
+    EXPECT_EQ(report.fault.value, value) << input;
+  }
+  EXPECT_GE(report.adjusted, 1) << input;
+}
+
+// A value the published library does not take: with NDEBUG the call keeps the last valid value
+// (twin a then runs exactly like twin b) and reports `input` as kept; without NDEBUG, if the
+// published library asserts on it (`assertion` is its text), the call stops the program with it.
+template <typename Call>
+void expect_kept(Call call, const char* input, double value, const char* assertion = nullptr) {
+#ifndef NDEBUG
+  if (assertion != nullptr) {
+    EXPECT_DEATH(
+        {
+          Twins twins;
+          call(twins.a);
+        },
+        assertion);
+    return;
+  }
+#else
+  (void)assertion;
+#endif
+  Twins twins;
+  const std::uint64_t before = twins.a.adjustmentCount();
+  EXPECT_NO_THROW(call(twins.a));
+  expect_report(twins.a, Action::kept, input, value);
+  EXPECT_GT(twins.a.adjustmentCount(), before);
+  twins.expect_unchanged();
+}
+
+}  // namespace
+
+// A value the published library accepts and this library's ranges do not reach is clamped to the
+// nearest bound, in effect at once, and reported; nothing throws.
+TEST(CompatPublishedContract, ValuesBeyondTheLibraryRangesAreClampedReportedAndNothingThrows) {
+  // The idiom that switches the published rate limit off: the largest rate the library allows,
+  // 1e6 Nm/s, is 1000 Nm per call at 1 kHz, in effect at once.
+  Twins twins;
+  ASSERT_NO_THROW(twins.a.setMaxTorqueDelta(1e9));
+  expect_report(twins.a, Action::clamped, "setMaxTorqueDelta: d", 1e9);
+  EXPECT_EQ(twins.a.inputReport().fault.bound, 1000.0);
+  EXPECT_EQ(twins.a.inputReport().applied, 1000.0);
+  EXPECT_EQ(twins.a.maxTorqueDelta(), 1000.0);
+  EXPECT_EQ(twins.a.controller().parameters().limits.joint_torque_rate[0], 1e6);
+  // A stiffness step: twin b moves by its delta of 0.5 Nm per call, twin a by far more.
+  for (Compat* c : {&twins.a, &twins.b}) c->setFiltering(1000.0, 1.0, 1.0, 1.0, 1.0);
+  const Eigen::VectorXd before = twins.ta;
+  for (Compat* c : {&twins.a, &twins.b}) c->setStiffness(3000, 3000, 3000, 300, 300, 300, 5.0);
+  twins.step(1);
+  EXPECT_LE((twins.tb - before).cwiseAbs().maxCoeff(), 0.5 + 1e-12);
+  EXPECT_GT((twins.ta - before).cwiseAbs().maxCoeff(), 2.0);
+
+  Compat c;
+  c.setStiffness(2e5, 500.0, 500.0, 2e4, 40.0, 40.0, 5.0);  // above 1e5 N/m and 1e4 Nm/rad
+  expect_report(c, Action::clamped, "setStiffness: t_x", 2e5);
+  EXPECT_EQ(c.inputReport().adjusted, 2);
+  c.calculateCommandedTorques();
+  Eigen::Matrix<double, 6, 6> stiffness;
+  c.getState(nullptr, nullptr, &stiffness, nullptr, nullptr, nullptr);
+  EXPECT_EQ(stiffness(0, 0), 1e5);
+  EXPECT_EQ(stiffness(3, 3), 1e4);
+  EXPECT_EQ(stiffness(1, 1), 500.0);
+
+  c.setDampingFactors(1.0, 1.0, 12.0, 1.0, 1.0, 1.0, 1.0);
+  expect_report(c, Action::clamped, "setDampingFactors: d_z", 12.0);
+  EXPECT_EQ(c.inputReport().applied, 10.0);
+
+  c.setFiltering(0.0, 0.5, 0.5, 0.5, 0.5);  // the published library takes 0 Hz
+  expect_report(c, Action::clamped, "setFiltering: update_frequency", 0.0);
+  EXPECT_EQ(c.updateFrequency(), 1.0);
+  c.setMaxTorqueDelta(0.0, 2000.0);  // a delta of 0 freezes the published torque
+  expect_report(c, Action::clamped, "setMaxTorqueDelta: d", 0.0);
+  EXPECT_EQ(c.maxTorqueDelta(), 1.0 / 2000.0);
+  EXPECT_EQ(c.updateFrequency(), 2000.0);
+  // The delta asked for is kept: a frequency change clamps (and reports) it again until a
+  // delta in range is asked for.
+  c.setFiltering(1000.0, 1.0, 1.0, 1.0, 1.0);
+  expect_report(c, Action::clamped, "torque delta (setMaxTorqueDelta: d)", 0.0);
+  EXPECT_EQ(c.maxTorqueDelta(), 1.0 / 1000.0);
+  c.setMaxTorqueDelta(0.5);
+
+  c.applyWrench((Eigen::Matrix<double, 6, 1>() << 0, 0, -2e4, 0, 0, 0).finished());
+  expect_report(c, Action::clamped, "applyWrench: f_z", -2e4);
+  EXPECT_EQ(c.inputReport().applied, -1e4);
+
+  // The published library normalises any quaternion; one far from unit norm is reported.
+  c.setReferencePose(Eigen::Vector3d(0.5, 0.0, 0.5), Eigen::Quaterniond(2.0, 0.0, 0.0, 0.0));
+  expect_report(c, Action::clamped, "setReferencePose: orientation_d", 2.0);
+  c.setFiltering(2000.0, 1.0, 1.0, 1.0, 1.0);
+  EXPECT_EQ(c.inputReport().action, Action::accepted);  // the report is the last call's
+  EXPECT_EQ(c.inputReport().adjusted, 0);
+  c.calculateCommandedTorques();
+  Eigen::Quaterniond orientation_d;
+  c.getState(nullptr, &orientation_d, nullptr, nullptr, nullptr, nullptr);
+  EXPECT_EQ(orientation_d.coeffs(), Eigen::Quaterniond::Identity().coeffs());
+  EXPECT_EQ(c.adjustmentCount(), 8u);
+}
+
+// What the published library asserts on, and NaN, keeps the last valid value; the run goes on
+// exactly as without the call. Without NDEBUG the asserted ones stop the program instead.
+TEST(CompatPublishedContract, BadValuesKeepTheLastValidValueAndAreReported) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const char* const stiffness = "Stiffness values need to be positive.";
+  expect_kept([](Compat& c) { c.setStiffness(-100.0, 500.0, 500.0, 40.0, 40.0, 40.0, 5.0); },
+              "setStiffness: t_x", -100.0, stiffness);
+  expect_kept([](Compat& c) { c.setStiffness(500.0, 500.0, 500.0, 40.0, 40.0, 40.0, -1.0); },
+              "setStiffness: n", -1.0, stiffness);
+  expect_kept([nan](Compat& c) { c.setStiffness(500.0, 500.0, 500.0, 40.0, nan, 40.0, 5.0); },
+              "setStiffness: r_y", nan);
+  expect_kept([](Compat& c) { c.setDampingFactors(1, 1, -0.5, 1, 1, 1, 1); },
+              "setDampingFactors: d_z", -0.5, "Damping factor must not be negative.");
+  expect_kept([nan](Compat& c) { c.setDampingFactors(1, 1, 1, 1, 1, 1, nan); },
+              "setDampingFactors: d_n", nan, "Damping values need to be positive.");
+  const char* const filter = "Filter params need to be between 0 and 1.";
+  expect_kept([](Compat& c) { c.setFiltering(1000.0, 1.5, 0.5, 0.5, 0.5); },
+              "setFiltering: filter_params_nullspace_config", 1.5, filter);
+  expect_kept([](Compat& c) { c.setFiltering(1000.0, 0.5, 0.5, 0.0, 0.5); },
+              "setFiltering: filter_params_pose", 0.0, filter);
+  expect_kept([nan](Compat& c) { c.setFiltering(1000.0, 0.5, 0.5, 0.5, nan); },
+              "setFiltering: filter_params_wrench", nan, filter);
+  const char* const frequency = "Update frequency needs to be greater or equal to zero";
+  expect_kept([](Compat& c) { c.setFiltering(-100.0, 0.5, 0.5, 0.5, 0.5); },
+              "setFiltering: update_frequency", -100.0, frequency);
+  expect_kept([nan](Compat& c) { c.setFiltering(nan, 0.5, 0.5, 0.5, 0.5); },
+              "setFiltering: update_frequency", nan, frequency);
+  const char* const delta = "Allowed torque change must be positive";
+  expect_kept([](Compat& c) { c.setMaxTorqueDelta(-2.0); }, "setMaxTorqueDelta: d", -2.0, delta);
+  expect_kept([nan](Compat& c) { c.setMaxTorqueDelta(nan); }, "setMaxTorqueDelta: d", nan, delta);
+  expect_kept([](Compat& c) { c.setMaxTorqueDelta(0.5, -100.0); },
+              "setMaxTorqueDelta: update_frequency", -100.0, frequency);
+  expect_kept([](Compat& c) { c.setNullspaceConfig(Eigen::VectorXd::Zero(6)); },
+              "setNullspaceConfig: q_d_nullspace_target", 6.0,
+              "Nullspace target needs to same size as n_joints_");
+  expect_kept(
+      [nan](Compat& c) {
+        Eigen::VectorXd q = Eigen::VectorXd::Zero(7);
+        q[3] = nan;
+        c.setNullspaceConfig(q);
+      },
+      "setNullspaceConfig: q_d_nullspace_target", nan);
+  expect_kept(
+      [nan](Compat& c) {
+        c.setReferencePose(Eigen::Vector3d(0.5, nan, 0.5), Eigen::Quaterniond::Identity());
+      },
+      "setReferencePose: position_d", nan);
+  expect_kept(
+      [](Compat& c) {
+        c.setReferencePose(Eigen::Vector3d(0.5, 0, 0.5), Eigen::Quaterniond(0, 0, 0, 0));
+      },
+      "setReferencePose: orientation_d", 0.0);
+  expect_kept(
+      [nan](Compat& c) {
+        c.applyWrench((Eigen::Matrix<double, 6, 1>() << 0, 0, nan, 0, 0, 0).finished());
+      },
+      "applyWrench: f_z", nan);
+}
+
+// Each adjustment is a line on stderr, at most one per interval; the next line counts those left
+// out. (The intervals used here, infinity and 0, make the count independent of the clock.)
+TEST(CompatPublishedContract, AdjustmentsAreWrittenToStderrAtMostOncePerInterval) {
+  Compat c;
+  c.setWarningInterval(std::numeric_limits<double>::infinity());
+  ::testing::internal::CaptureStderr();
+  for (int i = 0; i < 1000; ++i) c.setMaxTorqueDelta(1e9);  // a program doing it every cycle
+  std::string text = ::testing::internal::GetCapturedStderr();
+  EXPECT_EQ(text,
+            "cartesian_impedance_controller: setMaxTorqueDelta: d = 1000000000 Nm is above the "
+            "largest torque delta at this frequency = 1000 Nm; 1000 Nm is in effect\n");
+  EXPECT_EQ(c.adjustmentCount(), 1000u);
+
+  c.setWarningInterval(0.0);
+  ::testing::internal::CaptureStderr();
+  c.setStiffness(std::numeric_limits<double>::quiet_NaN(), 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, false);
+  c.setMaxTorqueDelta(1e9);
+  text = ::testing::internal::GetCapturedStderr();
+  EXPECT_EQ(text,
+            "cartesian_impedance_controller: setStiffness: t_x = nan N/m is not finite; the last "
+            "valid value stays in effect (999 more adjustments since the last line)\n"
+            "cartesian_impedance_controller: setMaxTorqueDelta: d = 1000000000 Nm is above the "
+            "largest torque delta at this frequency = 1000 Nm; 1000 Nm is in effect\n");
+  EXPECT_THROW(c.setWarningInterval(-1.0), ci::Error);
 }

@@ -143,7 +143,8 @@ std::string usage() {
          "installation. Parameters: a ROS 2 params file (`/**: ros__parameters: {...}` or the\n"
          "node's name) with the settings mode, urdf_path or robot_description, base_link,\n"
          "tip_link, mjcf_path, control_rate, publish_rate, joint_states_timeout,\n"
-         "realtime_priority, effort_controller, and the controller parameters of config/*.yaml.\n"
+         "realtime_priority, effort_controller, ros_distro (the graph layout: humble, or lyrical,\n"
+         "the default, for Iron and later), and the controller parameters of config/*.yaml.\n"
          "Domain: ROS_DOMAIN_ID; DDS configuration: CYCLONEDDS_URI.\n";
 }
 

@@ -71,8 +71,10 @@ dds_qos_t* endpoint_qos(const TopicQos& topic, const char* type_hash) {
   // nodes cannot read, and a writer would be free to choose XCDR2.
   const dds_data_representation_id_t xcdr1 = DDS_DATA_REPRESENTATION_XCDR1;
   dds_qset_data_representation(qos, 1, &xcdr1);
-  const std::string user_data = std::string("typehash=") + type_hash + ";";
-  dds_qset_userdata(qos, user_data.data(), user_data.size());
+  if (type_hash != nullptr) {
+    const std::string user_data = std::string("typehash=") + type_hash + ";";
+    dds_qset_userdata(qos, user_data.data(), user_data.size());
+  }
   return qos;
 }
 

@@ -56,7 +56,8 @@ class Participant {
   Entity participant_;
 };
 
-/// The endpoint QoS of a topic: reliability, durability, history, XCDR1, typehash USER_DATA.
+/// The endpoint QoS of a topic: reliability, durability, history, XCDR1, typehash USER_DATA
+/// (none if `type_hash` is null).
 dds_qos_t* endpoint_qos(const TopicQos& qos, const char* type_hash);
 
 /// A topic of `Message` (generated C type) named `dds_name` ("rt/..."), shared by its endpoints.
@@ -80,6 +81,7 @@ class Writer {
 
   /// False if DDS did not take it (logged by the caller).
   bool write(const Message& message) const { return dds_write(writer_.get(), &message) >= 0; }
+  dds_entity_t get() const noexcept { return writer_.get(); }
   /// Readers currently matched.
   int matched() const;
   const std::string& name() const noexcept { return name_; }

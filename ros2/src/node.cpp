@@ -166,6 +166,8 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
                                                arguments_.resolve("/parameter_events"),
                                                *node_parameters_);
   });
+  graph_ = dds([&] { return GraphAnnouncer(participant_, configuration_.ros_distro); });
+  announce_in_graph();
 
   std::string joints;
   for (const std::string& name : model_->joint_names())
@@ -186,6 +188,31 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
 
 Node::~Node() {
   stop_threads();
+}
+
+void Node::announce_in_graph() {
+  std::vector<dds_entity_t> readers;
+  std::vector<dds_entity_t> writers;
+  for (const dds_entity_t reader :
+       {reference_reader_.get(), stiffness_reader_.get(), wrench_reader_.get(),
+        damping_reader_.get(), config_reader_.get(), trajectory_reader_.get(),
+        joint_state_reader_.get()}) {
+    if (reader > 0) readers.push_back(reader);
+  }
+  for (const dds_entity_t writer :
+       {state_writer_.get(), full_state_writer_.get(), torque_writer_.get(),
+        joint_state_writer_.get(), effort_writer_.get(), tf_writer_.get(), tf_static_writer_.get(),
+        description_writer_.get()}) {
+    if (writer > 0) writers.push_back(writer);
+  }
+  // The parameter services' request readers, reply writers and the /parameter_events writer.
+  for (const dds_entity_t reader : parameter_services_->readers()) readers.push_back(reader);
+  for (const dds_entity_t writer : parameter_services_->writers()) writers.push_back(writer);
+  if (!graph_.announce(arguments_.node_namespace, arguments_.node_name, readers, writers)) {
+    log(LogLevel::warn,
+        "could not announce the node on ros_discovery_info: ros2 node list "
+        "will not show it (its topics still work)");
+  }
 }
 
 void Node::stop_threads() {

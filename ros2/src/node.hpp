@@ -39,6 +39,7 @@
 
 #include "arguments.hpp"
 #include "dds.hpp"
+#include "graph.hpp"
 #include "messages.hpp"
 #include "node_parameters.hpp"
 #include "parameter_services.hpp"
@@ -76,6 +77,8 @@ class Node {
   void publisher_thread();
   void effort_thread();
   void stop_threads();
+  /// Announces the node and every reader and writer it made on ros_discovery_info.
+  void announce_in_graph();
 
   /// Takes every waiting sample of every command topic and sends what converts and validates.
   void take_commands();
@@ -104,6 +107,7 @@ class Node {
 
   // DDS: the participant first, so that it outlives (and deletes) everything below.
   Participant participant_;
+  GraphAnnouncer graph_;  // ros_discovery_info: this node and its endpoints
   Writer<PublishedState> state_writer_;
   Writer<FullState> full_state_writer_;
   Writer<Float64MultiArray> torque_writer_;

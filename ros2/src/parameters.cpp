@@ -18,7 +18,7 @@ using ci::ParameterValue;
 
 // Keys the ROS 2 shell reads itself (besides the shared settings and the parameter groups).
 const std::vector<std::string> kShellKeys = {"urdf_path", "robot_description", "effort_controller",
-                                             "parameters_file"};
+                                             "parameters_file", "ros_distro"};
 // Settings that name files: relative to the params file they are given in.
 const char* const kPathKeys[] = {"urdf_path", "mjcf_path", "parameters_file"};
 
@@ -229,6 +229,14 @@ Ros2Configuration read_configuration(const RosArguments& arguments) {
   if (const ParameterValue* controller = tree.member("effort_controller")) {
     configuration.effort_controller =
         ci::decode_name(*controller, "effort_controller", "a controller name");
+  }
+  if (const ParameterValue* distro = tree.member("ros_distro")) {
+    try {
+      configuration.ros_distro =
+          ros_distro_from_string(ci::decode_name(*distro, "ros_distro", "a ROS 2 distribution"));
+    } catch (const ci::Error& error) {
+      throw ci::Error(ci::with_location(flat.location_of("ros_distro", node), error.what()));
+    }
   }
   return configuration;
 }

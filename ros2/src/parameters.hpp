@@ -17,6 +17,7 @@
 
 #include "arguments.hpp"
 #include "dds.hpp"
+#include "graph.hpp"
 
 namespace cartesian_impedance_ros2 {
 
@@ -28,6 +29,9 @@ struct Ros2Configuration {
   /// topics mode: the ros2_control JointGroupEffortController whose `commands` topic takes the
   /// torques (relative names resolve in the node's namespace).
   std::string effort_controller = "effort_controller";
+  /// The distribution whose ros_discovery_info layout the node announces (ROS 2 Humble's GIDs
+  /// are 24 octets, later distributions' 16). It cannot change at run time.
+  RosDistro ros_distro = kDefaultRosDistro;
   /// QoS overrides by fully-qualified topic name (qos_overrides.<topic>.publisher|subscription.
   /// reliability|durability|depth|history, as rclcpp names them).
   std::map<std::string, TopicQos> publisher_qos;

@@ -157,6 +157,27 @@ TEST(Ros2Parameters, ErrorsNameFileLineParameterAndValue) {
   EXPECT_NE(message(head + "    robot_description: '<robot/>'\n").find("both are set"),
             std::string::npos);
   EXPECT_NE(message("- a list\n").find("map of node names"), std::string::npos);
+  const std::string distro = message(head + "    ros_distro: galactic\n");
+  EXPECT_NE(distro.find("bad.yaml:7"), std::string::npos) << distro;
+  EXPECT_NE(distro.find("ros_distro = 'galactic'"), std::string::npos) << distro;
+  EXPECT_NE(distro.find("humble"), std::string::npos) << distro;
+}
+
+// The graph layout: the current LTS unless the distribution is named; only Humble's GID differs.
+TEST(Ros2Parameters, RosDistroChoosesTheGraphLayout) {
+  const auto distro = [](const std::string& line) {
+    const std::string file = write("distro.yaml", "/**:\n  ros__parameters:\n" + kRobot + line);
+    return read_configuration(parse({"--ros-args", "--params-file", file})).ros_distro;
+  };
+  EXPECT_EQ(distro(""), RosDistro::lyrical);
+  EXPECT_EQ(distro("    ros_distro: humble\n"), RosDistro::humble);
+  EXPECT_EQ(distro("    ros_distro: jazzy\n"), RosDistro::jazzy);
+  EXPECT_EQ(gid_size(RosDistro::humble), 24);
+  for (const RosDistro later : {RosDistro::iron, RosDistro::jazzy, RosDistro::kilted,
+                                RosDistro::lyrical, RosDistro::rolling}) {
+    EXPECT_EQ(gid_size(later), 16) << to_string(later);
+    EXPECT_EQ(ros_distro_from_string(to_string(later)), later);
+  }
 }
 
 // start_q, tf_prefix, publish_tf and a sim mode without mjcf_path, through the shared decoder.

@@ -15,19 +15,29 @@
 /// - the nullspace projector uses the damped pseudo-inverse with lambda = 0.2;
 /// - the commanded torque changes by at most the torque delta per call.
 ///
-/// What differs (docs/compat.md): invalid input throws cartesian_impedance::Error naming the
-/// argument and the value and changes nothing, where the published library asserts in debug
-/// builds and otherwise clamps or ignores it; a measured state that is wrongly sized, not finite
-/// or implausible fails the call closed (the torque steps toward zero by at most the torque delta,
-/// status() and fault() say why) instead of producing NaN torques; the default constructor is
-/// ready for 7 joints; any joint count up to cartesian_impedance::kMaxJoints works (the published
-/// projector is fixed at 7).
+/// Bad input keeps the published contract (docs/switching.md, "What the drop-in accepts"): every
+/// value the published library accepts is accepted, and one outside this library's ranges is
+/// clamped to the nearest bound; a value the published library asserts on (a negative stiffness,
+/// a filter parameter outside (0, 1], ...) or a NaN keeps the last valid value. Each adjustment is
+/// reported by inputReport() and adjustmentCount() and in a rate-limited line on stderr; nothing
+/// throws. In a translation unit compiled without NDEBUG the published assertions stop the
+/// program with the published text, as the published library does: those checks are inline
+/// here, so they follow the NDEBUG of the code that calls the setter, not of this library's
+/// build. Checking::strict instead throws cartesian_impedance::Error naming the argument, the
+/// value and the range, and changes nothing. A measured state that is wrongly sized, not finite
+/// or implausible fails the call closed (the torque steps toward zero by at most the torque
+/// delta, status() and fault() say why) instead of producing NaN torques; the default
+/// constructor is ready for 7 joints; any joint count up to cartesian_impedance::kMaxJoints works
+/// (the published projector is fixed at 7).
 ///
 /// The published signature of calculateCommandedTorques() returns an Eigen::VectorXd, which
 /// allocates once per call; the overload that writes into a caller's vector allocates nothing.
 
 #include <Eigen/Dense>
+#include <cassert>
+#include <chrono>
 #include <cstddef>
+#include <cstdint>
 
 #include "cartesian_impedance/core/controller.hpp"
 
@@ -35,44 +45,148 @@ namespace cartesian_impedance_controller {
 
 class CartesianImpedanceController {
  public:
+  /// How setters treat a value outside this library's ranges or outside the published domain.
+  enum class Checking {
+    /// The published contract: clamp or keep the last valid value, report, never throw (and,
+    /// without NDEBUG, stop at the published assertions).
+    published,
+    /// Throw cartesian_impedance::Error naming the argument, the value and the range; the call
+    /// changes nothing.
+    strict,
+  };
+
+  /// What the last setter call did with its arguments.
+  struct InputReport {
+    enum class Action : unsigned char {
+      accepted,  ///< every argument taken as given
+      clamped,   ///< an argument outside this library's range: the nearest bound is in effect
+      kept,      ///< an argument the published library asserts on, or NaN: the last valid value
+                 ///< stays in effect
+    };
+    /// For the call's first adjusted argument (accepted if none was).
+    Action action = Action::accepted;
+    /// That argument: `input` names the method and argument ("setStiffness: t_x"), `value` is
+    /// what was given, `bound` the bound it broke (where `has_bound`), `unit` its unit.
+    cartesian_impedance::Fault fault;
+    /// The value in effect for that argument after the call (the bound it was clamped to, or the
+    /// last valid value; NaN where a whole vector was kept).
+    double applied = 0.0;
+    /// How many arguments the call adjusted.
+    int adjusted = 0;
+  };
+
   /// Ready for 7 joints, stiffness (200, 200, 200, 20, 20, 20), nullspace stiffness 0, damping
   /// factors 1, no filtering at 1000 Hz, torque delta 100 Nm per call.
-  CartesianImpedanceController();
+  CartesianImpedanceController() : CartesianImpedanceController(Checking::published) {}
+  /// The same, with `checking` for bad input.
+  explicit CartesianImpedanceController(Checking checking);
 
   /// Sets the reference pose, also as the filtered one (no filtering).
   void initDesiredPose(const Eigen::Vector3d& position_d_target,
                        const Eigen::Quaterniond& orientation_d_target);
-  /// Sets the nullspace configuration, also as the filtered one (no filtering).
-  void initNullspaceConfig(const Eigen::VectorXd& q_d_nullspace_target);
+  /// Sets the nullspace configuration [rad], also as the filtered one (no filtering).
+  void initNullspaceConfig(const Eigen::VectorXd& q_d_nullspace_target) {
+    assert_nullspace_size(q_d_nullspace_target);
+    set_nullspace_config(q_d_nullspace_target, true);
+  }
   /// Resets the joint state, the nullspace configuration and the last torques to zero.
-  /// @throws cartesian_impedance::Error unless 1 <= n_joints <= kMaxJoints.
+  /// @throws cartesian_impedance::Error unless 1 <= n_joints <= kMaxJoints (in either mode: the
+  /// published library throws for a negative count too).
   void setNumberOfJoints(size_t n_joints);
 
   /// Stiffness targets [N/m x3, Nm/rad x3, nullspace Nm/rad]; with auto_damping the damping
   /// targets become factor * 2 sqrt(stiffness).
-  void setStiffness(const Eigen::Matrix<double, 7, 1>& stiffness, bool auto_damping = true);
+  void setStiffness(const Eigen::Matrix<double, 7, 1>& stiffness, bool auto_damping = true) {
+#ifndef NDEBUG
+    if (checking_ == Checking::published) {
+      for (int i = 0; i < 7; ++i) {
+        // As published, only inside the test for a negative value: NaN passes the assertion.
+        if (stiffness(i) < 0.0) {
+          assert(stiffness(i) >= 0 && "Stiffness values need to be positive.");
+        }
+      }
+    }
+#endif
+    set_stiffness(stiffness, auto_damping);
+  }
   void setStiffness(double t_x, double t_y, double t_z, double r_x, double r_y, double r_z,
-                    double n, bool auto_damping = true);
+                    double n, bool auto_damping = true) {
+    setStiffness((Eigen::Matrix<double, 7, 1>() << t_x, t_y, t_z, r_x, r_y, r_z, n).finished(),
+                 auto_damping);
+  }
   /// As above, keeping the nullspace stiffness target.
   void setStiffness(double t_x, double t_y, double t_z, double r_x, double r_y, double r_z,
-                    bool auto_damping = true);
+                    bool auto_damping = true) {
+    setStiffness(t_x, t_y, t_z, r_x, r_y, r_z, targets_.nullspace_stiffness, auto_damping);
+  }
   /// Damping factors (1 is "critical" for a unit mass); applies the damping rule at once.
   void setDampingFactors(double d_x, double d_y, double d_z, double d_a, double d_b, double d_c,
-                         double d_n);
+                         double d_n) {
+    const Eigen::Matrix<double, 7, 1> factors =
+        (Eigen::Matrix<double, 7, 1>() << d_x, d_y, d_z, d_a, d_b, d_c, d_n).finished();
+#ifndef NDEBUG
+    if (checking_ == Checking::published) {
+      // The published order: the negative factors first, then the rule meets the NaN ones.
+      for (int i = 0; i < 7; ++i) {
+        if (factors(i) < 0) {
+          assert(factors(i) >= 0 && "Damping factor must not be negative.");
+        }
+      }
+      for (int i = 0; i < 7; ++i) {
+        assert(factors(i) >= 0.0 && "Damping values need to be positive.");
+      }
+    }
+#endif
+    set_damping_factors(factors);
+  }
 
   /// Reference pose target, approached through the pose filter; the quaternion is normalised.
   void setReferencePose(const Eigen::Vector3d& position_d, const Eigen::Quaterniond& orientation_d);
-  /// Nullspace configuration target, approached through the nullspace filter.
-  void setNullspaceConfig(const Eigen::VectorXd& q_d_nullspace_target);
+  /// Nullspace configuration target [rad], approached through the nullspace filter.
+  void setNullspaceConfig(const Eigen::VectorXd& q_d_nullspace_target) {
+    assert_nullspace_size(q_d_nullspace_target);
+    set_nullspace_config(q_d_nullspace_target, false);
+  }
 
   /// Update frequency [Hz] and, per filter, the fraction in (0, 1] of the remaining gap closed
   /// per second; 1 switches a filter off.
   void setFiltering(double update_frequency, double filter_params_nullspace_config,
                     double filter_params_stiffness, double filter_params_pose,
-                    double filter_params_wrench);
-  /// Largest change of the commanded torque per call [Nm].
-  void setMaxTorqueDelta(double d);
-  void setMaxTorqueDelta(double d, double update_frequency);
+                    double filter_params_wrench) {
+#ifndef NDEBUG
+    if (checking_ == Checking::published) {
+      // The fractions before the frequency (the published code checks the frequency first): a
+      // call with both wrong stops at the fraction, as the published tests expect.
+      for (const double p : {filter_params_nullspace_config, filter_params_stiffness,
+                             filter_params_pose, filter_params_wrench}) {
+        assert(p > 0 && p <= 1.0 && "Filter params need to be between 0 and 1.");
+      }
+      assert(update_frequency >= 0.0 && "Update frequency needs to be greater or equal to zero");
+    }
+#endif
+    set_filtering(update_frequency, filter_params_nullspace_config, filter_params_stiffness,
+                  filter_params_pose, filter_params_wrench);
+  }
+  /// Largest change of the commanded torque per call [Nm] (a huge value switches the limit off
+  /// as far as this library's largest torque rate, 1e6 Nm/s, allows).
+  void setMaxTorqueDelta(double d) {
+#ifndef NDEBUG
+    if (checking_ == Checking::published) {
+      assert(d >= 0.0 && "Allowed torque change must be positive");
+    }
+#endif
+    set_max_torque_delta(d, update_frequency_, false);
+  }
+  /// As above, and the update frequency [Hz].
+  void setMaxTorqueDelta(double d, double update_frequency) {
+#ifndef NDEBUG
+    if (checking_ == Checking::published) {
+      assert(d >= 0.0 && "Allowed torque change must be positive");
+      assert(update_frequency >= 0.0 && "Update frequency needs to be greater or equal to zero");
+    }
+#endif
+    set_max_torque_delta(d, update_frequency, true);
+  }
   /// Wrench target [N; Nm] in the root frame, approached through the wrench filter.
   void applyWrench(const Eigen::Matrix<double, 6, 1>& cartesian_wrench);
 
@@ -112,9 +226,41 @@ class CartesianImpedanceController {
   // Beyond the published API.
 
   /// Outcome of the last step: ok, or why it failed closed.
-  cartesian_impedance::Status status() const noexcept { return status_; }
+  cartesian_impedance::Status status() const noexcept {
+    return status_;
+  }
   /// Which input made the last step fail closed (empty input if it did not).
-  const cartesian_impedance::Fault& fault() const noexcept { return fault_; }
+  const cartesian_impedance::Fault& fault() const noexcept {
+    return fault_;
+  }
+  /// What the last setter call did with its arguments (Checking::published; a strict call that
+  /// throws leaves it as it was).
+  const InputReport& inputReport() const noexcept {
+    return report_;
+  }
+  /// Arguments clamped or kept since construction.
+  std::uint64_t adjustmentCount() const noexcept {
+    return adjustment_count_;
+  }
+  /// Each adjustment is also written to stderr as one line, at most one per `seconds` [s]
+  /// (default 1; the next line says how many were left out): 0 writes every one, infinity only
+  /// the first. @throws cartesian_impedance::Error if `seconds` is negative or NaN.
+  void setWarningInterval(double seconds);
+  Checking checking() const noexcept {
+    return checking_;
+  }
+  void setChecking(Checking checking) noexcept {
+    checking_ = checking;
+  }
+  /// The torque delta in effect [Nm per call]: the one asked for, clamped to this library's
+  /// torque rate range at the update frequency.
+  double maxTorqueDelta() const noexcept {
+    return max_torque_delta_;
+  }
+  /// The update frequency in effect [Hz].
+  double updateFrequency() const noexcept {
+    return update_frequency_;
+  }
   /// The library controller that evaluates the law (its state() has every torque component).
   const cartesian_impedance::CartesianImpedanceController& controller() const noexcept {
     return controller_;
@@ -136,8 +282,38 @@ class CartesianImpedanceController {
     cartesian_impedance::Vector6d wrench = cartesian_impedance::Vector6d::Zero();
   };
 
-  // `caller` names the public setter in messages.
-  void reconfigure(const char* caller, double max_torque_delta, double update_frequency);
+  // The published assertion of the nullspace setters, in the caller's translation unit.
+  void assert_nullspace_size(const Eigen::VectorXd& q_d_nullspace_target) const {
+#ifndef NDEBUG
+    if (checking_ == Checking::published) {
+      assert(q_d_nullspace_target.size() == static_cast<Eigen::Index>(n_joints_) &&
+             "Nullspace target needs to same size as n_joints_");
+    }
+#else
+    (void)q_d_nullspace_target;
+#endif
+  }
+  // The setters' work, out of line: the published assertions above are the callers' only.
+  void set_stiffness(const Eigen::Matrix<double, 7, 1>& stiffness, bool auto_damping);
+  void set_damping_factors(const Eigen::Matrix<double, 7, 1>& factors);
+  void set_nullspace_config(const Eigen::VectorXd& q_d_nullspace_target, bool init);
+  void set_filtering(double update_frequency, double filter_nullspace, double filter_stiffness,
+                     double filter_pose, double filter_wrench);
+  void set_max_torque_delta(double d, double update_frequency, bool frequency_given);
+  void set_reference_pose(const Eigen::Vector3d& position_d,
+                          const Eigen::Quaterniond& orientation_d);
+
+  // Reporting of adjusted arguments (compat_input.cpp).
+  void begin_call() noexcept;
+  void report(InputReport::Action action, const cartesian_impedance::Fault& fault, double applied);
+  // `value` against the published domain [published_min, inf) (below it, or NaN: the last
+  // valid value `last` stays) and this library's [min, max] (clamped); returns what to use.
+  double accept(const char* input, const char* unit, double value, double last,
+                double published_min, double min, double max);
+
+  // Applies the update frequency and the torque delta asked for (`requested`), clamped to the
+  // rate range; `input` names what is reported if it is clamped.
+  void reconfigure(const char* input, double requested, double update_frequency);
   void apply_damping_rule();
   void update_filter_steps();
   void filter_step(Impedance& next) const noexcept;
@@ -145,6 +321,7 @@ class CartesianImpedanceController {
   cartesian_impedance::Status step(const cartesian_impedance::RobotState& measured,
                                    bool measurement_checked = false) noexcept;
 
+  Checking checking_ = Checking::published;
   int n_joints_ = 7;
   cartesian_impedance::CartesianImpedanceController controller_;
   cartesian_impedance::ScheduledImpedance schedule_;
@@ -158,11 +335,20 @@ class CartesianImpedanceController {
   Impedance next_;
   Eigen::Matrix<double, 7, 1> damping_factors_ = Eigen::Matrix<double, 7, 1>::Ones();
 
-  double update_frequency_ = 1000.0;  // [Hz]
-  double max_torque_delta_ = 100.0;   // [Nm] per call
+  double update_frequency_ = 1000.0;       // [Hz]
+  double requested_torque_delta_ = 100.0;  // [Nm] per call, as asked for
+  double max_torque_delta_ = 100.0;        // [Nm] per call, in effect
+  double torque_rate_ = 1e5;               // [Nm/s] the same, as the native rate limit
   // Filter parameters (1 = off) and the per-call steps derived from them.
   double filter_nullspace_ = 1.0, filter_stiffness_ = 1.0, filter_pose_ = 1.0, filter_wrench_ = 1.0;
   double step_nullspace_ = 1.0, step_stiffness_ = 1.0, step_pose_ = 1.0, step_wrench_ = 1.0;
+
+  InputReport report_;
+  std::uint64_t adjustment_count_ = 0;
+  double warning_interval_ = 1.0;  // [s]
+  bool warned_ = false;
+  std::chrono::steady_clock::time_point last_warning_;
+  std::uint64_t warnings_left_out_ = 0;
 };
 
 }  // namespace cartesian_impedance_controller

@@ -132,6 +132,30 @@ void visit(V& v, tf2_msgs_msg_dds__TFMessage_& m) {
   v.nested_seq(m.transforms);
 }
 
+// rmw_dds_common/msg/Gid.msg: char[16] data (Iron and later)
+template <class V>
+void visit(V& v, rmw_dds_common_msg_dds__Gid_& m) {
+  v.octet_array(m.data);
+}
+
+// rmw_dds_common/msg/NodeEntitiesInfo.msg: string<=256 node_namespace, string<=256 node_name,
+// Gid[] reader_gid_seq, Gid[] writer_gid_seq
+template <class V>
+void visit(V& v, rmw_dds_common_msg_dds__NodeEntitiesInfo_& m) {
+  v.bounded_string(m.node_namespace);
+  v.bounded_string(m.node_name);
+  v.nested_seq(m.reader_gid_seq);
+  v.nested_seq(m.writer_gid_seq);
+}
+
+// rmw_dds_common/msg/ParticipantEntitiesInfo.msg: Gid gid,
+// NodeEntitiesInfo[] node_entities_info_seq
+template <class V>
+void visit(V& v, rmw_dds_common_msg_dds__ParticipantEntitiesInfo_& m) {
+  v.nested(m.gid);
+  v.nested_seq(m.node_entities_info_seq);
+}
+
 // std_msgs/msg/String.msg: string data
 template <class V>
 void visit(V& v, std_msgs_msg_dds__String_& m) {

@@ -23,8 +23,9 @@ using AllMessages = ::testing::Types<
     trajectory_msgs_msg_dds__JointTrajectoryPoint_, trajectory_msgs_msg_dds__JointTrajectory_,
     cartesian_impedance_controller_msg_dds__ControllerConfig_,
     cartesian_impedance_controller_msg_dds__ControllerState_,
-    cartesian_impedance_msgs_msg_dds__ControllerState_>;
-constexpr int kAllMessagesCount = 23;
+    cartesian_impedance_msgs_msg_dds__ControllerState_, rmw_dds_common_msg_dds__Gid_,
+    rmw_dds_common_msg_dds__NodeEntitiesInfo_, rmw_dds_common_msg_dds__ParticipantEntitiesInfo_>;
+constexpr int kAllMessagesCount = 26;
 
 /// The types the node receives from other nodes.
 using ReceivedMessages =

@@ -77,6 +77,33 @@ class Values {
       EXPECT_EQ(std::string(m), expected) << "string #" << k;
     }
   }
+  /// A fixed array of octets (char[N] and uint8[N] in .msg): N distinct values.
+  template <size_t N>
+  void octet_array(uint8_t (&m)[N]) {
+    const uint32_t k = next();
+    for (size_t i = 0; i < N; ++i) {
+      const auto expected = static_cast<uint8_t>(k * 31 + i * 7 + 1);
+      if (mode_ == Mode::fill) {
+        m[i] = expected;
+      } else {
+        EXPECT_EQ(m[i], expected) << "octet " << i << " of field #" << k;
+      }
+    }
+  }
+  /// A bounded string (string<=B in .msg), which idlc keeps in a char[B + 1].
+  template <size_t N>
+  void bounded_string(char (&m)[N]) {
+    char* text = nullptr;
+    if (mode_ == Mode::fill) {
+      string(text);
+      std::strncpy(m, text, N - 1);
+      m[N - 1] = '\0';
+      dds_free(text);
+    } else {
+      text = m;
+      string(text);
+    }
+  }
   template <class S>
   void float64_seq(S& s) {
     sequence(s, 1 + next() % 3, [this](auto& element) { float64(element); });
@@ -150,6 +177,14 @@ class Encoder {
     w_.float64(static_cast<double>(m));
   }
   void string(char*& m) { w_.string(m == nullptr ? "" : m); }
+  template <size_t N>
+  void octet_array(uint8_t (&m)[N]) {
+    for (const uint8_t octet : m) w_.octet(octet);  // no length: the size is the type's
+  }
+  template <size_t N>
+  void bounded_string(char (&m)[N]) {
+    w_.string(std::string(m, strnlen(m, N)));  // on the wire as any string
+  }
   template <class S>
   void float64_seq(S& s) {
     w_.sequence_length(s._length);
@@ -217,6 +252,14 @@ class Bounds {
   void string(char*& m) {
     ASSERT_NE(m, nullptr);
     EXPECT_LT(std::strlen(m), received_);
+  }
+  template <size_t N>
+  void octet_array(uint8_t (&m)[N]) {
+    for (const uint8_t octet : m) sink_ += octet;
+  }
+  template <size_t N>
+  void bounded_string(char (&m)[N]) {
+    EXPECT_LT(strnlen(m, N), N) << "a bounded string without its terminating NUL";
   }
   template <class S>
   void float64_seq(S& s) {
