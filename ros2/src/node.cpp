@@ -158,6 +158,14 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
   wake_ = dds([&] {
     return Entity(check(dds_create_guardcondition(participant_.get()), "guard condition"));
   });
+  node_parameters_.emplace(
+      *loop_, settings_, shell_settings(configuration_), [this] { return accepting_.load(); },
+      arguments_.fully_qualified_name());
+  parameter_services_ = dds([&] {
+    return std::make_unique<ParameterServices>(participant_, arguments_.fully_qualified_name(),
+                                               arguments_.resolve("/parameter_events"),
+                                               *node_parameters_);
+  });
   graph_ = dds([&] { return GraphAnnouncer(participant_, configuration_.ros_distro); });
   announce_in_graph();
 
@@ -197,6 +205,9 @@ void Node::announce_in_graph() {
         description_writer_.get()}) {
     if (writer > 0) writers.push_back(writer);
   }
+  // The parameter services' request readers, reply writers and the /parameter_events writer.
+  for (const dds_entity_t reader : parameter_services_->readers()) readers.push_back(reader);
+  for (const dds_entity_t writer : parameter_services_->writers()) writers.push_back(writer);
   if (!graph_.announce(arguments_.node_namespace, arguments_.node_name, readers, writers)) {
     log(LogLevel::warn,
         "could not announce the node on ros_discovery_info: ros2 node list "
@@ -205,6 +216,7 @@ void Node::announce_in_graph() {
 }
 
 void Node::stop_threads() {
+  if (parameter_services_) parameter_services_->stop();
   if (control_thread_) control_thread_->stop();
   stop_ = true;
   if (wake_.get() > 0) dds_set_guardcondition(wake_.get(), true);
@@ -231,6 +243,7 @@ int Node::run(const std::atomic<bool>& stop) {
   }
   publisher_thread_ = std::thread([this] { publisher_thread(); });
   command_thread_ = std::thread([this] { command_thread(); });
+  parameter_services_->start();
 
   using State = ci::runtime::ControlThread::State;
   ci::node::LogThrottle start_throttle;
@@ -329,7 +342,8 @@ void Node::take_commands() {
   });
   trajectory_reader_.take([&](const JointTrajectoryMessage& message) {
     send("joint_trajectory", [&] {
-      // No services on this node: an empty trajectory stops the running one, as in ros2_control.
+      // No trajectory services on this node: an empty trajectory stops the running one, as in
+      // ros2_control.
       if (message.points._length == 0) {
         loop_->cancel_trajectory();
         log(LogLevel::info, "joint_trajectory: empty, the running trajectory is cancelled");

@@ -16,6 +16,9 @@
 ///   publish_rate and logs status changes; the effort thread (topics mode) writes each cycle's
 ///   torque to the effort controller. The transforms that do not depend on the arm's q
 ///   (tf_static) and robot_description are written once, transient local, at construction.
+/// - the parameter services' thread (ParameterServices) answers ROS 2's six parameter services
+///   and publishes /parameter_events; a set goes through the library's decoder to the loop's
+///   inbox like any command.
 
 #include <atomic>
 #include <chrono>
@@ -38,6 +41,8 @@
 #include "dds.hpp"
 #include "graph.hpp"
 #include "messages.hpp"
+#include "node_parameters.hpp"
+#include "parameter_services.hpp"
 #include "parameters.hpp"
 
 namespace cartesian_impedance_ros2 {
@@ -119,6 +124,9 @@ class Node {
   Reader<JointTrajectoryMessage> trajectory_reader_;
   Reader<JointStateMessage> joint_state_reader_;  // topics mode
   Entity wake_;                                   // guard condition: ends the waits
+  // ROS 2's parameter services and /parameter_events, on a thread of their own.
+  std::optional<NodeParameters> node_parameters_;
+  std::unique_ptr<ParameterServices> parameter_services_;
 
   std::atomic<bool> stop_{false};
   std::atomic<bool> accepting_{false};  // commands are applied once the controller runs

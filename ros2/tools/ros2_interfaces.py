@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""ROS 2 .msg files -> the DDS IDL that ROS 2's DDS layers put on the wire, and RIHS01 type hashes.
+"""ROS 2 .msg and .srv files -> the DDS IDL that ROS 2's DDS layers put on the wire, and RIHS01 hashes.
 
 ROS 2 maps a message `pkg/msg/Name` onto the DDS type `pkg::msg::dds_::Name_` (an `@final` struct in
 modules pkg, msg, dds_; nested types mapped the same way), which both of its DDS layers match by
@@ -8,9 +8,20 @@ description (each type's name and fields, then every type it references, sorted 
 rosidl's type-description generator (Iron and later) computes it; endpoints announce it in their
 USER_DATA. Parsing is rosidl's own (`rosidl_adapter`, Debian's python3-rosidl).
 
+A service `pkg/srv/Name` is two DDS types, `pkg::srv::dds_::Name_Request_` and `Name_Response_`, on
+the topics rq/<service>Request and rr/<service>Reply. rmw_cyclonedds_cpp puts its request header
+(cdds_request_header_t: the client's 64-bit id, then the request's sequence number, both 8 bytes)
+in front of the fields of both, in the same CDR stream; the IDL here carries the header as the
+first two members (`cdds_request_header_guid`, `cdds_request_header_seq`), so that Cyclone writes
+and reads exactly those bytes. The hash of each part is that of its ROS 2 message (no header); the
+endpoints of a service announce the service's hash, computed from its type description (fields
+request_message, response_message, event_message; the Event type with service_msgs's
+ServiceEventInfo), as rosidl does. Constants carry no data on the wire and are not part of a type
+description: they are left out of both.
+
     ros2_interfaces.py --idl OUT.idl --header OUT.hpp --json OUT.json PACKAGE_DIR...
 
-Each PACKAGE_DIR is a folder named after its package, holding msg/*.msg.
+Each PACKAGE_DIR is a folder named after its package, holding msg/*.msg and/or srv/*.srv.
 """
 
 import argparse
@@ -19,7 +30,7 @@ import json
 import pathlib
 import sys
 
-from rosidl_adapter.parser import parse_message_file
+from rosidl_adapter.parser import parse_message_file, parse_service_file
 
 # .msg primitive -> (DDS IDL type, FieldType id of type_description_interfaces). byte and char
 # become octet and uint8 in ROS IDL, whose FieldType ids the hash uses.
@@ -36,29 +47,63 @@ FIXED_ARRAY, BOUNDED_SEQUENCE, UNBOUNDED_SEQUENCE = 48, 96, 144
 BOUNDED_STRING, BOUNDED_WSTRING = 21, 22
 
 
+# Names of the types the packages given define: (package, type) -> ROS name ("pkg/msg/Name",
+# "pkg/srv/Name_Request"), so that a field's type resolves to a message or a service's part.
+RESOLVE = {}
+
+
+def resolve(pkg, name):
+    return RESOLVE.get((pkg, name), f'{pkg}/msg/{name}')
+
+
+# The request header rmw_cyclonedds_cpp writes before the fields of a request or reply.
+REQUEST_HEADER = ['unsigned long long cdds_request_header_guid;',
+                  'long long cdds_request_header_seq;']
+
+
 class Message:
-    def __init__(self, package, spec):
+    """A message, or the request or response part of a service (kind 'srv')."""
+
+    def __init__(self, package, spec, kind='msg', service=None):
         self.package = package
         self.name = spec.msg_name
         self.spec = spec
-        if spec.constants:
-            raise SystemExit(f'{self.ros_name}: constants are not supported by this generator')
+        self.kind = kind
+        self.service = service  # ROS name of the service a part belongs to
 
     @property
     def ros_name(self):
-        return f'{self.package}/msg/{self.name}'
+        return f'{self.package}/{self.kind}/{self.name}'
 
     @property
     def dds_name(self):
-        return f'{self.package}::msg::dds_::{self.name}_'
+        return f'{self.package}::{self.kind}::dds_::{self.name}_'
 
     @property
     def c_name(self):
-        return f'{self.package}_msg_dds__{self.name}_'
+        return f'{self.package}_{self.kind}_dds__{self.name}_'
 
     def nested(self):
-        return [f'{f.type.pkg_name}/msg/{f.type.type}'
+        return [resolve(f.type.pkg_name, f.type.type)
                 for f in self.spec.fields if not f.type.is_primitive_type()]
+
+
+class HashOnly:
+    """A type that exists only in type descriptions: a service's Event message, a service."""
+
+    def __init__(self, ros_name, fields):
+        self.ros_name = ros_name
+        self.fields = fields  # [(name, type_id, capacity, nested ROS name)]
+
+    def nested(self):
+        return [nested for _, _, _, nested in self.fields if nested]
+
+    def description(self):
+        return {'type_name': self.ros_name,
+                'fields': [{'name': name,
+                            'type': {'type_id': type_id, 'capacity': capacity,
+                                     'string_capacity': 0, 'nested_type_name': nested}}
+                           for name, type_id, capacity, nested in self.fields]}
 
 
 def field_description(field):
@@ -73,13 +118,14 @@ def field_description(field):
         nested_name = ''
     else:
         type_id = NESTED
-        nested_name = f'{t.pkg_name}/msg/{t.type}'
+        nested_name = resolve(t.pkg_name, t.type)
     capacity = 0
     if t.is_array:
         if t.array_size is None:
             type_id += UNBOUNDED_SEQUENCE
         elif t.is_upper_bound:
-            type_id += BOUNDED_SEQUENCE
+            type_id += BOUNDED_SEQUENCE  # the bound is its capacity, as for a fixed array
+            capacity = t.array_size
         else:
             type_id += FIXED_ARRAY
             capacity = t.array_size
@@ -89,6 +135,8 @@ def field_description(field):
 
 
 def individual_description(message):
+    if isinstance(message, HashOnly):
+        return message.description()
     return {'type_name': message.ros_name,
             'fields': [field_description(f) for f in message.spec.fields]}
 
@@ -117,7 +165,8 @@ def idl_member(field):
         if t.string_upper_bound is not None:
             base = f'{base}<{t.string_upper_bound}>'
     else:
-        base = f'::{t.pkg_name}::msg::dds_::{t.type}_'
+        package, kind, name = resolve(t.pkg_name, t.type).split('/')
+        base = f'::{package}::{kind}::dds_::{name}_'
     if not t.is_array:
         return f'{base} {field.name};'
     if t.array_size is None:
@@ -128,6 +177,7 @@ def idl_member(field):
 
 
 def dependency_order(messages):
+    """The types of the IDL (messages and service parts), each after the types it uses."""
     ordered, done = [], set()
 
     def visit(name, path):
@@ -143,7 +193,8 @@ def dependency_order(messages):
         ordered.append(messages[name])
 
     for name in sorted(messages):
-        visit(name, [])
+        if isinstance(messages[name], Message):
+            visit(name, [])
     return ordered
 
 
@@ -151,8 +202,10 @@ def write_idl(ordered):
     lines = ['// Generated by ros2/tools/ros2_interfaces.py from the .msg files: ROS 2\'s DDS',
              '// mapping of each message (module pkg::msg::dds_, struct Name_, @final). Do not edit.', '']
     for message in ordered:
-        lines.append(f'module {message.package} {{ module msg {{ module dds_ {{')
+        lines.append(f'module {message.package} {{ module {message.kind} {{ module dds_ {{')
         lines.append(f'  @final struct {message.name}_ {{')
+        if message.kind == 'srv':
+            lines.extend(f'    {member}' for member in REQUEST_HEADER)
         lines.extend(f'    {idl_member(f)}' for f in message.spec.fields)
         lines.append('  };')
         lines.append('}; }; };')
@@ -177,11 +230,13 @@ def write_header(ordered, hashes, idl_header):
         '',
     ]
     for message in ordered:
+        # What an endpoint announces: a service's endpoints announce the service's hash.
+        announced = hashes[message.service] if message.service else hashes[message.ros_name]
         lines += [
             'template <>',
             f'struct MessageType<{message.c_name}> {{',
             f'  static constexpr const char* ros_name = "{message.ros_name}";',
-            f'  static constexpr const char* type_hash = "{hashes[message.ros_name]}";',
+            f'  static constexpr const char* type_hash = "{announced}";',
             f'  static const dds_topic_descriptor_t* descriptor() {{ return &{message.c_name}_desc; }}',
             '};',
             '',
@@ -190,15 +245,39 @@ def write_header(ordered, hashes, idl_header):
     return '\n'.join(lines) + '\n'
 
 
+def service_types(package, spec, service_name):
+    """The parts of service `pkg/srv/Name`: Request and Response (on the wire), and for the
+    hash the Event message and the service itself, as rosidl describes them."""
+    ros_name = f'{package}/srv/{service_name}'
+    request = Message(package, spec.request, 'srv', ros_name)
+    response = Message(package, spec.response, 'srv', ros_name)
+    event = HashOnly(f'{ros_name}_Event', [
+        ('info', NESTED, 0, 'service_msgs/msg/ServiceEventInfo'),
+        ('request', NESTED + BOUNDED_SEQUENCE, 1, request.ros_name),
+        ('response', NESTED + BOUNDED_SEQUENCE, 1, response.ros_name)])
+    service = HashOnly(ros_name, [
+        ('request_message', NESTED, 0, request.ros_name),
+        ('response_message', NESTED, 0, response.ros_name),
+        ('event_message', NESTED, 0, event.ros_name)])
+    return [request, response, event, service]
+
+
 def load(package_dirs):
-    messages = {}
+    """Every type of the packages: messages, service parts, and the hash-only types."""
+    RESOLVE.clear()
+    types = {}
     for directory in map(pathlib.Path, package_dirs):
-        if not (directory / 'msg').is_dir():
-            raise SystemExit(f'{directory}: not a package folder (no msg/ in it)')
+        if not (directory / 'msg').is_dir() and not (directory / 'srv').is_dir():
+            raise SystemExit(f'{directory}: not a package folder (no msg/ or srv/ in it)')
         for path in sorted((directory / 'msg').glob('*.msg')):
             message = Message(directory.name, parse_message_file(directory.name, str(path)))
-            messages[message.ros_name] = message
-    return messages
+            types[message.ros_name] = message
+        for path in sorted((directory / 'srv').glob('*.srv')):
+            spec = parse_service_file(directory.name, str(path))
+            for part in service_types(directory.name, spec, path.stem):
+                types[part.ros_name] = part
+                RESOLVE[(directory.name, part.ros_name.split('/')[-1])] = part.ros_name
+    return types
 
 
 def main(argv):
@@ -217,8 +296,11 @@ def main(argv):
         idl_header = pathlib.Path(args.idl).with_suffix('.h').name
         pathlib.Path(args.header).write_text(write_header(ordered, hashes, idl_header))
     if args.json:
-        table = {m.ros_name: {'dds_name': m.dds_name, 'type_hash': hashes[m.ros_name]}
-                 for m in ordered}
+        table = {}
+        for m in ordered:
+            table[m.ros_name] = {'dds_name': m.dds_name, 'type_hash': hashes[m.ros_name]}
+            if m.service:
+                table[m.ros_name].update(service=m.service, service_hash=hashes[m.service])
         pathlib.Path(args.json).write_text(json.dumps(table, indent=2) + '\n')
 
 

@@ -132,7 +132,11 @@ TYPED_TEST(Descriptor, TypeNameIsRos2sDdsName) {
                (package + "::msg::dds_::" + name + "_").c_str());
 }
 
-// The type lists above name every type the generator produced, so the golden test misses none.
+// The type lists above name every type the generator produced, so the golden test misses none,
+// except the parameter services' messages (rcl_interfaces, and service_msgs for their hashes
+// only): their wire form, header included, is checked by ros2_parameter_services_tests
+// (ParameterServicesGolden), on one request and one reply that reach every one of their fields
+// the node reads or writes.
 TEST(GoldenCdrCoverage, EveryGeneratedTypeIsTested) {
   std::ifstream json(CARTESIAN_IMPEDANCE_ROS2_HASHES);
   ASSERT_TRUE(json) << CARTESIAN_IMPEDANCE_ROS2_HASHES;
@@ -145,8 +149,10 @@ TEST(GoldenCdrCoverage, EveryGeneratedTypeIsTested) {
        at = content.find("/msg/", at + 1)) {
     const size_t open = content.rfind('"', at);
     const size_t close = content.find('"', at);
-    if (content.compare(close, 4, "\": {") == 0)
-      generated.insert(content.substr(open + 1, close - open - 1));
+    const std::string name = content.substr(open + 1, close - open - 1);
+    if (content.compare(close, 4, "\": {") == 0 && name.rfind("rcl_interfaces/", 0) != 0 &&
+        name.rfind("service_msgs/", 0) != 0)
+      generated.insert(name);
   }
   const std::set<std::string> tested = ros_names(static_cast<AllMessages*>(nullptr));
   EXPECT_EQ(tested, generated);

@@ -80,6 +80,26 @@ PUBLISHED = {
         'beb83fbe698636351461f6f35d1abb20010c43d55374d81bd041f1ba2581fddc',
     'std_msgs/msg/String':
         'df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18',
+    # hpmicro/hpm_sdk, middleware/microros/kilted/include/rcl_interfaces/rcl_interfaces/srv/detail/
+    # set_parameters__description.c, list_parameters__description.c and
+    # describe_parameters__description.c (micro-ROS, Kilted): the hashes of their services' parts
+    # (below) and the EXPECTED_HASH of the messages they reference.
+    'rcl_interfaces/msg/Parameter':
+        'ddfe6442cffc462317adb5c92536a7b6dd55858c5c3e1e328165a6b73c2831af',
+    'rcl_interfaces/msg/ParameterValue':
+        '115fc089a387e23c7ecd3525c9189c379109119d6ab82e8dfbde0fdf6a7f9b68',
+    'rcl_interfaces/msg/SetParametersResult':
+        'cfcc0fb0371ee5159b403960ef4300f8f9d2f1fd6117c8666b7f9654d528a9b1',
+    'rcl_interfaces/msg/ListParametersResult':
+        '237ae3428413dcbcfb452b510c42355f3a2b021dc091afa3e18526d57022f1cd',
+    'rcl_interfaces/msg/ParameterDescriptor':
+        '52175dbfda6c51153101d33d2a9da05743f66f02d5ab2ca9ec4709b46b73d704',
+    'rcl_interfaces/msg/FloatingPointRange':
+        'e6af23a23c177fee5f3075c8b1e435162a9b63c863d78c06017460b49684262d',
+    'rcl_interfaces/msg/IntegerRange':
+        'f7b7fdc0f65f07702e099218e13288c3963bcb9345bde78b560e6cd19800fc5a',
+    'service_msgs/msg/ServiceEventInfo':
+        '41bcbbe07a75c9b52bc96bfd5c24d7f0fc0a08c0cb7921b3373c5732345a6f45',
     # The graph messages (ros_discovery_info), from rosidl-generated rmw_dds_common
     # gid__description.c, node_entities_info__description.c (which also asserts Gid's) and
     # participant_entities_info__description.c of an Iron-or-later build: Gid is `char[16] data`,
@@ -90,6 +110,39 @@ PUBLISHED = {
         '8ffef65ee2d088c63b1e8fcd31e800ba9fc8dbe0ee15ca60d1676de5218087a7',
     'rmw_dds_common/msg/ParticipantEntitiesInfo':
         '91a0593bacdcc50ea9bdcf849a938b128412cc1ea821245c663bcd26f83c295e',
+}
+
+# Standard messages whose published hash was not found: computed by the same generator, whose
+# other results (the types it references among them) equal ROS 2's.
+UNPUBLISHED = {'rcl_interfaces/msg/ParameterEvent'}
+
+# The services' parts, the Event messages and the services themselves (what their endpoints
+# announce), from the same micro-ROS files.
+PUBLISHED_SERVICES = {
+    'rcl_interfaces/srv/SetParameters':
+        '56eed9a67e169f9cb6c1f987bc88f868c14a8fc9f743a263bc734c154015d7e0',
+    'rcl_interfaces/srv/SetParameters_Request':
+        '130d46386b7e84ea9ecf60608a4d83cbe5e5cb7c6cc5b712b7a4e3a6c254e932',
+    'rcl_interfaces/srv/SetParameters_Response':
+        '7a0e8140a0b8d98308fa81a5403a766e610af29a239caf54b7553227906fc266',
+    'rcl_interfaces/srv/SetParameters_Event':
+        '5060f52369bcff7f9dbd6eca21ee521859e471e71b33a8a8df26d5236fe54a80',
+    'rcl_interfaces/srv/ListParameters':
+        '3e6062bfbb27bfb8730d4cef2558221f51a11646d78e7bb30a1e83afac3aad9d',
+    'rcl_interfaces/srv/ListParameters_Request':
+        'a1b0b5d6b967a5b8ac5bc8563c3ea678f349e312a6a4967227c5a96bc5ce38df',
+    'rcl_interfaces/srv/ListParameters_Response':
+        '31b937b82de3612426be79f231e386259f97e8dc843e3f2845288b4bfa296bdd',
+    'rcl_interfaces/srv/ListParameters_Event':
+        '89c5b5aaf68ec925ae9bbc5569ee21de82959b4d1496dbd498792ad825b9b292',
+    'rcl_interfaces/srv/DescribeParameters':
+        '845b484d71eb0673dae682f2e3ba3c4851a65a3dcfb97bddd82c5b57e91e4cff',
+    'rcl_interfaces/srv/DescribeParameters_Request':
+        '05dd1c2bc87dec2627105c8070d6f9725c781a4f2ab852975bf105462b82b644',
+    'rcl_interfaces/srv/DescribeParameters_Response':
+        'ad6747319613c6131589e062e095b469a46cc764f7d0f12a001a49e6cd893995',
+    'rcl_interfaces/srv/DescribeParameters_Event':
+        '3deba64c035093033c690184834441551a53128ea2539f71f2596fbc4ed9de43',
 }
 
 ARGS = None
@@ -115,8 +168,25 @@ class PublishedHashes(unittest.TestCase):
     def test_every_standard_message_has_a_published_hash(self):
         standard = {p.parent.parent.name + '/msg/' + p.stem
                     for p in pathlib.Path(ARGS.msg).glob('*/msg/*.msg')}
-        self.assertEqual(len(standard), 23)
-        self.assertEqual(standard - set(PUBLISHED), set())
+        self.assertEqual(len(standard), 32)
+        self.assertEqual(standard - set(PUBLISHED) - UNPUBLISHED, set())
+
+    def test_services_hash_as_ros2_publishes(self):
+        types = TOOL.load(sorted(p for p in pathlib.Path(ARGS.msg).iterdir() if p.is_dir()))
+        for name, digest in sorted(PUBLISHED_SERVICES.items()):
+            with self.subTest(name):
+                self.assertEqual(TOOL.type_hash(name, types), 'RIHS01_' + digest)
+
+    def test_service_endpoints_announce_the_services_hash(self):
+        table = json.loads(pathlib.Path(ARGS.json).read_text())
+        parts = {name: entry for name, entry in table.items() if '/srv/' in name}
+        self.assertEqual(len(parts), 12)  # six parameter services, request and response each
+        for name, entry in parts.items():
+            with self.subTest(name):
+                self.assertEqual(entry['service'], name.rsplit('_', 1)[0])
+                digest = PUBLISHED_SERVICES.get(entry['service'])
+                if digest:
+                    self.assertEqual(entry['service_hash'], 'RIHS01_' + digest)
 
 
 class GeneratedFiles(unittest.TestCase):
@@ -131,11 +201,21 @@ class GeneratedFiles(unittest.TestCase):
         self.assertEqual(len(entries), len(self.table))
         for c_name, ros_name, type_hash in entries:
             with self.subTest(ros_name):
-                self.assertEqual(type_hash, self.table[ros_name]['type_hash'])
-                package, _, name = ros_name.split('/')
-                self.assertEqual(c_name, f'{package}_msg_dds__{name}_')
-                self.assertEqual(self.table[ros_name]['dds_name'],
-                                 f'{package}::msg::dds_::{name}_')
+                entry = self.table[ros_name]
+                # A service's request and reply endpoints announce the service's hash.
+                self.assertEqual(type_hash, entry.get('service_hash', entry['type_hash']))
+                package, kind, name = ros_name.split('/')
+                self.assertEqual(c_name, f'{package}_{kind}_dds__{name}_')
+                self.assertEqual(entry['dds_name'], f'{package}::{kind}::dds_::{name}_')
+
+    def test_requests_and_replies_start_with_the_request_header(self):
+        idl = pathlib.Path(ARGS.idl).read_text()
+        for name in (n for n in self.table if '/srv/' in n):
+            with self.subTest(name):
+                body = re.search(r'struct %s_ \{\s*([^}]*)\}' % name.split('/')[-1], idl).group(1)
+                members = [m.strip() for m in body.split(';') if m.strip()]
+                self.assertEqual(members[:2], ['unsigned long long cdds_request_header_guid',
+                                               'long long cdds_request_header_seq'])
 
     def test_every_idl_struct_is_final(self):
         idl = re.sub(r'//[^\n]*', '', pathlib.Path(ARGS.idl).read_text())
