@@ -173,6 +173,9 @@ std::vector<NodeParameters::Extra> shell_settings(const Ros2Configuration& confi
     extras.push_back({"effort_controller", text_value(configuration.effort_controller),
                       "the effort controller whose commands topic takes the torques"});
   }
+  extras.push_back({"ros_distro", text_value(to_string(configuration.ros_distro)),
+                    "the ROS 2 distribution whose ros_discovery_info layout the node announces "
+                    "(humble: 24-octet GIDs; iron and later: 16)"});
   RosValue sim_time;
   sim_time.type = ros_type::kBool;
   extras.push_back({"use_sim_time", sim_time, "the node runs on the system clock"});

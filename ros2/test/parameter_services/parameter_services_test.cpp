@@ -224,8 +224,9 @@ TEST(ParameterServices, AnswersEachServiceAsRclcppDoes) {
                                                              })));
   }
   EXPECT_TRUE(std::is_sorted(names.begin(), names.end()));
-  for (const char* name : {"stiffness.translation", "limits.stiffness.translation.max", "mode",
-                           "control_rate", "base_link", "use_sim_time", "urdf_path"}) {
+  for (const char* name :
+       {"stiffness.translation", "limits.stiffness.translation.max", "mode", "control_rate",
+        "base_link", "use_sim_time", "urdf_path", "ros_distro"}) {
     EXPECT_TRUE(contains(names, name)) << name;
   }
   EXPECT_TRUE(contains(prefixes, "stiffness"));
