@@ -260,15 +260,13 @@ def write_class(writer, cls):
         if isinstance(value, types.WrapperDescriptorType):  # no constructor: pybind11's default
             continue
         static = isinstance(value, staticmethod)
-        function = value.__func__ if static or hasattr(value, "__func__") else value
-        if isinstance(value, property):
-            write_property(writer, 1, cls, name, value, type(value).__name__ != "property")
-        elif static or isinstance(function, types.BuiltinFunctionType) or callable(value) \
-                and not isinstance(value, type) and hasattr(value, "__doc__") \
-                and not isinstance(value, cls):
-            write_callable(writer, 1, name, function, method=True, static=static)
+        if isinstance(value, property):  # pybind11's static properties derive from property
+            write_property(writer, 1, cls, name, value, type(value) is not property)
         elif isinstance(value, cls):  # an enumeration's member
             writer.line(1, f"{name}: ClassVar[{cls.__name__}]  # value = {int(value)}")
+        elif static or callable(value):  # a method: pybind11 wraps it in an instancemethod
+            function = getattr(value, "__func__", value)
+            write_callable(writer, 1, name, function, method=True, static=static)
         else:
             writer.line(1, f"{name}: ClassVar[{type(value).__name__}]")
         wrote = True
