@@ -17,7 +17,9 @@
 // argument types), parameters.cpp (Parameters and the parameter table), controller.cpp
 // (enumerations, Pose, the states, CartesianImpedanceController), loop.cpp (RobotModel,
 // ControlLoop), simulation.cpp (the submodule sim), commands.hpp (the setters the controller and
-// the loop share), wrappers.hpp (what Python owns beside a library object).
+// the loop share), wrappers.hpp (what Python owns beside a library object); cartesian_impedance/
+// (the package around this module: __init__.py with data_dir(), the stubs written by
+// generate_stubs.py, py.typed).
 
 #include <pybind11/pybind11.h>
 
@@ -28,7 +30,14 @@
 namespace py = pybind11;
 namespace ci = cartesian_impedance;
 
-PYBIND11_MODULE(cartesian_impedance, m) {
+// The extension is cartesian_impedance._core, inside the package cartesian_impedance
+// (python/cartesian_impedance/__init__.py re-exports it, beside the stubs and the shipped data).
+// It takes the package's name before anything is bound: pybind11 records a type's module, and
+// writes it into every signature, when the type is bound, and users meet these types as
+// cartesian_impedance.Pose, not cartesian_impedance._core.Pose (in help(), reprs, errors, pickles
+// and the stubs). The submodule sim is then cartesian_impedance.sim.
+PYBIND11_MODULE(_core, m) {
+  m.attr("__name__") = "cartesian_impedance";
   m.doc() =
       "Cartesian impedance control of torque-controlled robot arms (Python bindings).\n\n"
       "SI units everywhere (m, rad, s, N, Nm). Poses, Jacobians, wrenches and stiffnesses are in\n"
