@@ -9,6 +9,7 @@
 #include <string>
 
 #include <cartesian_impedance/core/error.hpp>
+#include <cartesian_impedance/node/startup_report.hpp>
 #include <cartesian_impedance/node/temporary_file.hpp>
 
 #include "node.hpp"
@@ -71,7 +72,9 @@ CartesianImpedanceNode::CartesianImpedanceNode(const ros::NodeHandle& node,
     }
     runner_.emplace(*simulation_, *loop_);
     joint_state_publisher_ = node_.advertise<sensor_msgs::JointState>("joint_states", 10);
+    log_startup_report(&simulation_->q());
   } else {
+    log_startup_report(nullptr);  // the robot's start is known with its first joint states
     joint_mapper_ = std::make_unique<ci::node::JointStateMapper>(model_->joint_names());
     joint_samples_.emplace(n);
     torques_.emplace(n);
@@ -109,6 +112,17 @@ CartesianImpedanceNode::CartesianImpedanceNode(const ros::NodeHandle& node,
       settings_.mode == Mode::sim && settings_.mjcf_path.empty() ? " (the URDF simulated)" : "",
       settings_.control_rate, settings_.publish_rate,
       links_ ? (", tf of " + std::to_string(links_->joints().size()) + " joints").c_str() : "");
+}
+
+void CartesianImpedanceNode::log_startup_report(const ci::JointVector* start_q) const {
+  for (const ci::node::ReportLine& line :
+       ci::node::startup_report(loop_->latest_parameters(), *model_, start_q)) {
+    if (line.level == ci::node::ReportLine::Level::warning) {
+      ROS_WARN("%s", line.text.c_str());
+    } else {
+      ROS_INFO("%s", line.text.c_str());
+    }
+  }
 }
 
 CartesianImpedanceNode::~CartesianImpedanceNode() {

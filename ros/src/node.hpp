@@ -92,6 +92,8 @@ class CartesianImpedanceNode {
   void publisher_thread();
   void effort_thread();
   void stop_threads();
+  /// Logs the limits in force and, at `start_q` if given, the torque-rate check's warnings.
+  void log_startup_report(const cartesian_impedance::JointVector* start_q) const;
   /// /tf_static, once (latched): the joints whose transforms do not depend on the arm's joints
   /// (fixed ones, and those outside the chain, held at position 0), stamped now.
   void publish_static_transforms();

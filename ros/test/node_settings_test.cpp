@@ -9,7 +9,9 @@
 #include <string>
 
 #include <cartesian_impedance/core/error.hpp>
+#include <cartesian_impedance/model/robot_limits.hpp>
 #include <cartesian_impedance/node/node_settings.hpp>
+#include <cartesian_impedance/node/startup_report.hpp>
 
 #include "ros_parameters.hpp"
 
@@ -97,4 +99,42 @@ TEST(RosNodeSettings, TheReadmeSaysWhatEachSettingAccepts) {
         << name << ": ros/README.md should say it accepts " << row.accepts() << "\n"
         << line;
   }
+}
+
+// What both nodes log once at start: the limits in force, derived from the URDF where the
+// configuration leaves them out, and the torque-rate check's warnings where the arm starts.
+TEST(RosNodeSettings, StartupReportShowsTheLimitsInForceAndTheRateCheck) {
+  const ci::RobotModel model = ci::RobotModel::from_urdf_file(
+      std::string(CARTESIAN_IMPEDANCE_SOURCE_DIR) + "/models/panda/panda.urdf", "panda_link0",
+      "panda_link8");
+  ci::JointVector ready(7);
+  ready << 0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785;
+
+  const auto report = ci::node::startup_report(ci::default_parameters(model), model, &ready);
+  ASSERT_FALSE(report.empty());
+  const std::string& limits = report.front().text;
+  EXPECT_EQ(report.front().level, ci::node::ReportLine::Level::info);
+  // The Panda's efforts (87 Nm on joints 1-4, 12 on 5-7) and the stiffness they allow.
+  EXPECT_NE(limits.find("joint torque [87, 87, 87, 87, 12, 12, 12] Nm"), std::string::npos)
+      << limits;
+  EXPECT_NE(limits.find("stiffness up to 430 N/m and 12 Nm/rad"), std::string::npos) << limits;
+  EXPECT_EQ(report.size(), 1u) << "the derived defaults pass the rate check: "
+                               << report.back().text;
+
+  // A rate limit far too slow for the stiffest spring allowed is said, at the start.
+  ci::Parameters slow = ci::default_parameters(model);
+  slow.limits.joint_torque_rate = ci::JointVector::Constant(1, 2.0);
+  const auto warned = ci::node::startup_report(slow, model, &ready);
+  ASSERT_GE(warned.size(), 2u);
+  EXPECT_EQ(warned[1].level, ci::node::ReportLine::Level::warning);
+  EXPECT_NE(warned[1].text.find("at the start configuration"), std::string::npos) << warned[1].text;
+  EXPECT_NE(warned.front().text.find("torque rate 2 Nm/s"), std::string::npos)
+      << warned.front().text;
+
+  // No start known (topics mode): the limits only. A start the check cannot use: said why.
+  EXPECT_EQ(ci::node::startup_report(slow, model, nullptr).size(), 1u);
+  const ci::JointVector wrong = ci::JointVector::Zero(3);
+  const auto unusable = ci::node::startup_report(slow, model, &wrong);
+  ASSERT_EQ(unusable.size(), 2u);
+  EXPECT_NE(unusable[1].text.find("cannot be made"), std::string::npos) << unusable[1].text;
 }

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include <cartesian_impedance/core/error.hpp>
+#include <cartesian_impedance/node/startup_report.hpp>
 #include <cartesian_impedance/node/status_reports.hpp>
 #include <cartesian_impedance/node/temporary_file.hpp>
 
@@ -105,7 +106,9 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
                             : ci::sim::Simulation::from_mjcf_file(settings_.mjcf_path, options));
     runner_.emplace(*simulation_, *loop_);
     writer(joint_state_writer_, "joint_states");
+    log_startup_report(&simulation_->q());
   } else {
+    log_startup_report(nullptr);  // the robot's start is known with its first joint states
     joint_mapper_.emplace(model_->joint_names());
     joint_samples_.emplace(n);
     torques_.emplace(n);
@@ -188,6 +191,14 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
 
 Node::~Node() {
   stop_threads();
+}
+
+void Node::log_startup_report(const ci::JointVector* start_q) const {
+  for (const ci::node::ReportLine& line :
+       ci::node::startup_report(loop_->latest_parameters(), *model_, start_q)) {
+    log(line.level == ci::node::ReportLine::Level::warning ? LogLevel::warn : LogLevel::info,
+        line.text);
+  }
 }
 
 void Node::announce_in_graph() {

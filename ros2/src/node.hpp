@@ -77,6 +77,8 @@ class Node {
   void publisher_thread();
   void effort_thread();
   void stop_threads();
+  /// Logs the limits in force and, at `start_q` if given, the torque-rate check's warnings.
+  void log_startup_report(const cartesian_impedance::JointVector* start_q) const;
   /// Announces the node and every reader and writer it made on ros_discovery_info.
   void announce_in_graph();
 
