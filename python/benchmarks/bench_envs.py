@@ -14,7 +14,6 @@ Not run by ctest. Usage (from the repository root, after building the module):
 import argparse
 import time
 
-
 import cartesian_impedance as ci
 import cartesian_impedance.envs as envs
 
