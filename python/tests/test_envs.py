@@ -173,6 +173,7 @@ def test_render_rgb_array():
     available, reason = ci.sim.offscreen_rendering_available()
     if not available:
         pytest.skip("offscreen rendering unavailable: " + reason)
+    pytest.importorskip("PIL", reason="render() needs Pillow (Debian: python3-pil)")
     env = envs.make(REACH, render_mode="rgb_array", render_size=(48, 64))
     env.reset(seed=0)
     frame = env.render()
@@ -272,6 +273,15 @@ def test_other_robots_and_dart():
     assert own.parameters["safety.max_speed.translation"] == 1.0
     _, _, terminated, _, info = run_episode(own, reach_policy, seed=2)
     assert terminated and info["is_success"]
+    # A tool frame 0.1 m along the flange's z (a held peg's tip): the pose the policy sees and
+    # moves is the tool's.
+    tool = envs.make(REACH, start_noise=0.0, robot=dict(
+        envs.robot_spec("panda").__dict__, tool=([0, 0, 0.1], [0, 0, 0, 1])))
+    flange = envs.make(REACH, start_noise=0.0)
+    tip = robot_part(tool, tool.reset(seed=0)[0])["position"]
+    origin = robot_part(flange, flange.reset(seed=0)[0])["position"]
+    along_z = envs.actions.quaternion_to_matrix(flange.flange_pose.orientation)[:, 2]
+    np.testing.assert_allclose(tip, origin + 0.1 * along_z, atol=1e-6)
     available, reason = ci.sim.engine_available("dart")
     if not available:
         pytest.skip("DART: " + reason)

@@ -91,8 +91,7 @@ class CartesianImpedanceEnv(_EnvBase):
         probe = make_simulation(self.robot, self.model, engine)
         self.start_q = np.array(probe.q)
         self.start_pose = self.model.compute_pose(self.start_q)
-        boxes = self.scene_boxes()
-        self.sim = make_simulation(self.robot, self.model, engine, boxes) if boxes else probe
+        self.sim = self.build_simulation(probe)
         self.parameters["dynamics.armature"] = list(self.sim.armature)
         self.parameters.validate(self.model.num_joints)
         self.period = 1.0 / self.policy_rate
@@ -116,6 +115,13 @@ class CartesianImpedanceEnv(_EnvBase):
     def scene_boxes(self):
         """The static boxes of the task's scene (list of ci.sim.Box); start_pose is known."""
         return []
+
+    def build_simulation(self, plain):
+        """The task's simulation; `plain` is the robot alone (at start_q). The default adds
+        scene_boxes() to it; a task with more than boxes (a peg attached to the flange) builds
+        its own here."""
+        boxes = self.scene_boxes()
+        return make_simulation(self.robot, self.model, self.engine, boxes) if boxes else plain
 
     def reset_task(self, rng):
         """Draws the task's goal (and whatever else it randomises) from rng after the robot has
@@ -201,7 +207,11 @@ class CartesianImpedanceEnv(_EnvBase):
             warnings.warn("render() without a render_mode: make the environment with "
                           "render_mode='rgb_array'", stacklevel=2)
             return None
-        from PIL import Image  # Debian's python3-pil (a dependency of python3-matplotlib)
+        try:
+            from PIL import Image
+        except ImportError:
+            raise ImportError("render() reads the offscreen renderer's PNG back with Pillow, "
+                              "which is not installed (Debian: python3-pil)") from None
         if self._render_dir is None:
             self._render_dir = tempfile.mkdtemp(prefix="cartesian_impedance_render_")
         path = os.path.join(self._render_dir, "frame.png")

@@ -30,7 +30,10 @@ class RobotSpec:
     config: a parameter file read on top of the URDF's derived defaults ('' = none: then the
     safety layer is switched on as the shipped files do, see `user_safety`). start_q: [rad]
     (None = the MJCF keyframe, or find_start_configuration()). translation_axes: the base-frame
-    axes a task may move along (the planar arm moves in x-z only)."""
+    axes a task may move along (the planar arm moves in x-z only). tool: T_tip_tool, the
+    controlled frame in the tip link's frame (a Pose or (position [m], quaternion x, y, z, w);
+    None = the tip link itself), e.g. the tip of a peg held at the flange: the reference, the
+    observed pose and the stiffness then refer to it."""
     name: str
     urdf: str
     base_link: str
@@ -39,9 +42,13 @@ class RobotSpec:
     config: str = ""
     start_q: Optional[Sequence[float]] = None
     translation_axes: Sequence[bool] = (True, True, True)
+    tool: object = None
 
     def load_model(self) -> "ci.RobotModel":
-        return ci.RobotModel.from_urdf_file(self.urdf, self.base_link, self.tip_link)
+        if self.tool is None:
+            return ci.RobotModel.from_urdf_file(self.urdf, self.base_link, self.tip_link)
+        return ci.RobotModel.from_urdf_file(self.urdf, self.base_link, self.tip_link,
+                                            tool=self.tool)
 
     def load_parameters(self, model) -> "ci.Parameters":
         """The shipped configuration on top of what the URDF says the arm can do; a URDF without

@@ -121,9 +121,10 @@ class _Box:
         return self.contains(x)
 
     def __eq__(self, other) -> bool:
+        # As Gymnasium's: the dtype is not compared, the bounds with np.allclose.
         return (isinstance(other, _Box) and self._shape == other._shape and
-                self.dtype == other.dtype and np.array_equal(self.low, other.low) and
-                np.array_equal(self.high, other.high))
+                bool(np.allclose(self.low, other.low)) and
+                bool(np.allclose(self.high, other.high)))
 
     def __repr__(self) -> str:
         return "Box(%s, %s, %s, %s)" % (self.low.min(), self.high.max(), self._shape,
