@@ -40,13 +40,15 @@ def reach_policy(env, obs, sign=1.0):
 
 def wipe_policy(env, obs, sign=1.0):
     """Presses with f* (sign -1: pulls up), keeps the reference at the flange's height, and once
-    the estimated normal force shows contact moves the reference toward the goal."""
+    the estimated normal force shows contact moves the reference toward a point 1 cm past the
+    goal (friction holds the flange back from its reference)."""
     part = robot_part(env, obs)
     goal = obs[-4:]
     action = np.zeros(env.action_space.shape, dtype=np.float32)
     step = env.actions.limits.max_translation_step
     if part["wrench"][2] > 0.5 * goal[3]:
-        action[0:2] = np.clip(0.3 * (goal[:2] - part["reference"][:2]) / step, -0.5, 0.5)
+        target = goal[:2] + 0.01 * env.direction
+        action[0:2] = np.clip(0.3 * (target - part["reference"][:2]) / step, -0.5, 0.5)
     action[2] = np.clip((part["position"][2] - part["reference"][2]) / step, -1, 1)
     action[8] = -1.0  # soft along the normal: the commanded force sets the contact force
     action[9:12] = 1.0
@@ -288,6 +290,9 @@ def test_other_robots_and_dart():
     dart = envs.make(REACH, engine="dart", max_episode_steps=40)
     assert dart.sim.engine == "dart"
     _, _, terminated, _, info = run_episode(dart, reach_policy, seed=2)
+    assert terminated and info["is_success"]
+    dart = envs.make(WIPE, engine="dart", max_episode_steps=80)
+    _, _, terminated, _, info = run_episode(dart, wipe_policy, seed=3)
     assert terminated and info["is_success"]
 
 
