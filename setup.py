@@ -56,7 +56,7 @@ if hasattr(os, "sched_getaffinity"):
 
 setup(
     version=cmake_project_version(),
-    packages=["cartesian_impedance"],
+    packages=["cartesian_impedance", "cartesian_impedance.envs"],
     package_dir={"": "python"},
     cmake_install_dir="python",
     cmake_install_target="install_python_package",

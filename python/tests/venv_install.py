@@ -38,8 +38,13 @@ data = ci.data_dir().resolve()
 for what, path in [("the module", package), ("its data", data)]:
     assert venv in path.parents, f"{what} is not from the venv {venv}: {path}"
 for name in ["__init__.pyi", "sim.pyi", "py.typed", "data/models/panda/panda.xml",
-             "data/config/panda.yaml"]:
+             "data/config/panda.yaml", "envs/__init__.py"]:
     assert (package / name).is_file(), f"the installed package lacks {name}"
+
+import cartesian_impedance.envs as envs  # the environments (pure Python) came along
+env = envs.make("CartesianImpedance/Reach-v0")
+observation, _ = env.reset(seed=0)
+assert env.observation_space.contains(env.step(env.action_space.sample())[0])
 
 model = ci.RobotModel.from_urdf_file(data / "models/panda/panda.urdf", "panda_link0",
                                      "panda_link8")

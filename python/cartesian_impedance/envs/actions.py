@@ -1,0 +1,237 @@
+"""The action and observation of every environment, apart from the task: what a policy commands
+(a pose increment, the Cartesian stiffness, optionally a wrench) and what it sees of the robot.
+
+The same `ActionInterface` serves a simulated environment (CartesianImpedanceEnv) and a
+ControlLoop driven by a robot's driver (RobotActionInterface): a policy gets the same numbers and
+its actions mean the same commands in both.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+import cartesian_impedance as ci
+
+from .spaces import Box
+
+__all__ = ["ActionInterface", "ActionLimits", "robot_observation_size", "observe_robot",
+           "quaternion_to_matrix", "matrix_to_quaternion", "rotation_vector_to_matrix",
+           "matrix_to_rotation_vector"]
+
+
+# ---- rotations (quaternions x, y, z, w as everywhere in the library) ----
+
+def quaternion_to_matrix(q):
+    x, y, z, w = np.asarray(q, dtype=float) / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def matrix_to_quaternion(r):
+    """Unit quaternion (x, y, z, w) with w >= 0 (one of the two signs, so that an observation
+    does not jump between q and -q)."""
+    trace = r[0, 0] + r[1, 1] + r[2, 2]
+    if trace > 0:
+        s = 2.0 * math.sqrt(trace + 1.0)
+        q = np.array([(r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s,
+                      (r[1, 0] - r[0, 1]) / s, 0.25 * s])
+    else:
+        i = int(np.argmax([r[0, 0], r[1, 1], r[2, 2]]))
+        j, k = (i + 1) % 3, (i + 2) % 3
+        s = 2.0 * math.sqrt(max(1.0 + r[i, i] - r[j, j] - r[k, k], 1e-300))
+        q = np.zeros(4)
+        q[i] = 0.25 * s
+        q[j] = (r[j, i] + r[i, j]) / s
+        q[k] = (r[k, i] + r[i, k]) / s
+        q[3] = (r[k, j] - r[j, k]) / s
+    q /= np.linalg.norm(q)
+    return -q if q[3] < 0 else q
+
+
+def rotation_vector_to_matrix(v):
+    angle = float(np.linalg.norm(v))
+    if angle < 1e-12:
+        return np.eye(3)
+    k = np.asarray(v, dtype=float) / angle
+    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + math.sin(angle) * kx + (1 - math.cos(angle)) * kx @ kx
+
+
+def matrix_to_rotation_vector(r):
+    q = matrix_to_quaternion(r)  # w >= 0: the angle is in [0, pi]
+    sin_half = float(np.linalg.norm(q[:3]))
+    if sin_half < 1e-12:
+        return np.zeros(3)
+    return 2.0 * math.atan2(sin_half, q[3]) * q[:3] / sin_half
+
+
+# ---- the action ----
+
+@dataclasses.dataclass
+class ActionLimits:
+    """What the normalised action [-1, 1] maps onto (every value documented in python/README.md,
+    "Environments").
+
+    max_translation_step [m] and max_rotation_step [rad]: the reference pose moves by at most
+    this per policy step (action * maximum; at 20 Hz the defaults are 0.2 m/s and 1 rad/s, below
+    the shipped speed caps). stiffness_translation (low, high) [N/m] and stiffness_rotation
+    (low, high) [Nm/rad]: -1 is low, +1 high, linear in between; high is lowered to the
+    parameters' limits.stiffness.*.max. max_force [N], max_torque [Nm]: the commanded wrench per
+    axis (only with wrench=True), lowered to limits.wrench.*. reference_leash (translation [m],
+    rotation [rad]): the reference stays within this of the measured pose, so that a policy
+    pushing against a table does not wind the reference up (None: the parameters'
+    limits.pose_error)."""
+    max_translation_step: float = 0.01
+    max_rotation_step: float = 0.05
+    stiffness_translation: tuple = (100.0, 2000.0)
+    stiffness_rotation: tuple = (5.0, 150.0)
+    max_force: float = 30.0
+    max_torque: float = 3.0
+    reference_leash: tuple = None
+
+
+class ActionInterface:
+    """Turns normalised actions into commands of a ControlLoop and robot states into the robot
+    part of an observation.
+
+    Action (float32, each in [-1, 1]; values outside are clipped, NaN or a wrong shape raise
+    cartesian_impedance.Error naming the element and change nothing):
+      [0:3]   translation increment of the reference, base frame: a * max_translation_step [m]
+      [3:6]   rotation increment (rotation vector, base frame): a * max_rotation_step [rad]
+      [6:9]   translational stiffness x, y, z (base frame): low + (a + 1) / 2 (high - low) [N/m]
+      [9:12]  rotational stiffness about x, y, z: likewise [Nm/rad]
+      [12:18] with wrench=True: commanded force a * max_force [N], torque a * max_torque [Nm],
+              base frame, on the environment
+    """
+
+    def __init__(self, parameters, wrench=False, limits: ActionLimits = None):
+        self.limits = limits or ActionLimits()
+        self.wrench = bool(wrench)
+        p = parameters
+        k_t = self.limits.stiffness_translation
+        k_r = self.limits.stiffness_rotation
+        self.stiffness_low = np.array([k_t[0]] * 3 + [k_r[0]] * 3, dtype=float)
+        self.stiffness_high = np.array(
+            [min(k_t[1], float(p["limits.stiffness.translation.max"]))] * 3 +
+            [min(k_r[1], float(p["limits.stiffness.rotation.max"]))] * 3)
+        self.stiffness_low = np.minimum(self.stiffness_low, self.stiffness_high)
+        self.max_force = min(self.limits.max_force, float(p["limits.wrench.force"]))
+        self.max_torque = min(self.limits.max_torque, float(p["limits.wrench.torque"]))
+        leash = self.limits.reference_leash
+        if leash is None:
+            leash = (float(p["limits.pose_error.translation"]),
+                     float(p["limits.pose_error.rotation"]))
+        self.leash = tuple(float(x) for x in leash)
+        self.size = 18 if self.wrench else 12
+        self.action_space = Box(-1.0, 1.0, shape=(self.size,), dtype=np.float32)
+        self.reference_position = np.zeros(3)
+        self.reference_rotation = np.eye(3)
+
+    def check(self, action) -> np.ndarray:
+        """The action as float64, clipped to [-1, 1]; raises cartesian_impedance.Error naming
+        the field for a wrong shape or a value that is not finite."""
+        try:
+            values = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError) as error:
+            raise ci.Error("action = %r is not an array of numbers: %s" % (action, error)) \
+                from None
+        if values.shape != (self.size,):
+            raise ci.Error("action has shape %s, expected (%d,) (%s)" %
+                           (values.shape, self.size, self.layout()))
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            i = int(bad[0])
+            raise ci.Error("action[%d] = %s is not finite; expected a value in [-1, 1] (%s)" %
+                           (i, values[i], self.field(i)))
+        return np.clip(values, -1.0, 1.0)
+
+    def field(self, i) -> str:
+        names = ["translation.x", "translation.y", "translation.z", "rotation.x", "rotation.y",
+                 "rotation.z", "stiffness.translation.x", "stiffness.translation.y",
+                 "stiffness.translation.z", "stiffness.rotation.x", "stiffness.rotation.y",
+                 "stiffness.rotation.z", "force.x", "force.y", "force.z", "torque.x",
+                 "torque.y", "torque.z"]
+        return names[i]
+
+    def layout(self) -> str:
+        return ("translation [0:3], rotation [3:6], stiffness translation [6:9], rotation "
+                "[9:12]" + (", force [12:15], torque [15:18]" if self.wrench else ""))
+
+    def reset(self, pose):
+        """Puts the reference at `pose` (the measured flange pose at the start)."""
+        self.reference_position = np.array(pose.position, dtype=float)
+        self.reference_rotation = quaternion_to_matrix(pose.orientation)
+
+    def stiffness(self, action) -> np.ndarray:
+        """The diagonal stiffness (6,) [N/m x3, Nm/rad x3] the checked action asks for."""
+        return self.stiffness_low + 0.5 * (action[6:12] + 1.0) * (
+            self.stiffness_high - self.stiffness_low)
+
+    def stiffness_action(self, stiffness) -> np.ndarray:
+        """The inverse: the action values [6:12] that ask for `stiffness` (6,)."""
+        span = np.where(self.stiffness_high > self.stiffness_low,
+                        self.stiffness_high - self.stiffness_low, 1.0)
+        return np.clip(2.0 * (np.asarray(stiffness) - self.stiffness_low) / span - 1.0, -1, 1)
+
+    def apply(self, action, loop, measured_pose):
+        """Checks `action` (nothing is changed if it is bad), moves the reference and sends the
+        reference, the stiffness and (with wrench) the wrench to `loop`; returns the checked
+        action. measured_pose: the flange's pose now, which the reference stays near."""
+        a = self.check(action)
+        position = self.reference_position + a[0:3] * self.limits.max_translation_step
+        rotation = rotation_vector_to_matrix(a[3:6] * self.limits.max_rotation_step) @ \
+            self.reference_rotation
+        # The leash: the reference stays within reach of the measured pose.
+        measured_position = np.asarray(measured_pose.position, dtype=float)
+        offset = position - measured_position
+        distance = float(np.linalg.norm(offset))
+        if distance > self.leash[0]:
+            position = measured_position + offset * (self.leash[0] / distance)
+        measured_rotation = quaternion_to_matrix(measured_pose.orientation)
+        turn = matrix_to_rotation_vector(rotation @ measured_rotation.T)
+        angle = float(np.linalg.norm(turn))
+        if angle > self.leash[1]:
+            rotation = rotation_vector_to_matrix(turn * (self.leash[1] / angle)) @ \
+                measured_rotation
+        loop.set_reference_pose((position, matrix_to_quaternion(rotation)))
+        loop.set_stiffness(self.stiffness(a), "base")
+        if self.wrench:
+            loop.set_wrench(np.concatenate([a[12:15] * self.max_force,
+                                            a[15:18] * self.max_torque]), "base")
+        self.reference_position, self.reference_rotation = position, rotation
+        return a
+
+
+# ---- the robot's part of the observation ----
+
+def robot_observation_size(num_joints) -> int:
+    return 2 * num_joints + 32
+
+
+def observe_robot(model, state, interface: ActionInterface) -> np.ndarray:
+    """The robot part of the observation (float64) from a LoopState:
+    q (n) [rad], dq (n) [rad/s], flange position (3) [m] and orientation (quaternion x, y, z, w,
+    w >= 0) in the base frame, flange twist J dq (6) [m/s; rad/s], the controller's estimate of
+    the external wrench on the flange (6) [N; Nm], the reference position (3) [m] and orientation
+    (4), the stiffness in force (diagonal of the filtered K, 6) [N/m; Nm/rad].
+
+    The external wrench is what the controller's Cartesian torque balances when the arm is at
+    rest: F_ext = -(J^T)^+ (tau_cartesian + tau_wrench), base frame. It reads the contact force
+    of a table pressed on; while the arm accelerates it includes the inertial force, and the
+    joints' friction shows in it."""
+    controller = state.controller
+    q, dq = np.asarray(state.q), np.asarray(state.dq)
+    jacobian = model.compute(q).jacobian
+    twist = jacobian @ dq
+    tau = np.asarray(controller.tau_cartesian) + np.asarray(controller.tau_wrench)
+    external = -np.linalg.lstsq(jacobian.T, tau, rcond=1e-9)[0]
+    pose = controller.pose
+    orientation = matrix_to_quaternion(quaternion_to_matrix(pose.orientation))
+    stiffness = np.diag(controller.stiffness_base())
+    return np.concatenate([q, dq, pose.position, orientation, twist, external,
+                           interface.reference_position,
+                           matrix_to_quaternion(interface.reference_rotation), stiffness])

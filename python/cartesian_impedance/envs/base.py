@@ -1,0 +1,252 @@
+"""CartesianImpedanceEnv: the Gymnasium-API environment every task derives from.
+
+A task is a small subclass: the boxes of its scene (scene_boxes), its goal and randomisation
+(reset_task), the goal's part of the observation (task_observation, goal_size) and its reward
+and success (evaluate). Everything else (the robot, the simulation, the control loop at 1 kHz
+between policy steps, the action, the robot's observation, seeding, rendering) is here.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+import warnings
+
+import numpy as np
+
+import cartesian_impedance as ci
+
+from . import spaces
+from .actions import ActionInterface, ActionLimits, observe_robot, robot_observation_size
+from .robots import make_simulation, robot_spec
+
+__all__ = ["CartesianImpedanceEnv"]
+
+try:  # gymnasium.make and its wrappers need a gymnasium.Env
+    import gymnasium as _gymnasium
+    _EnvBase = _gymnasium.Env
+except ImportError:
+    _gymnasium = None
+    _EnvBase = object
+
+
+class CartesianImpedanceEnv(_EnvBase):
+    """A simulated arm under the library's Cartesian impedance controller, with the Gymnasium
+    API: reset(seed=None, options=None) -> (observation, info); step(action) -> (observation,
+    reward, terminated, truncated, info); action_space, observation_space (Box); render() -> RGB
+    array (H, W, 3) uint8 with render_mode='rgb_array'; close(); metadata; np_random (seeded by
+    reset(seed)).
+
+    Each step applies the action (see ActionInterface: a pose increment, the stiffness, with
+    wrench=True a wrench), then runs the simulation and the C++ control loop for
+    1 / policy_rate seconds at the simulation's 1 kHz with the GIL released (Simulation.run).
+    The parameters are the robot's shipped configuration, so the safety layer is on: speed and
+    force caps, the energy tank, the workspace box.
+
+    Options: robot ('panda', 'iiwa14', 'ur5e', 'planar3', or a dict urdf/base_link/tip_link
+    [/config/mjcf/start_q] for your own URDF), engine ('mujoco' or 'dart'), policy_rate [Hz]
+    (default 20), max_episode_steps (truncated after this many steps), wrench (the action
+    includes a commanded wrench), start_noise [rad] (each joint's start is drawn from
+    start +- this at reset), action_limits (ActionLimits or a dict of its fields), parameters
+    (a dict of parameters set on top of the robot's configuration), render_mode (None or
+    'rgb_array'), render_size (height, width) [px].
+
+    Observation: float32, the robot part (observe_robot: q, dq, flange pose and twist, external
+    wrench estimate, reference pose, stiffness in force) then the task's goal.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
+    #: Size of the task's part of the observation (after the robot's).
+    goal_size = 0
+    default_max_episode_steps = 100
+    default_wrench = False
+    default_start_noise = 0.02
+
+    def __init__(self, robot="panda", engine="mujoco", policy_rate=20.0, max_episode_steps=None,
+                 wrench=None, start_noise=None, action_limits=None, parameters=None,
+                 render_mode=None, render_size=(480, 640)):
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ci.Error("render_mode = %r is not one of %s" %
+                           (render_mode, self.metadata["render_modes"]))
+        if not (float(policy_rate) > 0 and np.isfinite(policy_rate)):
+            raise ci.Error("policy_rate = %r Hz must be finite and > 0" % (policy_rate,))
+        self.render_mode = render_mode
+        self.render_size = (int(render_size[0]), int(render_size[1]))
+        self.metadata = dict(self.metadata, render_fps=float(policy_rate))
+        self.policy_rate = float(policy_rate)
+        self.max_episode_steps = int(max_episode_steps or self.default_max_episode_steps)
+        if self.max_episode_steps < 1:
+            raise ci.Error("max_episode_steps = %d must be >= 1" % self.max_episode_steps)
+        self.start_noise = float(self.default_start_noise if start_noise is None
+                                 else start_noise)
+        self.robot = robot_spec(robot)
+        self.engine = engine
+        self.model = self.robot.load_model()
+        self.parameters = self.robot.load_parameters(self.model)
+        if parameters:
+            self.parameters.update(dict(parameters))
+        # The start configuration, then the scene around it (a task's boxes depend on where the
+        # flange starts).
+        probe = make_simulation(self.robot, self.model, engine)
+        self.start_q = np.array(probe.q)
+        self.start_pose = self.model.compute_pose(self.start_q)
+        self.sim = self.build_simulation(probe)
+        self.parameters["dynamics.armature"] = list(self.sim.armature)
+        self.parameters.validate(self.model.num_joints)
+        self.period = 1.0 / self.policy_rate
+        if isinstance(action_limits, dict):
+            action_limits = ActionLimits(**action_limits)
+        self.actions = ActionInterface(self.parameters,
+                                       self.default_wrench if wrench is None else wrench,
+                                       action_limits)
+        self.action_space = self.actions.action_space
+        size = robot_observation_size(self.model.num_joints) + self.goal_size
+        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(size,), dtype=np.float32)
+        self.loop = None
+        self.goal = np.zeros(self.goal_size)
+        self.steps = 0
+        self._np_random = None
+        self._np_random_seed = None
+        self._render_dir = None
+
+    # ---- what a task defines ----
+
+    def scene_boxes(self):
+        """The static boxes of the task's scene (list of ci.sim.Box); start_pose is known."""
+        return []
+
+    def build_simulation(self, plain):
+        """The task's simulation; `plain` is the robot alone (at start_q). The default adds
+        scene_boxes() to it; a task with more than boxes (a peg attached to the flange) builds
+        its own here."""
+        boxes = self.scene_boxes()
+        return make_simulation(self.robot, self.model, self.engine, boxes) if boxes else plain
+
+    def reset_task(self, rng):
+        """Draws the task's goal (and whatever else it randomises) from rng after the robot has
+        been reset; returns the goal (goal_size,)."""
+        return np.zeros(self.goal_size)
+
+    def task_observation(self):
+        """The task's part of the observation (goal_size,)."""
+        return self.goal
+
+    def evaluate(self):
+        """(reward, terminated, info) after a step; info should hold 'is_success'."""
+        return 0.0, False, {"is_success": False}
+
+    def advance(self):
+        """Runs the simulation and the control loop for one policy period (a task that samples
+        the simulation within the period overrides it)."""
+        self.sim.run(self.loop, self.period)
+
+    # ---- Gymnasium API ----
+
+    @property
+    def np_random(self) -> np.random.Generator:
+        """The environment's generator (reset(seed) seeds it; seeded from fresh entropy when
+        used unseeded)."""
+        if self._np_random is None:
+            self._np_random, self._np_random_seed = spaces.np_random()
+        return self._np_random
+
+    @np_random.setter
+    def np_random(self, value):
+        self._np_random = value
+        self._np_random_seed = -1
+
+    @property
+    def np_random_seed(self) -> int:
+        if self._np_random_seed is None:
+            self._np_random, self._np_random_seed = spaces.np_random()
+        return self._np_random_seed
+
+    @property
+    def unwrapped(self):
+        return self
+
+    def reset(self, *, seed=None, options=None):
+        if seed is not None:
+            self._np_random, self._np_random_seed = spaces.np_random(seed)
+        rng = self.np_random
+        self.sim.reset()
+        q = self.start_q.copy()
+        if self.start_noise > 0:
+            limits = self.model.limits
+            q = np.clip(q + rng.uniform(-self.start_noise, self.start_noise, q.shape),
+                        limits.position_lower, limits.position_upper)
+            self.sim.set_state(q, np.zeros_like(q))
+        self.loop = ci.ControlLoop(self.model, self.parameters)
+        self.loop.start(self.sim.q, self.sim.dq)
+        self.sim.run(self.loop, self.sim.timestep)  # one cycle: the state holds the pose
+        self.actions.reset(self.loop.state.controller.pose)
+        self.steps = 0
+        self.goal = np.asarray(self.reset_task(rng), dtype=float)
+        _, _, info = self.evaluate()
+        return self._observation(), self._info(info)
+
+    def step(self, action):
+        if self.loop is None:
+            raise RuntimeError("call reset() before step()")
+        self.actions.apply(action, self.loop, self.loop.state.controller.pose)
+        self.advance()
+        self.steps += 1
+        reward, terminated, info = self.evaluate()
+        status = self.loop.state.controller.status
+        if status != ci.Status.ok:
+            # The controller failed closed (a fault it names): the episode cannot go on.
+            terminated = True
+            info["fault"] = str(self.loop.state.controller.fault)
+        truncated = self.steps >= self.max_episode_steps
+        return (self._observation(), float(reward), bool(terminated), bool(truncated),
+                self._info(info))
+
+    def render(self):
+        if self.render_mode is None:
+            warnings.warn("render() without a render_mode: make the environment with "
+                          "render_mode='rgb_array'", stacklevel=2)
+            return None
+        try:
+            from PIL import Image
+        except ImportError:
+            raise ImportError("render() reads the offscreen renderer's PNG back with Pillow, "
+                              "which is not installed (Debian: python3-pil)") from None
+        if self._render_dir is None:
+            self._render_dir = tempfile.mkdtemp(prefix="cartesian_impedance_render_")
+        path = os.path.join(self._render_dir, "frame.png")
+        height, width = self.render_size
+        self.sim.render_png(path, width=width, height=height)
+        with Image.open(path) as image:
+            return np.array(image.convert("RGB"), dtype=np.uint8)
+
+    def close(self):
+        if self._render_dir is not None:
+            shutil.rmtree(self._render_dir, ignore_errors=True)
+            self._render_dir = None
+
+    def __del__(self):
+        try:
+            self.close()
+        except Exception:  # noqa: BLE001  (interpreter shutdown)
+            pass
+
+    # ---- helpers for tasks ----
+
+    @property
+    def flange_pose(self):
+        """The measured flange pose (base frame) the controller saw last."""
+        return self.loop.state.controller.pose
+
+    def _observation(self):
+        robot = observe_robot(self.model, self.loop.state, self.actions)
+        return np.concatenate([robot, self.task_observation()]).astype(np.float32)
+
+    def _info(self, info):
+        safety = self.loop.state.controller.safety
+        info.setdefault("is_success", False)
+        info.update(status=str(self.loop.state.controller.status.name),
+                    tank_level=float(safety.tank_level),
+                    stiffness_change_scale=float(safety.stiffness_change_scale),
+                    force_scale=float(safety.force_scale))
+        return info
