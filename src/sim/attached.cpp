@@ -164,7 +164,7 @@ std::vector<Box> hole_boxes(const SquareHole& hole) {
   const auto not_negative = [](const char* field, double value) {
     checks::finite(field, value, "m");
     if (value < 0.0) {
-      const Fault fault{field, -1, value, "is below", 0.0, true, "m"};
+      const Fault fault{field, -1, value, "is not >= 0", 0.0, false, "m"};
       throw Error(fault, to_string(fault));
     }
   };
