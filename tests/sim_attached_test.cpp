@@ -19,6 +19,10 @@
 #include "cartesian_impedance/sim/simulation.hpp"
 #include "support/sim_reference.hpp"
 
+#ifdef CARTESIAN_IMPEDANCE_COUNT_ALLOCATIONS
+#include "support/allocation_counter.hpp"
+#endif
+
 namespace ci = cartesian_impedance;
 namespace sim = cartesian_impedance::sim;
 using ci::JointVector;
@@ -150,6 +154,22 @@ TEST_P(Attached, ThePegStandsOnABlockAndFeelsTheForce) {
   // Welded to the flange: its contacts are the flange's (and link 7's).
   EXPECT_EQ(s.contact_wrench("panda_link8").head<3>(), wrench.head<3>());
 }
+
+#ifdef CARTESIAN_IMPEDANCE_COUNT_ALLOCATIONS
+// Leaving the attached weight out of the compensation costs no allocation (MuJoCo; DART's
+// contact solver allocates anyway).
+TEST(AttachedBoxRealTime, StepAllocatesNothingWithAnAttachedBoxInContact) {
+  sim::Simulation s = sim::make_scene(
+      kPandaXml, {sim::Box::table({0.31, 0.0}, {0.1, 0.1}, 0.47, "block")}, {peg()});
+  s.push("flange", (Vector6d() << 0, 0, -20, 0, 0, 0).finished(),
+         std::numeric_limits<double>::infinity());
+  for (int k = 0; k < 500; ++k) s.step();  // warm up: the peg lands on the block
+  ASSERT_GT(s.contact_wrench("peg")[2], 10.0);
+  allocation_counter::Scope scope;
+  for (int k = 0; k < 1000; ++k) s.step();
+  EXPECT_EQ(scope.allocations(), 0);
+}
+#endif
 
 TEST(AttachedBoxErrors, NameTheFieldTheValueAndTheBodies) {
   sim::AttachedBox box = peg();
