@@ -160,7 +160,7 @@ TEST_P(Attached, ThePegStandsOnABlockAndFeelsTheForce) {
 // contact solver allocates anyway).
 TEST(AttachedBoxRealTime, StepAllocatesNothingWithAnAttachedBoxInContact) {
   sim::Simulation s = sim::make_scene(
-      kPandaXml, {sim::Box::table({0.31, 0.0}, {0.1, 0.1}, 0.47, "block")}, {peg()});
+      kPandaXml, {sim::Box::table({0.31, 0.0}, {0.1, 0.1}, 0.47, "block")}, {peg()}, {});
   s.push("flange", (Vector6d() << 0, 0, -20, 0, 0, 0).finished(),
          std::numeric_limits<double>::infinity());
   for (int k = 0; k < 500; ++k) s.step();  // warm up: the peg lands on the block
@@ -174,31 +174,31 @@ TEST(AttachedBoxRealTime, StepAllocatesNothingWithAnAttachedBoxInContact) {
 TEST(AttachedBoxErrors, NameTheFieldTheValueAndTheBodies) {
   sim::AttachedBox box = peg();
   box.body = "panda_link9";
-  EXPECT_ERROR([&] { sim::make_scene(kPandaXml, {}, {box}); },
+  EXPECT_ERROR([&] { sim::make_scene(kPandaXml, {}, {box}, {}); },
                {"attached[0].body", "panda_link9", "panda_link8"});
-  EXPECT_ERROR([&] { sim::make_scene(kPandaUrdf, {}, {box}); },
+  EXPECT_ERROR([&] { sim::make_scene(kPandaUrdf, {}, {box}, {}); },
                {"attached[0].body", "panda_link9", "panda_link7"});
   box = peg();
   box.half_size.y() = 0.0;
-  EXPECT_ERROR([&] { sim::make_scene(kPandaXml, {}, {box}); }, {"attached[0].half_size", "0"});
+  EXPECT_ERROR([&] { sim::make_scene(kPandaXml, {}, {box}, {}); }, {"attached[0].half_size", "0"});
   box = peg();
   box.mass = -1.0;
   EXPECT_ERROR(
       [&] {
-        sim::make_scene(kPandaXml, {}, {peg(), box});
+        sim::make_scene(kPandaXml, {}, {peg(), box}, {});
       },
       {"attached[1].mass", "-1", "kg"});
   box = peg();
   box.position.x() = std::nan("");
-  EXPECT_ERROR([&] { sim::make_scene(kPandaXml, {}, {box}); }, {"attached[0].position", "nan"});
+  EXPECT_ERROR([&] { sim::make_scene(kPandaXml, {}, {box}, {}); }, {"attached[0].position", "nan"});
   EXPECT_ERROR(
       [&] {
-        sim::make_scene(kPandaXml, {}, {peg(), peg()});
+        sim::make_scene(kPandaXml, {}, {peg(), peg()}, {});
       },
       {"attached[1].name", "'peg'", "used"});
   box = peg();
   box.name = "a\"b";
-  EXPECT_ERROR([&] { sim::make_scene(kPandaXml, {}, {box}); }, {"attached[0].name", "XML"});
+  EXPECT_ERROR([&] { sim::make_scene(kPandaXml, {}, {box}, {}); }, {"attached[0].name", "XML"});
   sim::SceneRobot robot{kPandaUrdf, "left_", Eigen::Vector3d::Zero(), {peg()}};
   robot.attached[0].body = "tool0";
   EXPECT_ERROR([&] { sim::make_robots_scene({robot}); }, {"robots[0].attached[0].body", "tool0"});
@@ -206,7 +206,7 @@ TEST(AttachedBoxErrors, NameTheFieldTheValueAndTheBodies) {
 
 // MJCF (MuJoCo) and a robots scene: the box is there, prefixed with its robot's names.
 TEST(AttachedBoxScenes, MjcfAndRobotsScenesCarryTheBox) {
-  sim::Simulation mjcf = sim::make_scene(kPandaXml, {}, {peg()});
+  sim::Simulation mjcf = sim::make_scene(kPandaXml, {}, {peg()}, {});
   const ci::Pose flange = mjcf.body_pose("panda_link8");
   EXPECT_LT(
       (mjcf.body_pose("peg").position - compose(flange, peg().position, peg().orientation).position)

@@ -275,12 +275,13 @@ Simulation make_scene(const std::string& robot_mjcf, const std::vector<Box>& box
                       SimulationOptions options = {});
 
 /// The same, with `attached` boxes fixed to bodies of the robot (with a URDF robot on either
-/// engine). An attached body must be written in the robot file itself (not in an <include>).
+/// engine). `options` has no default, so that make_scene(robot, boxes, {}) stays the call above. An
+/// attached body must be written in the robot file itself (not in an <include>).
 /// @throw Error as above, or naming attached[i] and the field: a body the robot does not have
 ///        (the message lists its bodies), a non-finite value, a half size or mass not > 0, a
 ///        name used twice or not fit for XML.
 Simulation make_scene(const std::string& robot_mjcf, const std::vector<Box>& boxes,
-                      const std::vector<AttachedBox>& attached, SimulationOptions options = {});
+                      const std::vector<AttachedBox>& attached, SimulationOptions options);
 
 /// A robot of make_robots_scene().
 struct SceneRobot {
