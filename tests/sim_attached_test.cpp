@@ -5,9 +5,13 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <cmath>
+
 #include <cstdio>
+#include <fstream>
 #include <limits>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -131,6 +135,27 @@ TEST_P(Attached, ItsWeightIsNotCompensatedAndJTransposeMgHoldsIt) {
   EXPECT_GT((s.q() - panda_ready()).cwiseAbs().maxCoeff(), 0.05);
   // The import rounds to 6 digits, friction holds the rest.
   EXPECT_LT((held.q() - panda_ready()).cwiseAbs().maxCoeff(), 1e-4) << held.q().transpose();
+}
+
+// An MJCF whose compiler takes every inertia from the geoms still gets the box's mass: the arm
+// (its inertias now those of its shapes, and compensated as such) holds the box with J^T m g.
+TEST(AttachedBoxMjcf, AFileThatTakesInertiaFromGeomsGetsTheBoxsMass) {
+  std::ifstream file(kPandaXml);
+  std::stringstream content;
+  content << file.rdbuf();
+  std::string text = content.str();
+  const std::string original = "inertiafromgeom=\"false\"";
+  ASSERT_NE(text.find(original), std::string::npos);
+  text.replace(text.find(original), original.size(), "inertiafromgeom=\"true\"");
+  const std::string path =
+      ::testing::TempDir() + "sim_attached_test_geom_inertia_" + std::to_string(getpid()) + ".xml";
+  std::ofstream(path) << text;
+  const double mass = 0.4;
+  sim::Simulation s = sim::make_scene(path, {}, {peg(mass)}, {});
+  std::remove(path.c_str());
+  s.set_torque(holding_torque(panda_ready(), s.body_pose("peg").position, mass));
+  for (int k = 0; k < 1000; ++k) s.step();
+  EXPECT_LT((s.q() - panda_ready()).cwiseAbs().maxCoeff(), 1e-4) << s.q().transpose();
 }
 
 // A block 2 cm below the peg's tip; a 20 N push lowers the arm until the peg stands on it. At rest

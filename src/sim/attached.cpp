@@ -140,6 +140,9 @@ std::string attach_boxes(const std::string& document, const std::vector<Attached
     geom->SetAttribute("name", name.c_str());
     geom->SetAttribute("type", "box");
     geom->SetAttribute("size", numbers({s.x(), s.y(), s.z()}).c_str());
+    // The same mass on the geom: a file whose compiler takes inertia from geoms
+    // (inertiafromgeom="true") then computes the same body.
+    geom->SetAttribute("mass", numbers({box.mass}).c_str());
     geom->SetAttribute("contype", 0);
     geom->SetAttribute("conaffinity", 1);
     geom->SetAttribute("rgba", "0.85 0.6 0.15 1");
