@@ -1,5 +1,6 @@
-// Python bindings of the simulation: the submodule cartesian_impedance.sim (Box, Simulation,
-// make_scene, engine_available, offscreen_rendering_available). Built when the simulation library
+// Python bindings of the simulation: the submodule cartesian_impedance.sim (Box, AttachedBox,
+// SquareHole, Simulation, make_scene, hole_boxes, make_peg_in_hole_scene, engine_available,
+// offscreen_rendering_available). Built when the simulation library
 // is (CARTESIAN_IMPEDANCE_PYTHON_SIM).
 
 #include <pybind11/numpy.h>
@@ -22,6 +23,7 @@
 #include "cartesian_impedance/loop/control_loop.hpp"
 #include "cartesian_impedance/model/start_configuration.hpp"
 #include "cartesian_impedance/sim/closed_loop_runner.hpp"
+#include "cartesian_impedance/sim/peg_in_hole.hpp"
 #include "cartesian_impedance/sim/simulation.hpp"
 #include "conversions.hpp"
 #include "module.hpp"
@@ -156,6 +158,108 @@ void bind_simulation(py::module_& m) {
                ", orientation_xyzw=" + numbers_text(b.orientation.coeffs()) + ")";
       });
 
+  py::class_<ci::sim::AttachedBox>(
+      sim, "AttachedBox",
+      "A box fixed to a body of the robot (a peg at the flange, a tool): it moves with the body, "
+      "collides with the scene's boxes and adds its mass and inertia to the arm. The simulated "
+      "firmware's gravity compensation does not know it: declare it to the controller as "
+      "payload.mass and payload.center_of_mass.")
+      .def(py::init([](const std::string& body, ArrayLike half_size, Real mass, ArrayLike position,
+                       ArrayLike orientation, const std::string& name) {
+             ci::sim::AttachedBox box;
+             box.body = body;
+             box.name = name;
+             read_vector(half_size, "half_size", Length{3}, box.half_size);
+             box.mass = read_scalar(mass, "mass");
+             if (!position.is_none()) read_vector(position, "position", Length{3}, box.position);
+             if (!orientation.is_none()) {
+               box.orientation = quaternion_xyzw(orientation, "orientation (x, y, z, w)");
+             }
+             return box;
+           }),
+           py::arg("body"), py::arg("half_size"), py::arg("mass"), py::arg("position") = py::none(),
+           py::arg("orientation") = py::none(), py::arg("name") = "",
+           "body: the robot body (URDF link) it is fixed to, e.g. 'panda_link8'; half_size (3,) "
+           "[m]; mass [kg] > 0 (a solid box's inertia); position (3,) [m] of its centre and "
+           "orientation: quaternion (4,) x, y, z, w of its axes, both in the body's frame "
+           "(default: at the body's origin, aligned); name: its body and geom in the scene "
+           "('' = attached_box_<index>). Checked when a scene is made.")
+      .def_readwrite("name", &ci::sim::AttachedBox::name)
+      .def_readwrite("body", &ci::sim::AttachedBox::body)
+      .def_readwrite("mass", &ci::sim::AttachedBox::mass, "[kg]")
+      .def_property(
+          "position", [](const ci::sim::AttachedBox& b) { return vector_array(b.position); },
+          [](ci::sim::AttachedBox& b, py::handle v) {
+            read_vector(v, "position", Length{3}, b.position);
+          },
+          "(3,) [m], in the body's frame")
+      .def_property(
+          "orientation", [](const ci::sim::AttachedBox& b) { return xyzw_array(b.orientation); },
+          [](ci::sim::AttachedBox& b, py::handle v) {
+            b.orientation = quaternion_xyzw(v, "orientation (x, y, z, w)");
+          },
+          "quaternion (4,) x, y, z, w, in the body's frame")
+      .def_property(
+          "half_size", [](const ci::sim::AttachedBox& b) { return vector_array(b.half_size); },
+          [](ci::sim::AttachedBox& b, py::handle v) {
+            read_vector(v, "half_size", Length{3}, b.half_size);
+          },
+          "(3,) [m]")
+      .def("__repr__", [](const ci::sim::AttachedBox& b) {
+        return "AttachedBox(name='" + b.name + "', body='" + b.body +
+               "', half_size=" + numbers_text(b.half_size) + ", mass=" + format_number(b.mass) +
+               ", position=" + numbers_text(b.position) +
+               ", orientation_xyzw=" + numbers_text(b.orientation.coeffs()) + ")";
+      });
+
+  const ci::sim::SquareHole default_hole;
+  const ci::sim::PegInHole default_peg_in_hole;
+  py::class_<ci::sim::SquareHole>(
+      sim, "SquareHole",
+      "A square hole in a block made of static boxes (hole_boxes()): four walls and a floor.")
+      .def(py::init([](PoseLike opening, Real peg_half_width, Real clearance, Real depth, Real wall,
+                       Real floor, const std::string& name) {
+             ci::sim::SquareHole hole;
+             hole.opening = read_pose(opening, "opening");
+             hole.peg_half_width = read_scalar(peg_half_width, "peg_half_width");
+             hole.clearance = read_scalar(clearance, "clearance");
+             hole.depth = read_scalar(depth, "depth");
+             hole.wall = read_scalar(wall, "wall");
+             hole.floor = read_scalar(floor, "floor");
+             hole.name = name;
+             return hole;
+           }),
+           py::arg("opening"), py::arg("peg_half_width") = default_hole.peg_half_width,
+           py::arg("clearance") = default_hole.clearance, py::arg("depth") = default_hole.depth,
+           py::arg("wall") = default_hole.wall, py::arg("floor") = default_hole.floor,
+           py::arg("name") = default_hole.name,
+           "opening: pose of the centre of the hole's opening in the block's top face (world "
+           "frame; its z axis points out of the hole, its x and y axes along the hole's sides); "
+           "peg_half_width [m]: half the width of the square peg it takes; clearance [m]: hole "
+           "width minus peg width (clearance / 2 on each side of a centred peg); depth [m] to "
+           "the hole's floor; wall [m]: block material beside the hole; floor [m] below it (0: "
+           "a through hole); name: the boxes are <name>_wall_x_plus, ..., <name>_floor.")
+      .def_property(
+          "opening", [](const ci::sim::SquareHole& h) { return h.opening; },
+          [](ci::sim::SquareHole& h, py::handle v) { h.opening = read_pose(v, "opening"); },
+          "Pose of the opening's centre, world frame")
+      .def_readwrite("peg_half_width", &ci::sim::SquareHole::peg_half_width, "[m]")
+      .def_readwrite("clearance", &ci::sim::SquareHole::clearance, "hole width minus peg width [m]")
+      .def_readwrite("depth", &ci::sim::SquareHole::depth, "[m]")
+      .def_readwrite("wall", &ci::sim::SquareHole::wall, "[m]")
+      .def_readwrite("floor", &ci::sim::SquareHole::floor, "[m]")
+      .def_readwrite("name", &ci::sim::SquareHole::name)
+      .def("__repr__", [](const ci::sim::SquareHole& h) {
+        return "SquareHole(opening=" + pose_repr(h.opening) +
+               ", peg_half_width=" + format_number(h.peg_half_width) +
+               ", clearance=" + format_number(h.clearance) + ", depth=" + format_number(h.depth) +
+               ", wall=" + format_number(h.wall) + ", floor=" + format_number(h.floor) +
+               ", name='" + h.name + "')";
+      });
+  sim.def("hole_boxes", &ci::sim::hole_boxes, py::arg("hole"),
+          "The static boxes (list of Box) of the block around a SquareHole: four walls and, "
+          "unless hole.floor is 0, a floor; for make_scene().");
+
   py::class_<Sim> simulation(sim, "Simulation",
                              "A simulated robot (MuJoCo or DART). Not thread-safe: one thread "
                              "drives it. Loaders and setters "
@@ -211,15 +315,50 @@ void bind_simulation(py::module_& m) {
             [](PathLike path, const std::vector<ci::sim::Box>& boxes, Real timestep,
                bool gravity_compensation, const std::string& keyframe,
                std::optional<std::vector<std::string>> names, bool multi_point_contacts,
-               py::object start_q, py::object armature, const std::string& engine) {
+               py::object start_q, py::object armature, const std::string& engine,
+               const std::vector<ci::sim::AttachedBox>& attached) {
               return std::make_unique<Sim>(ci::sim::make_scene(
-                  read_path(path, "robot_mjcf"), boxes,
+                  read_path(path, "robot_mjcf"), boxes, attached,
                   simulation_options(timestep, gravity_compensation, keyframe, names,
                                      multi_point_contacts, start_q, armature, engine)));
             },
             py::arg("robot_mjcf"), py::arg("boxes"), args...,
-            (std::string("Loads the MJCF robot file with the boxes (a list of Box) added to its "
-                         "world, writing no file.") +
+            py::arg("attached") = std::vector<ci::sim::AttachedBox>{},
+            (std::string("Loads the robot file (MJCF, or URDF as from_urdf_file() completes it) "
+                         "with the boxes (a list of Box) added to its world and the attached "
+                         "boxes (a list of AttachedBox) fixed to its bodies, writing no file.") +
+             options_doc)
+                .c_str());
+        sim.def(
+            "make_peg_in_hole_scene",
+            [](PathLike robot, const std::string& flange, const ci::sim::SquareHole& hole,
+               Real peg_length, Real peg_mass, const std::string& peg_name, Real timestep,
+               bool gravity_compensation, const std::string& keyframe,
+               std::optional<std::vector<std::string>> names, bool multi_point_contacts,
+               py::object start_q, py::object armature, const std::string& engine) {
+              ci::sim::PegInHole scene;
+              scene.robot = read_path(robot, "robot");
+              scene.flange = flange;
+              scene.hole = hole;
+              scene.peg_length = read_scalar(peg_length, "peg_length");
+              scene.peg_mass = read_scalar(peg_mass, "peg_mass");
+              scene.peg_name = peg_name;
+              return std::make_unique<Sim>(ci::sim::make_peg_in_hole_scene(
+                  scene, simulation_options(timestep, gravity_compensation, keyframe, names,
+                                            multi_point_contacts, start_q, armature, engine)));
+            },
+            py::arg("robot"), py::arg("flange"), py::arg("hole"),
+            py::arg("peg_length") = default_peg_in_hole.peg_length,
+            py::arg("peg_mass") = default_peg_in_hole.peg_mass,
+            py::arg("peg_name") = default_peg_in_hole.peg_name, args...,
+            (std::string("The robot (URDF: MuJoCo or DART; MJCF: MuJoCo) holding a square peg "
+                         "of 2 hole.peg_half_width x 2 hole.peg_half_width x peg_length [m] and "
+                         "peg_mass [kg] along the flange body's z axis from its origin (the tip "
+                         "at (0, 0, peg_length) in the flange frame, the sides along its x and "
+                         "y), named peg_name, with the block of the SquareHole `hole` in the "
+                         "world. The simulated firmware does not compensate the peg's weight: "
+                         "declare it to the controller as payload.mass = peg_mass, "
+                         "payload.center_of_mass = (0, 0, peg_length / 2).") +
              options_doc)
                 .c_str());
       },

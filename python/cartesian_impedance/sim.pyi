@@ -8,6 +8,41 @@ import numpy
 import numpy.typing
 import cartesian_impedance
 
+class AttachedBox:
+    """A box fixed to a body of the robot (a peg at the flange, a tool): it moves with the body, collides with the scene's boxes and adds its mass and inertia to the arm. The simulated firmware's gravity compensation does not know it: declare it to the controller as payload.mass and payload.center_of_mass."""
+    def __init__(self, body: str, half_size: numpy.typing.ArrayLike, mass: float, position: numpy.typing.ArrayLike = ..., orientation: numpy.typing.ArrayLike = ..., name: str = ...) -> None:
+        """body: the robot body (URDF link) it is fixed to, e.g. 'panda_link8'; half_size (3,) [m]; mass [kg] > 0 (a solid box's inertia); position (3,) [m] of its centre and orientation: quaternion (4,) x, y, z, w of its axes, both in the body's frame (default: at the body's origin, aligned); name: its body and geom in the scene ('' = attached_box_<index>). Checked when a scene is made."""
+    def __repr__(self) -> str: ...
+    @property
+    def body(self) -> str: ...
+    @body.setter
+    def body(self, value: str) -> None: ...
+    @property
+    def half_size(self) -> numpy.typing.NDArray[numpy.float64]:
+        """(3,) [m]"""
+    @half_size.setter
+    def half_size(self, value: numpy.typing.ArrayLike) -> None: ...
+    @property
+    def mass(self) -> float:
+        """[kg]"""
+    @mass.setter
+    def mass(self, value: float) -> None: ...
+    @property
+    def name(self) -> str: ...
+    @name.setter
+    def name(self, value: str) -> None: ...
+    @property
+    def orientation(self) -> numpy.typing.NDArray[numpy.float64]:
+        """quaternion (4,) x, y, z, w, in the body's frame"""
+    @orientation.setter
+    def orientation(self, value: numpy.typing.ArrayLike) -> None: ...
+    @property
+    def position(self) -> numpy.typing.NDArray[numpy.float64]:
+        """(3,) [m], in the body's frame"""
+    @position.setter
+    def position(self, value: numpy.typing.ArrayLike) -> None: ...
+
+
 class Box:
     """A static box (table, wall, step) that collides with the robot."""
     def __init__(self, center: numpy.typing.ArrayLike, half_size: numpy.typing.ArrayLike, orientation: numpy.typing.ArrayLike = ..., name: str = ...) -> None:
@@ -107,12 +142,61 @@ class Simulation:
         """(n,) [Nm]; +inf without a limited actuator"""
 
 
+class SquareHole:
+    """A square hole in a block made of static boxes (hole_boxes()): four walls and a floor."""
+    def __init__(self, opening: Pose | tuple[numpy.typing.ArrayLike, numpy.typing.ArrayLike] | numpy.typing.ArrayLike, peg_half_width: float = ..., clearance: float = ..., depth: float = ..., wall: float = ..., floor: float = ..., name: str = ...) -> None:
+        """opening: pose of the centre of the hole's opening in the block's top face (world frame; its z axis points out of the hole, its x and y axes along the hole's sides); peg_half_width [m]: half the width of the square peg it takes; clearance [m]: hole width minus peg width (clearance / 2 on each side of a centred peg); depth [m] to the hole's floor; wall [m]: block material beside the hole; floor [m] below it (0: a through hole); name: the boxes are <name>_wall_x_plus, ..., <name>_floor."""
+    def __repr__(self) -> str: ...
+    @property
+    def clearance(self) -> float:
+        """hole width minus peg width [m]"""
+    @clearance.setter
+    def clearance(self, value: float) -> None: ...
+    @property
+    def depth(self) -> float:
+        """[m]"""
+    @depth.setter
+    def depth(self, value: float) -> None: ...
+    @property
+    def floor(self) -> float:
+        """[m]"""
+    @floor.setter
+    def floor(self, value: float) -> None: ...
+    @property
+    def name(self) -> str: ...
+    @name.setter
+    def name(self, value: str) -> None: ...
+    @property
+    def opening(self) -> cartesian_impedance.Pose:
+        """Pose of the opening's centre, world frame"""
+    @opening.setter
+    def opening(self, value: object) -> None: ...
+    @property
+    def peg_half_width(self) -> float:
+        """[m]"""
+    @peg_half_width.setter
+    def peg_half_width(self, value: float) -> None: ...
+    @property
+    def wall(self) -> float:
+        """[m]"""
+    @wall.setter
+    def wall(self, value: float) -> None: ...
+
+
 def engine_available(engine: str) -> Tuple[bool, str]:
     """(available, reason): whether this build can simulate with the engine 'mujoco' or 'dart', and why not. Raises Error for an unknown name."""
 
 
-def make_scene(robot_mjcf: str | os.PathLike, boxes: List[Box], timestep: float = ..., gravity_compensation: bool = ..., keyframe: str = ..., joint_names: Optional[List[str]] = ..., multi_point_contacts: bool = ..., start_q: object = ..., armature: object = ..., engine: str = ...) -> Simulation:
-    """Loads the MJCF robot file with the boxes (a list of Box) added to its world, writing no file. Options: timestep [s] (replaces the model's); gravity_compensation: each joint receives tau + g(q), as robot firmware does; keyframe to reset to ('' or missing: the model's default qpos); joint_names: order of q, dq and tau (default: the model's hinge and slide joints); multi_point_contacts: steadier face-on-face contact forces; start_q: joint positions (n,) [rad or m] to start from and reset() to, instead of the keyframe, each checked against its joint's range; armature: rotor inertia per joint (n,) or one value for all [kg m^2], replacing the model's (use the same for the controller's dynamics.armature); engine: the physics engine, 'mujoco' or 'dart' (DART needs the robot from URDF; see engine_available())."""
+def hole_boxes(hole: SquareHole) -> List[Box]:
+    """The static boxes (list of Box) of the block around a SquareHole: four walls and, unless hole.floor is 0, a floor; for make_scene()."""
+
+
+def make_peg_in_hole_scene(robot: str | os.PathLike, flange: str, hole: SquareHole, peg_length: float = ..., peg_mass: float = ..., peg_name: str = ..., timestep: float = ..., gravity_compensation: bool = ..., keyframe: str = ..., joint_names: Optional[List[str]] = ..., multi_point_contacts: bool = ..., start_q: object = ..., armature: object = ..., engine: str = ...) -> Simulation:
+    """The robot (URDF: MuJoCo or DART; MJCF: MuJoCo) holding a square peg of 2 hole.peg_half_width x 2 hole.peg_half_width x peg_length [m] and peg_mass [kg] along the flange body's z axis from its origin (the tip at (0, 0, peg_length) in the flange frame, the sides along its x and y), named peg_name, with the block of the SquareHole `hole` in the world. The simulated firmware does not compensate the peg's weight: declare it to the controller as payload.mass = peg_mass, payload.center_of_mass = (0, 0, peg_length / 2). Options: timestep [s] (replaces the model's); gravity_compensation: each joint receives tau + g(q), as robot firmware does; keyframe to reset to ('' or missing: the model's default qpos); joint_names: order of q, dq and tau (default: the model's hinge and slide joints); multi_point_contacts: steadier face-on-face contact forces; start_q: joint positions (n,) [rad or m] to start from and reset() to, instead of the keyframe, each checked against its joint's range; armature: rotor inertia per joint (n,) or one value for all [kg m^2], replacing the model's (use the same for the controller's dynamics.armature); engine: the physics engine, 'mujoco' or 'dart' (DART needs the robot from URDF; see engine_available())."""
+
+
+def make_scene(robot_mjcf: str | os.PathLike, boxes: List[Box], timestep: float = ..., gravity_compensation: bool = ..., keyframe: str = ..., joint_names: Optional[List[str]] = ..., multi_point_contacts: bool = ..., start_q: object = ..., armature: object = ..., engine: str = ..., attached: List[AttachedBox] = ...) -> Simulation:
+    """Loads the robot file (MJCF, or URDF as from_urdf_file() completes it) with the boxes (a list of Box) added to its world and the attached boxes (a list of AttachedBox) fixed to its bodies, writing no file. Options: timestep [s] (replaces the model's); gravity_compensation: each joint receives tau + g(q), as robot firmware does; keyframe to reset to ('' or missing: the model's default qpos); joint_names: order of q, dq and tau (default: the model's hinge and slide joints); multi_point_contacts: steadier face-on-face contact forces; start_q: joint positions (n,) [rad or m] to start from and reset() to, instead of the keyframe, each checked against its joint's range; armature: rotor inertia per joint (n,) or one value for all [kg m^2], replacing the model's (use the same for the controller's dynamics.armature); engine: the physics engine, 'mujoco' or 'dart' (DART needs the robot from URDF; see engine_available())."""
 
 
 def offscreen_rendering_available() -> Tuple[bool, str]:

@@ -179,6 +179,31 @@ dd::SkeletonPtr load_robot(const SceneRobot& robot) {
       body->changeParentJointType<ArmaturePrismaticJoint>(prismatic->getPrismaticJointProperties());
     }
   }
+  // Attached boxes: welded bodies with the box's inertia and shape, as in the MuJoCo scene.
+  for (std::size_t i = 0; i < robot.attached.size(); ++i) {
+    const AttachedBox& box = robot.attached[i];
+    dd::BodyNode* parent = skeleton->getBodyNode(robot.prefix + box.body);
+    if (parent == nullptr) {
+      fail("attached[" + std::to_string(i) + "].body = '" + box.body + "' is not a link of '" +
+           robot.urdf + "'");
+    }
+    dd::WeldJoint::Properties joint;
+    joint.mName = robot.prefix + attached_name(box, i) + "_joint";
+    joint.mT_ParentBodyToJoint.linear() = box.orientation.normalized().toRotationMatrix();
+    joint.mT_ParentBodyToJoint.translation() = box.position;
+    dd::BodyNode::Properties body;
+    body.mName = robot.prefix + attached_name(box, i);
+    const Eigen::Vector3d& s = box.half_size;
+    const double third = box.mass / 3.0;
+    body.mInertia = dd::Inertia(box.mass, Eigen::Vector3d::Zero(),
+                                Eigen::Vector3d(third * (s.y() * s.y() + s.z() * s.z()),
+                                                third * (s.x() * s.x() + s.z() * s.z()),
+                                                third * (s.x() * s.x() + s.y() * s.y()))
+                                    .asDiagonal());
+    auto pair = skeleton->createJointAndBodyNodePair<dd::WeldJoint>(parent, joint, body);
+    pair.second->createShapeNodeWith<dd::CollisionAspect, dd::DynamicsAspect>(
+        std::make_shared<dd::BoxShape>(2.0 * box.half_size));
+  }
   dd::Joint* root = skeleton->getRootJoint();
   Eigen::Isometry3d base = root->getTransformFromParentBodyNode();
   base.translation() += robot.base_position;
@@ -219,6 +244,7 @@ class DartPhysics final : public Physics {
   struct JointLink {  // a MuJoCo joint and its DART degree of freedom
     int qpos = 0, dof = 0;
     dd::Skeleton* skeleton = nullptr;
+    const dd::Joint* joint = nullptr;
     std::size_t index = 0;  // in the skeleton
   };
   dart::simulation::WorldPtr world_;
@@ -227,6 +253,8 @@ class DartPhysics final : public Physics {
   std::vector<JointLink> exchanged_;                      // in Impl::joint_ids order
   std::vector<dd::BodyNode*> bodies_;                     // per MuJoCo body id; null for the world
   std::unordered_map<const dd::BodyNode*, int> weld_of_;  // MuJoCo weld id per DART body
+  // (exchanged joint, attached body in its subtree): weight the firmware does not compensate.
+  std::vector<std::pair<std::size_t, const dd::BodyNode*>> uncompensated_;
   bool contacts_valid_ = false;
 };
 
@@ -313,12 +341,38 @@ DartPhysics::DartPhysics(const UrdfScene& scene, const Simulation::Impl& impl)
     link.qpos = m->jnt_qposadr[joint];
     link.dof = dof;
     link.skeleton = dart_joint->getSkeleton().get();
+    link.joint = dart_joint;
     link.index = dart_joint->getDof(0)->getIndexInSkeleton();
     joints_.push_back(link);
     const auto exchanged = std::find(impl.joint_ids.begin(), impl.joint_ids.end(), joint);
     if (exchanged != impl.joint_ids.end()) exchanged_[exchanged - impl.joint_ids.begin()] = link;
   }
+  for (const auto& [k, body] : impl.uncompensated) {
+    const char* name = mj_id2name(m, mjOBJ_BODY, body);
+    uncompensated_.emplace_back(static_cast<std::size_t>(k),
+                                bodies_[static_cast<std::size_t>(body)]);
+    if (uncompensated_.back().second == nullptr) {
+      fail("attached body '" + std::string(name != nullptr ? name : "") +
+           "' is not in DART's model");
+    }
+  }
   set_state(impl);
+}
+
+// What gravity acting on `body` contributes to the generalized force of joint `link` (a
+// revolute or prismatic joint with `body` in its subtree): a . ((c - p) x m g) for a hinge of
+// world axis a at p, a . m g for a slide, c the body's centre of mass.
+double gravity_moment(const dd::Joint& joint, const dd::BodyNode& body,
+                      const Eigen::Vector3d& gravity) {
+  const Eigen::Isometry3d frame =
+      joint.getChildBodyNode()->getWorldTransform() * joint.getTransformFromChildBodyNode();
+  const Eigen::Vector3d weight = body.getMass() * gravity;
+  if (const auto* revolute = dynamic_cast<const dd::RevoluteJoint*>(&joint)) {
+    const Eigen::Vector3d axis = frame.linear() * revolute->getAxis();
+    return axis.dot((body.getCOM() - frame.translation()).cross(weight));
+  }
+  const auto& prismatic = static_cast<const dd::PrismaticJoint&>(joint);
+  return (frame.linear() * prismatic.getAxis()).dot(weight);
 }
 
 void DartPhysics::set_state(const Simulation::Impl& impl) {
@@ -341,6 +395,14 @@ void DartPhysics::step(Simulation::Impl& impl) noexcept {
     double force = impl.tau[static_cast<Eigen::Index>(k)];
     if (impl.gravity_on) force += joint.skeleton->getGravityForces()[joint.index];
     joint.skeleton->setForce(joint.index, force);
+  }
+  if (impl.gravity_on) {
+    const Eigen::Vector3d gravity = world_->getGravity();
+    for (const auto& [k, body] : uncompensated_) {
+      const JointLink& joint = exchanged_[k];
+      joint.skeleton->setForce(joint.index, joint.skeleton->getForce(joint.index) +
+                                                gravity_moment(*joint.joint, *body, gravity));
+    }
   }
   impl.expire_pushes();
   for (const Push& push : impl.pushes) {

@@ -116,9 +116,17 @@ Simulation make_robots_scene(const std::vector<SceneRobot>& robots, SimulationOp
     compiler->DeleteAttribute("meshdir");  // every mesh file below is absolute
   }
 
-  for (const SceneRobot& robot : robots) {
+  std::vector<std::string> attached_names;
+  for (std::size_t r = 0; r < robots.size(); ++r) {
+    const SceneRobot& robot = robots[r];
     tinyxml2::XMLDocument imported;
-    imported.Parse(detail::mjcf_from_urdf(robot.urdf, detail::UrdfImportOptions{}).c_str());
+    imported.Parse(detail::attach_boxes(
+                       detail::mjcf_from_urdf(robot.urdf, detail::UrdfImportOptions{}),
+                       robot.attached, "robots[" + std::to_string(r) + "].attached", robot.urdf)
+                       .c_str());
+    for (std::size_t i = 0; i < robot.attached.size(); ++i) {
+      attached_names.push_back(robot.prefix + detail::attached_name(robot.attached[i], i));
+    }
     const fs::path meshes = mesh_directory(imported, robot.urdf);
     tinyxml2::XMLElement* asset = section(imported, "asset");
     for (tinyxml2::XMLElement* mesh = asset->FirstChildElement("mesh"); mesh != nullptr;
@@ -153,7 +161,7 @@ Simulation make_robots_scene(const std::vector<SceneRobot>& robots, SimulationOp
   const detail::UrdfScene urdf_scene{robots, {}};
   return detail::load_simulation((first.parent_path() / name).string(), file.vfs(),
                                  "scene of " + std::to_string(robots.size()) + " robots",
-                                 std::move(options), &urdf_scene);
+                                 std::move(options), &urdf_scene, attached_names);
 }
 
 }  // namespace cartesian_impedance::sim

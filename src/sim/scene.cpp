@@ -53,6 +53,12 @@ Box Box::table(const Eigen::Vector2d& center_xy, const Eigen::Vector2d& half_siz
 
 Simulation make_scene(const std::string& robot_mjcf, const std::vector<Box>& boxes,
                       SimulationOptions options) {
+  return make_scene(robot_mjcf, boxes, {}, std::move(options));
+}
+
+Simulation make_scene(const std::string& robot_mjcf, const std::vector<Box>& boxes,
+                      const std::vector<AttachedBox>& attached, SimulationOptions options) {
+  detail::check_attached(attached, "attached");
   std::ostringstream geoms;
   geoms.imbue(std::locale::classic());
   geoms.precision(17);
@@ -107,7 +113,12 @@ Simulation make_scene(const std::string& robot_mjcf, const std::vector<Box>& box
   std::optional<detail::UrdfScene> urdf_scene;
   if (root_element(document) == "robot") {
     document = detail::mjcf_from_urdf(robot_mjcf, detail::UrdfImportOptions{});
-    urdf_scene = detail::UrdfScene{{SceneRobot{robot_mjcf, "", Eigen::Vector3d::Zero()}}, boxes};
+    urdf_scene =
+        detail::UrdfScene{{SceneRobot{robot_mjcf, "", Eigen::Vector3d::Zero(), attached}}, boxes};
+  }
+  std::vector<std::string> attached_names;
+  for (std::size_t i = 0; i < attached.size(); ++i) {
+    attached_names.push_back(detail::attached_name(attached[i], i));
   }
   const std::string root = root_element(document);
   const std::size_t end = document.rfind("</mujoco>");
@@ -116,6 +127,7 @@ Simulation make_scene(const std::string& robot_mjcf, const std::vector<Box>& box
                 "> instead of <mujoco>); expected an MJCF robot file");
   }
   document.insert(end, geoms.str());
+  document = detail::attach_boxes(document, attached, "attached", robot_mjcf);
 
   // The combined document goes into MuJoCo's virtual file system under a name in the robot
   // file's directory: the loader finds it there first, and resolves the robot's relative
@@ -134,7 +146,8 @@ Simulation make_scene(const std::string& robot_mjcf, const std::vector<Box>& box
   const int index = mj_findFileVFS(vfs.get(), scene_name.c_str());
   std::copy(document.begin(), document.end(), static_cast<char*>(vfs->filedata[index]));
   return detail::load_simulation(scene_path, vfs.get(), "scene (" + robot_mjcf + " with boxes)",
-                                 std::move(options), urdf_scene ? &*urdf_scene : nullptr);
+                                 std::move(options), urdf_scene ? &*urdf_scene : nullptr,
+                                 attached_names);
 }
 
 }  // namespace cartesian_impedance::sim

@@ -91,7 +91,8 @@ std::string list_names(const mjModel* model, int type) {
 }
 
 Simulation load_simulation(const std::string& path, const mjVFS* vfs, const std::string& kind,
-                           SimulationOptions options, const UrdfScene* urdf_scene) {
+                           SimulationOptions options, const UrdfScene* urdf_scene,
+                           const std::vector<std::string>& uncompensated_bodies) {
   if (options.engine == Engine::dart && urdf_scene == nullptr) {
     throw Error("engine 'dart' cannot simulate " + kind + " file '" + path +
                 "': DART loads URDF files (Simulation::from_urdf_file, make_scene with a URDF "
@@ -285,6 +286,19 @@ Simulation load_simulation(const std::string& path, const mjVFS* vfs, const std:
                      (model->opt.disableflags & mjDSBL_GRAVITY) == 0 &&
                      (model->opt.gravity[0] != 0.0 || model->opt.gravity[1] != 0.0 ||
                       model->opt.gravity[2] != 0.0);
+  for (const std::string& name : uncompensated_bodies) {
+    const int body = mj_name2id(model, mjOBJ_BODY, name.c_str());
+    if (body < 0) throw Error("attached body '" + name + "' is missing from the compiled scene");
+    for (int k = 0; k < n; ++k) {
+      const int joint_body = model->jnt_bodyid[joints[k]];
+      for (int b = body; b > 0; b = model->body_parentid[b]) {
+        if (b == joint_body) {
+          impl->uncompensated.emplace_back(k, body);
+          break;
+        }
+      }
+    }
+  }
   impl->options = std::move(options);
   impl->pushes.reserve(16);
   impl->q = JointVector::Zero(n);
@@ -371,6 +385,24 @@ void Simulation::Impl::apply_inputs() noexcept {
       generalized_force += tau[i];
     }
     d->qfrc_applied[dof_address[k]] += generalized_force;
+  }
+  // An attached body's weight is a load the firmware does not know: add back what the
+  // compensation above took from it (the same moment, of its own mass at its own centre).
+  for (const auto& [k, body] : uncompensated) {
+    if (!gravity_on) break;
+    const int joint = joint_ids[static_cast<std::size_t>(k)];
+    const mjtNum mass = m->body_mass[body];
+    const mjtNum* axis = d->xaxis + 3 * joint;
+    const mjtNum weight[3] = {mass * gravity[0], mass * gravity[1], mass * gravity[2]};
+    double generalized_force = mju_dot3(axis, weight);
+    if (m->jnt_type[joint] == mjJNT_HINGE) {
+      mjtNum lever[3];
+      mjtNum moment[3];
+      mju_sub3(lever, d->xipos + 3 * body, d->xanchor + 3 * joint);
+      mju_cross(moment, lever, weight);
+      generalized_force = mju_dot3(axis, moment);
+    }
+    d->qfrc_applied[dof_address[static_cast<std::size_t>(k)]] += generalized_force;
   }
 
   // Pushes: xfrc_applied acts at the body's centre of mass (xipos), so a wrench given at a point

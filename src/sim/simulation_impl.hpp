@@ -6,6 +6,7 @@
 
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cartesian_impedance/core/error.hpp"
@@ -48,8 +49,21 @@ struct UrdfScene {
 /// Compiles `path` (looked up in `vfs` first when given) and builds the simulation.
 /// `kind` ("MJCF", "URDF", "scene") only shapes error messages. `urdf_scene` describes the same
 /// scene from its URDF files (nullptr for an MJCF model, which only MuJoCo can simulate).
+/// `uncompensated_bodies`: bodies (attached boxes) whose weight the gravity compensation leaves
+/// out.
 Simulation load_simulation(const std::string& path, const mjVFS* vfs, const std::string& kind,
-                           SimulationOptions options, const UrdfScene* urdf_scene = nullptr);
+                           SimulationOptions options, const UrdfScene* urdf_scene = nullptr,
+                           const std::vector<std::string>& uncompensated_bodies = {});
+
+/// The name of attached box `index`: its own, or "attached_box_<index>".
+std::string attached_name(const AttachedBox& box, std::size_t index);
+/// Checks every attached box; errors name `field`[i] and the member.
+void check_attached(const std::vector<AttachedBox>& attached, const std::string& field);
+/// The MJCF `document` with each box welded to its body as a body of its own (inertial and box
+/// geom). Checks them first.
+/// @throw Error naming `field`[i] for a bad box or a body `source` does not have.
+std::string attach_boxes(const std::string& document, const std::vector<AttachedBox>& attached,
+                         const std::string& field, const std::string& source);
 
 /// A MuJoCo virtual file system holding one document (about 2 MB: kept off the stack).
 class VirtualFile {
@@ -129,6 +143,9 @@ struct Simulation::Impl {
   JointVector tau_lower, tau_upper;  // joint torque range
 
   std::vector<Push> pushes;
+  // (exchanged joint, attached body) for every attached body in that joint's subtree: the
+  // firmware's compensation takes their weight back out (they are a load it does not know).
+  std::vector<std::pair<int, int>> uncompensated;
   bool gravity_on = false;  // compensation requested and gravity enabled in the model
   mutable bool kinematics_current = true;  // xpos, site_xpos, ... belong to the current qpos
 

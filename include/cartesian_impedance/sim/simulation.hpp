@@ -248,6 +248,24 @@ struct Box {
                    double top_z, const std::string& name = "");
 };
 
+/// A box fixed to a body of a robot: a peg at the flange, a tool, a grasped part. It moves with
+/// the body, collides with the scene's static boxes (not with the robot itself), and adds its
+/// mass and inertia (a solid box of uniform density) to the body, on both engines: a body of
+/// its own, named `name`, welded to `body` (body_pose() and contact_wrench() take that name; the
+/// contact_wrench() of `body` includes it).
+///
+/// The simulated firmware's gravity compensation (SimulationOptions::gravity_compensation) does
+/// not know it, as a real arm's firmware does not know an undeclared load: its weight pulls on
+/// the arm unless the controller declares it (`payload.mass`, `payload.center_of_mass`).
+struct AttachedBox {
+  std::string name;  ///< its body and geom; "" = "attached_box_<index>" (with the robot's prefix)
+  std::string body;  ///< the robot body (URDF link) it is fixed to, e.g. "panda_link8"
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  ///< its centre in `body`'s frame [m]
+  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  ///< its axes in `body`'s
+  Eigen::Vector3d half_size = Eigen::Vector3d::Constant(0.01);      ///< half extents [m], each > 0
+  double mass = 0.1;  ///< [kg] > 0; inertia m (b^2 + c^2) / 3 about its axes (half sizes a, b, c)
+};
+
 /// Loads the MJCF robot file with the boxes added to its world, without writing any file (the
 /// combined document is held in MuJoCo's virtual file system, placed in the robot file's
 /// directory so that its relative asset and include paths still resolve).
@@ -256,6 +274,15 @@ struct Box {
 Simulation make_scene(const std::string& robot_mjcf, const std::vector<Box>& boxes,
                       SimulationOptions options = {});
 
+/// The same, with `attached` boxes fixed to bodies of the robot (with a URDF robot on either
+/// engine). `options` has no default, so that make_scene(robot, boxes, {}) stays the call above. An
+/// attached body must be written in the robot file itself (not in an <include>).
+/// @throw Error as above, or naming attached[i] and the field: a body the robot does not have
+///        (the message lists its bodies), a non-finite value, a half size or mass not > 0, a
+///        name used twice or not fit for XML.
+Simulation make_scene(const std::string& robot_mjcf, const std::vector<Box>& boxes,
+                      const std::vector<AttachedBox>& attached, SimulationOptions options);
+
 /// A robot of make_robots_scene().
 struct SceneRobot {
   std::string urdf;    ///< URDF file, simulated as Simulation::from_urdf_file() would
@@ -263,6 +290,8 @@ struct SceneRobot {
   /// Its root link, world frame [m]. (Write Eigen::Vector3d::Zero(), not {}: an Eigen vector
   /// made from {} is left uninitialised.)
   Eigen::Vector3d base_position = Eigen::Vector3d::Zero();
+  /// Boxes fixed to its bodies (AttachedBox::body without the prefix; their names get it too).
+  std::vector<AttachedBox> attached = {};
 };
 
 /// Several URDF robots in one world (two copies of one arm side by side, or different arms), each
