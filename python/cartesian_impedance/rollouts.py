@@ -198,7 +198,7 @@ class Pool:
                         submit(number)
                         continue
                     params, seed = chunks[number][0]
-                    what = ("its worker process died %d times (retries=%d)"
+                    what = ("its worker process died on each of its %d runs (retries=%d)"
                             % (attempts[number] + 1, self.retries)
                             if isinstance(error, KilledWorker) else
                             "failed in Dask: %s: %s" % (type(error).__name__, error))

@@ -1,0 +1,189 @@
+#include "cartesian_impedance/sim/batch_runner.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <exception>
+#include <string>
+
+#include "cartesian_impedance/core/error.hpp"
+
+namespace cartesian_impedance::sim {
+
+namespace {
+
+std::string pair_name(std::size_t index) {
+  return "pair " + std::to_string(index);
+}
+
+// As ClosedLoopRunner::run_for counts them, so a batch advances each pair exactly as far.
+std::int64_t steps_for(double seconds, const Simulation& simulation, std::size_t index) {
+  const double steps = seconds / simulation.timestep();
+  constexpr double kMaxSteps = 9e18;  // below 2^63: llround of more is undefined
+  if (!(steps <= kMaxSteps)) {
+    throw Error(pair_name(index) + ": seconds = " + format_number(seconds) + " is " +
+                format_number(steps) + " timesteps of " + format_number(simulation.timestep()) +
+                " s, more than the " + format_number(kMaxSteps) + " a run can count");
+  }
+  return std::llround(steps);
+}
+
+}  // namespace
+
+BatchRunner::BatchRunner(const std::vector<BatchPair>& pairs, int threads) {
+  if (pairs.empty()) throw Error("a batch needs at least one (simulation, control loop) pair");
+  if (threads < 0 || threads > kMaxThreads) {
+    throw Error("threads = " + std::to_string(threads) + " is outside [0, " +
+                std::to_string(kMaxThreads) + "] (0 = one per core)");
+  }
+  for (std::size_t i = 0; i < pairs.size(); ++i) {
+    const BatchPair& pair = pairs[i];
+    if (pair.simulation == nullptr) throw Error(pair_name(i) + ": the simulation is null");
+    if (pair.loop == nullptr) throw Error(pair_name(i) + ": the control loop is null");
+    for (std::size_t j = 0; j < i; ++j) {
+      if (pairs[j].simulation == pair.simulation) {
+        throw Error(pair_name(i) + ": its simulation is also pair " + std::to_string(j) +
+                    "'s; each pair needs its own (they would run in parallel)");
+      }
+      if (pairs[j].loop == pair.loop) {
+        throw Error(pair_name(i) + ": its control loop is also pair " + std::to_string(j) +
+                    "'s; each pair needs its own (they would run in parallel)");
+      }
+    }
+    try {
+      runners_.push_back(std::make_unique<ClosedLoopRunner>(*pair.simulation, *pair.loop));
+      loops_.push_back(pair.loop);
+    } catch (const Error& error) {
+      throw Error(pair_name(i) + ": " + error.what());
+    }
+  }
+  planned_.assign(pairs.size(), 0);
+  done_.assign(pairs.size(), 0);
+
+  if (threads == 0) {
+    threads = static_cast<int>(std::min<unsigned>(std::max(1u, std::thread::hardware_concurrency()),
+                                                  static_cast<unsigned>(kMaxThreads)));
+  }
+  threads = std::min(threads, static_cast<int>(pairs.size()));
+  workers_.reserve(static_cast<std::size_t>(threads));
+  try {
+    for (int k = 0; k < threads; ++k) workers_.emplace_back([this] { serve(); });
+  } catch (...) {
+    stop_workers();  // a thread that could not be started: end those that were
+    throw;
+  }
+}
+
+BatchRunner::~BatchRunner() {
+  stop_workers();
+}
+
+void BatchRunner::stop_workers() noexcept {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    exiting_ = true;
+  }
+  wake_.notify_all();
+  for (std::thread& worker : workers_) {
+    if (worker.joinable()) worker.join();
+  }
+}
+
+ClosedLoopRunner& BatchRunner::runner(std::size_t index) {
+  if (index >= runners_.size()) {
+    throw Error("pair index " + std::to_string(index) + " is outside [0, " +
+                std::to_string(runners_.size()) + ")");
+  }
+  return *runners_[index];
+}
+
+const std::vector<std::int64_t>& BatchRunner::run(std::int64_t steps, const Poll& poll,
+                                                  double poll_interval) {
+  if (steps < 0) throw Error("steps = " + std::to_string(steps) + " must be >= 0");
+  std::fill(planned_.begin(), planned_.end(), steps);
+  run_planned(poll, poll_interval);
+  return done_;
+}
+
+const std::vector<std::int64_t>& BatchRunner::run_for(double seconds, const Poll& poll,
+                                                      double poll_interval) {
+  if (!(seconds >= 0.0) || !std::isfinite(seconds)) {
+    throw Error("seconds = " + format_number(seconds) + " must be finite and >= 0");
+  }
+  for (std::size_t i = 0; i < runners_.size(); ++i) {
+    planned_[i] = steps_for(seconds, runners_[i]->simulation(), i);
+  }
+  run_planned(poll, poll_interval);
+  return done_;
+}
+
+void BatchRunner::run_planned(const Poll& poll, double poll_interval) {
+  if (!(poll_interval > 0.0) || !std::isfinite(poll_interval)) {
+    throw Error("poll_interval = " + format_number(poll_interval) + " s must be finite and > 0");
+  }
+  for (std::size_t i = 0; i < runners_.size(); ++i) {
+    if (!loops_[i]->started()) {
+      throw Error(pair_name(i) +
+                  ": the control loop has not been started: call loop.start(q, dq) with the "
+                  "simulation's state first");
+    }
+  }
+  stop_requested_.store(false, std::memory_order_relaxed);
+  next_pair_.store(0, std::memory_order_relaxed);
+  std::fill(done_.begin(), done_.end(), 0);
+
+  std::unique_lock<std::mutex> lock(mutex_);
+  busy_ = static_cast<int>(workers_.size());
+  ++generation_;
+  wake_.notify_all();
+  std::exception_ptr poll_error;
+  const auto all_done = [this] { return busy_ == 0; };
+  if (!poll) {
+    finished_.wait(lock, all_done);
+  } else {
+    const std::chrono::duration<double> interval(poll_interval);
+    while (!finished_.wait_for(lock, interval, all_done)) {
+      if (poll_error) continue;  // stopping: wait for the pairs without polling again
+      lock.unlock();
+      try {
+        poll();
+      } catch (...) {
+        poll_error = std::current_exception();
+        request_stop();
+      }
+      lock.lock();
+    }
+  }
+  if (poll_error) std::rethrow_exception(poll_error);
+}
+
+void BatchRunner::work() noexcept {
+  // Each pair runs whole on the thread that takes it, so its steps run in order, as alone.
+  for (std::size_t i = next_pair_.fetch_add(1, std::memory_order_relaxed); i < runners_.size();
+       i = next_pair_.fetch_add(1, std::memory_order_relaxed)) {
+    ClosedLoopRunner& runner = *runners_[i];
+    const std::int64_t steps = planned_[i];
+    std::int64_t done = 0;
+    while (done < steps && !stop_requested_.load(std::memory_order_relaxed)) {
+      runner.step();
+      ++done;
+    }
+    done_[i] = done;
+  }
+}
+
+void BatchRunner::serve() noexcept {
+  std::uint64_t seen = 0;
+  std::unique_lock<std::mutex> lock(mutex_);
+  for (;;) {
+    wake_.wait(lock, [&] { return exiting_ || generation_ != seen; });
+    if (exiting_) return;
+    seen = generation_;
+    lock.unlock();
+    work();
+    lock.lock();
+    if (--busy_ == 0) finished_.notify_all();
+  }
+}
+
+}  // namespace cartesian_impedance::sim
