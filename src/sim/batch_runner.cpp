@@ -5,6 +5,7 @@
 #include <cmath>
 #include <exception>
 #include <string>
+#include <utility>
 
 #include "cartesian_impedance/core/error.hpp"
 
@@ -65,9 +66,12 @@ BatchRunner::BatchRunner(const std::vector<BatchPair>& pairs, int threads) {
                                                   static_cast<unsigned>(kMaxThreads)));
   }
   threads = std::min(threads, static_cast<int>(pairs.size()));
-  workers_.reserve(static_cast<std::size_t>(threads));
+  threads_ = threads;
+  // The caller's thread is one of them: it runs pairs too instead of only waiting, which saves
+  // a thread wake per run (with one thread there is no pool at all).
+  workers_.reserve(static_cast<std::size_t>(threads - 1));
   try {
-    for (int k = 0; k < threads; ++k) workers_.emplace_back([this] { serve(); });
+    for (int k = 1; k < threads; ++k) workers_.emplace_back([this] { serve(); });
   } catch (...) {
     stop_workers();  // a thread that could not be started: end those that were
     throw;
@@ -135,29 +139,40 @@ void BatchRunner::run_planned(const Poll& poll, double poll_interval) {
   std::unique_lock<std::mutex> lock(mutex_);
   busy_ = static_cast<int>(workers_.size());
   ++generation_;
+  lock.unlock();
   wake_.notify_all();
-  std::exception_ptr poll_error;
+
+  poll_ = poll ? &poll : nullptr;
+  poll_interval_ = std::chrono::duration<double>(poll_interval);
+  last_poll_ = std::chrono::steady_clock::now();
+  poll_error_ = nullptr;
+  work(true);
+  lock.lock();
   const auto all_done = [this] { return busy_ == 0; };
-  if (!poll) {
-    finished_.wait(lock, all_done);
-  } else {
-    const std::chrono::duration<double> interval(poll_interval);
-    while (!finished_.wait_for(lock, interval, all_done)) {
-      if (poll_error) continue;  // stopping: wait for the pairs without polling again
-      lock.unlock();
-      try {
-        poll();
-      } catch (...) {
-        poll_error = std::current_exception();
-        request_stop();
-      }
-      lock.lock();
-    }
+  // The pool's threads may still be on their last pairs: wait for them, polling meanwhile.
+  while (!finished_.wait_for(lock, poll_interval_, all_done)) {
+    lock.unlock();
+    poll_if_due();
+    lock.lock();
   }
-  if (poll_error) std::rethrow_exception(poll_error);
+  poll_ = nullptr;
+  if (poll_error_) std::rethrow_exception(std::exchange(poll_error_, nullptr));
 }
 
-void BatchRunner::work() noexcept {
+void BatchRunner::poll_if_due() noexcept {
+  if (poll_ == nullptr || poll_error_) return;
+  const auto now = std::chrono::steady_clock::now();
+  if (now - last_poll_ < poll_interval_) return;
+  try {
+    (*poll_)();
+  } catch (...) {
+    poll_error_ = std::current_exception();
+    request_stop();
+  }
+  last_poll_ = std::chrono::steady_clock::now();
+}
+
+void BatchRunner::work(bool caller) noexcept {
   // Each pair runs whole on the thread that takes it, so its steps run in order, as alone.
   for (std::size_t i = next_pair_.fetch_add(1, std::memory_order_relaxed); i < runners_.size();
        i = next_pair_.fetch_add(1, std::memory_order_relaxed)) {
@@ -167,6 +182,7 @@ void BatchRunner::work() noexcept {
     while (done < steps && !stop_requested_.load(std::memory_order_relaxed)) {
       runner.step();
       ++done;
+      if (caller && done % kPollCheckSteps == 0) poll_if_due();
     }
     done_[i] = done;
   }
@@ -180,7 +196,7 @@ void BatchRunner::serve() noexcept {
     if (exiting_) return;
     seen = generation_;
     lock.unlock();
-    work();
+    work(false);
     lock.lock();
     if (--busy_ == 0) finished_.notify_all();
   }

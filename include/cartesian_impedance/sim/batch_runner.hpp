@@ -6,14 +6,17 @@
 /// shares nothing with the others, so every pair ends bit for bit where it would have ended
 /// alone (ClosedLoopRunner::run_for on it): the threads change only how fast, never what.
 ///
-/// Threads: one thread at a time calls run(), run_for() and the accessors; it waits while the
-/// pool runs the pairs. Other threads may send commands to the loops meanwhile (ControlLoop is
-/// made for that) and may call request_stop(). Nothing else may touch the simulations while a
-/// run is in progress. The threads live as long as the runner: a run only wakes them.
+/// Threads: one thread at a time calls run(), run_for() and the accessors; it runs pairs
+/// itself beside the pool's threads. Other threads may send commands to the loops meanwhile
+/// (ControlLoop is made for that) and may call request_stop(). Nothing else may touch the
+/// simulations while a run is in progress. The threads live as long as the runner: a run only wakes
+/// them.
 
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
+#include <exception>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -37,7 +40,8 @@ struct BatchPair {
 class BatchRunner {
  public:
   /// Called on the thread that called run() about every `poll_interval` [s] of wall time while
-  /// the pairs run (e.g. to let Python see Ctrl+C). It may call request_stop(), and may throw:
+  /// the pairs run (between two steps of a pair that thread runs, or while it waits for the
+  /// pool) (e.g. to let Python see Ctrl+C). It may call request_stop(), and may throw:
   /// the run then stops every pair after its current step and rethrows once all have stopped.
   using Poll = std::function<void()>;
 
@@ -45,7 +49,8 @@ class BatchRunner {
   static constexpr int kMaxThreads = 64;
 
   /// `threads`: how many threads run the pairs, at most one per pair (more would idle); 0 = one
-  /// per core (std::thread::hardware_concurrency()). The caller's thread only waits.
+  /// per core (std::thread::hardware_concurrency()). The thread that calls run() is one of them;
+  /// the runner starts the others, which live as long as it does.
   /// @throws Error naming the pair by its index: a null simulation or loop, a simulation or a
   ///         loop given in two pairs (they would race), a loop whose model's joints are not the
   ///         simulation's (names and order); if `pairs` is empty, or threads is outside
@@ -57,8 +62,8 @@ class BatchRunner {
 
   /// Number of pairs.
   std::size_t size() const noexcept { return runners_.size(); }
-  /// Threads of the pool.
-  int threads() const noexcept { return static_cast<int>(workers_.size()); }
+  /// Threads that run the pairs: the caller's and threads() - 1 of the pool.
+  int threads() const noexcept { return threads_; }
 
   /// Advances every pair by `steps` closed-loop steps (ClosedLoopRunner::step: each loop's
   /// torque applied, the simulation one timestep further). Returns the steps each pair ran, in
@@ -84,8 +89,12 @@ class BatchRunner {
   ClosedLoopRunner& runner(std::size_t index);
 
  private:
+  // The caller's thread checks whether a poll is due this often [steps].
+  static constexpr std::int64_t kPollCheckSteps = 64;
+
   void run_planned(const Poll& poll, double poll_interval);
-  void work() noexcept;
+  void work(bool caller) noexcept;
+  void poll_if_due() noexcept;
   void serve() noexcept;
   void stop_workers() noexcept;
 
@@ -95,6 +104,13 @@ class BatchRunner {
   std::vector<std::int64_t> done_;     // steps each pair ran in the last run
   std::atomic<std::size_t> next_pair_{0};
   std::atomic<bool> stop_requested_{false};
+  int threads_ = 1;
+
+  // The poll of the run in progress; the caller's thread alone uses these.
+  const Poll* poll_ = nullptr;
+  std::chrono::duration<double> poll_interval_{0.1};
+  std::chrono::steady_clock::time_point last_poll_;
+  std::exception_ptr poll_error_;
 
   // The pool: a run bumps generation_ and waits until busy_ is back at 0.
   std::mutex mutex_;
