@@ -117,6 +117,8 @@ class BatchRunner {
   std::condition_variable wake_;
   std::condition_variable finished_;
   std::uint64_t generation_ = 0;
+  std::atomic<std::uint64_t> published_generation_{0};  // generation_, read without the lock
+  static constexpr std::chrono::microseconds kSpin{2000};
   int busy_ = 0;
   bool exiting_ = false;
   std::vector<std::thread> workers_;
