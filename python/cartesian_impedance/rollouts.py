@@ -12,8 +12,9 @@ gives the same dict, wherever it runs.
 - ``Pool``: the same cluster kept for many calls (``with Pool(n_workers=2) as pool:
   pool.map(rollout, pairs)``), as ``cem`` does across its iterations.
 - A worker process that dies while running a rollout (a crash in the simulation, the OOM killer)
-  does not lose it: Dask reports the task as killed and it is submitted again, up to ``retries``
-  times. Each pair's result is taken once, from the run that completed.
+  does not lose it: Dask reports the task as killed (or its finished result as lost) and it is
+  submitted again, up to ``retries`` times. Each pair's result is taken once, from the run that
+  completed.
 - A rollout that raises ends the call with ``RolloutError`` naming the pair (index, params, seed)
   and carrying the worker's traceback; the remaining rollouts are cancelled.
 
@@ -206,10 +207,18 @@ class Pool:
                                                                what),
                                        start, params, seed) from error
                 if future.status != "finished":
+                    # "lost": it finished on a worker that then died before its result was
+                    # fetched. Run again like a rollout whose worker died.
+                    if future.status == "lost" and attempts[number] < self.retries:
+                        attempts[number] += 1
+                        future.cancel()
+                        submit(number)
+                        continue
                     params, seed = chunks[number][0]
-                    raise RolloutError("rollout %d (%s): its Dask task ended %s (was the "
-                                       "cluster closed?)" % (start, _pair_text(params, seed),
-                                                             future.status),
+                    raise RolloutError("rollout %d (%s): its Dask task ended %s (retries=%d; "
+                                       "was the cluster closed?)"
+                                       % (start, _pair_text(params, seed), future.status,
+                                          self.retries),
                                        start, params, seed)
                 for offset, record in enumerate(future.result()):
                     index = start + offset
