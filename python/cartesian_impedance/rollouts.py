@@ -185,46 +185,63 @@ class Pool:
             pending[future] = number
             completed.add(future)
 
+        def rerun(future, number):
+            """A chunk whose worker died (KilledWorker), or whose result was lost with its
+            worker after it finished: submitted again, or RolloutError once retries are spent."""
+            error = future.exception() if future.status == "error" else None
+            died = isinstance(error, KilledWorker) or future.status == "lost"
+            if died and attempts[number] < self.retries:
+                attempts[number] += 1
+                future.cancel()
+                submit(number)
+                return
+            start = starts[number]
+            params, seed = chunks[number][0]
+            if died:
+                what = "its worker process died on each of its %d runs (retries=%d)" % (
+                    attempts[number] + 1, self.retries)
+            elif error is not None:
+                what = "failed in Dask: %s: %s" % (type(error).__name__, error)
+            else:
+                what = "its Dask task ended %s (was the cluster closed?)" % future.status
+            raise RolloutError("rollout %d (%s): %s" % (start, _pair_text(params, seed), what),
+                               start, params, seed) from error
+
         results: List[Optional[dict]] = [None] * len(listed)
         try:
-            for number in range(len(chunks)):
-                submit(number)
-            for future in completed:
-                number = pending.pop(future)
-                start = starts[number]
-                if future.status == "error":
-                    error = future.exception()
-                    if isinstance(error, KilledWorker) and attempts[number] < self.retries:
-                        attempts[number] += 1
-                        submit(number)
-                        continue
-                    params, seed = chunks[number][0]
-                    what = ("its worker process died on each of its %d runs (retries=%d)"
-                            % (attempts[number] + 1, self.retries)
-                            if isinstance(error, KilledWorker) else
-                            "failed in Dask: %s: %s" % (type(error).__name__, error))
-                    raise RolloutError("rollout %d (%s) %s" % (start, _pair_text(params, seed),
-                                                               what),
-                                       start, params, seed) from error
-                if future.status != "finished":
-                    # "lost": it finished on a worker that then died before its result was
-                    # fetched. Run again like a rollout whose worker died.
-                    if future.status == "lost" and attempts[number] < self.retries:
-                        attempts[number] += 1
-                        future.cancel()
-                        submit(number)
-                        continue
-                    params, seed = chunks[number][0]
-                    raise RolloutError("rollout %d (%s): its Dask task ended %s (retries=%d; "
-                                       "was the cluster closed?)"
-                                       % (start, _pair_text(params, seed), future.status,
-                                          self.retries),
-                                       start, params, seed)
-                for offset, record in enumerate(future.result()):
-                    index = start + offset
-                    if record[0] != "ok":
-                        _raise_for(record, index, *listed[index])
-                    results[index] = record[1]
+            # One message to the scheduler for all of them (submit() per chunk costs more).
+            first = self._client.map(_run_chunk, [rollout] * len(chunks), chunks, pure=False)
+            for number, future in enumerate(first):
+                pending[future] = number
+                completed.add(future)
+            for batch in completed.batches():
+                finished = []
+                for future in batch:
+                    number = pending.pop(future)
+                    if future.status == "finished":
+                        finished.append((future, number))
+                    else:
+                        rerun(future, number)
+                if not finished:
+                    continue
+                try:  # one fetch for the batch (a fetch per future costs a round trip each)
+                    values = self._client.gather([future for future, _ in finished])
+                except Exception:  # noqa: BLE001  (a result lost meanwhile: one by one)
+                    values = None
+                for position, (future, number) in enumerate(finished):
+                    if values is None:
+                        try:
+                            records = future.result()
+                        except Exception:  # noqa: BLE001  (rerun() names it if it cannot)
+                            rerun(future, number)
+                            continue
+                    else:
+                        records = values[position]
+                    for offset, record in enumerate(records):
+                        index = starts[number] + offset
+                        if record[0] != "ok":
+                            _raise_for(record, index, *listed[index])
+                        results[index] = record[1]
         finally:
             for future in list(pending):
                 future.cancel()
