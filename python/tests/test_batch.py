@@ -2,6 +2,7 @@
 released, each pair bit for bit where sim.run(loop, seconds) takes it alone; errors name the pair
 and run nothing."""
 
+import _thread
 import threading
 import time
 
@@ -139,3 +140,19 @@ def test_run_releases_the_gil_and_claims_every_pair(panda):
     assert [loop.state.cycle for _, loop in pairs] == [20000, 20000]
     np.testing.assert_allclose(np.diag(pairs[0][1].state.controller.commanded.stiffness),
                                [400, 400, 400, 40, 40, 40])
+
+
+def test_ctrl_c_stops_every_pair(panda):
+    pairs = [arm(panda) for _ in range(3)]
+    batch = ci.sim.BatchRunner([s for s, _ in pairs], [l for _, l in pairs], threads=2)
+    # As Ctrl+C would, 0.2 s into a run of 1000 simulated seconds (over a minute of work).
+    timer = threading.Timer(0.2, _thread.interrupt_main)
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        batch.run(1000.0)
+    timer.join()
+    # Every pair stopped long before the end (without the check, the interrupt would come after
+    # 1000 s each), after a whole step: the state is consistent.
+    for sim, loop in pairs:
+        assert sim.time < 500.0 and loop.state.cycle == round(sim.time / sim.timestep)
+    assert list(batch.run(0.01)) == [10, 10, 10]  # usable again
