@@ -148,7 +148,8 @@ void bind_batch(py::module_& sim) {
       "sims: Simulation objects, loops: ControlLoop objects, one per simulation; pair i is "
       "(sims[i], loops[i]): the loop drives every joint of its simulation (model.joint_names = "
       "sim.joint_names, in that order). No simulation or loop may appear twice. threads: how many "
-      "C++ threads run the pairs, at most one per pair; 0 = one per core.";
+      "C++ threads run the pairs (the calling one among them), at most one per pair; 0 = one per "
+      "core.";
   const char* run_doc =
       "Advances every pair by `seconds` of simulated time (round(seconds / timestep) steps of "
       "its own simulation), in C++ threads with the GIL released: each pair ends exactly "
@@ -173,7 +174,9 @@ void bind_batch(py::module_& sim) {
            "a simulation or loop; TypeError for an element that is not a Simulation or "
            "ControlLoop.")
       .def("run", &Batch::run, py::arg("seconds"), run_doc)
-      .def_property_readonly("threads", &Batch::threads, "Threads of the pool.")
+      .def_property_readonly(
+          "threads", &Batch::threads,
+          "Threads that run the pairs: the caller's and threads - 1 of the pool.")
       .def_property_readonly("sims", &Batch::simulations, "The simulations, in the pairs' order.")
       .def_property_readonly("loops", &Batch::loops, "The control loops, in the pairs' order.")
       .def("__len__", &Batch::size, "Number of pairs.")

@@ -9,7 +9,7 @@ import numpy.typing
 import cartesian_impedance
 
 class BatchRunner:
-    """Many independent closed loops (Simulation, ControlLoop) run together on a pool of C++ threads that lives as long as the runner: for batches of rollouts or environments. sims: Simulation objects, loops: ControlLoop objects, one per simulation; pair i is (sims[i], loops[i]): the loop drives every joint of its simulation (model.joint_names = sim.joint_names, in that order). No simulation or loop may appear twice. threads: how many C++ threads run the pairs, at most one per pair; 0 = one per core."""
+    """Many independent closed loops (Simulation, ControlLoop) run together on a pool of C++ threads that lives as long as the runner: for batches of rollouts or environments. sims: Simulation objects, loops: ControlLoop objects, one per simulation; pair i is (sims[i], loops[i]): the loop drives every joint of its simulation (model.joint_names = sim.joint_names, in that order). No simulation or loop may appear twice. threads: how many C++ threads run the pairs (the calling one among them), at most one per pair; 0 = one per core."""
     def __init__(self, sims: Sequence[Simulation], loops: Sequence[cartesian_impedance.ControlLoop], threads: int = ...) -> None:
         """Raises Error naming the pair whose loop does not fit its simulation, or that repeats a simulation or loop; TypeError for an element that is not a Simulation or ControlLoop."""
     def __len__(self) -> int:
@@ -25,7 +25,7 @@ class BatchRunner:
         """The simulations, in the pairs' order."""
     @property
     def threads(self) -> int:
-        """Threads of the pool."""
+        """Threads that run the pairs: the caller's and threads - 1 of the pool."""
 
 
 class Box:
@@ -140,4 +140,4 @@ def offscreen_rendering_available() -> Tuple[bool, str]:
 
 
 def run_many(sims: Sequence[Simulation], loops: Sequence[cartesian_impedance.ControlLoop], seconds: float, threads: int = ...) -> numpy.typing.NDArray[numpy.int64]:
-    """BatchRunner(sims, loops, threads).run(seconds) in one call: its threads are started and ended by this call (a BatchRunner kept for many runs saves that). sims: Simulation objects, loops: ControlLoop objects, one per simulation; pair i is (sims[i], loops[i]): the loop drives every joint of its simulation (model.joint_names = sim.joint_names, in that order). No simulation or loop may appear twice. threads: how many C++ threads run the pairs, at most one per pair; 0 = one per core. Advances every pair by `seconds` of simulated time (round(seconds / timestep) steps of its own simulation), in C++ threads with the GIL released: each pair ends exactly (bit for bit) where sim.run(loop, seconds) would take it alone. Each loop must be started. Returns the steps each pair ran (int64 array, one per pair). Errors name the pair (e.g. 'pair 3: the control loop has not been started ...') and then nothing runs. Meanwhile the simulations and the loops' start/step/state raise RuntimeError in other threads; commands to the loops are fine from any thread. Ctrl+C stops every pair and raises KeyboardInterrupt (checked every 0.1 s)."""
+    """BatchRunner(sims, loops, threads).run(seconds) in one call: its threads are started and ended by this call (a BatchRunner kept for many runs saves that). sims: Simulation objects, loops: ControlLoop objects, one per simulation; pair i is (sims[i], loops[i]): the loop drives every joint of its simulation (model.joint_names = sim.joint_names, in that order). No simulation or loop may appear twice. threads: how many C++ threads run the pairs (the calling one among them), at most one per pair; 0 = one per core. Advances every pair by `seconds` of simulated time (round(seconds / timestep) steps of its own simulation), in C++ threads with the GIL released: each pair ends exactly (bit for bit) where sim.run(loop, seconds) would take it alone. Each loop must be started. Returns the steps each pair ran (int64 array, one per pair). Errors name the pair (e.g. 'pair 3: the control loop has not been started ...') and then nothing runs. Meanwhile the simulations and the loops' start/step/state raise RuntimeError in other threads; commands to the loops are fine from any thread. Ctrl+C stops every pair and raises KeyboardInterrupt (checked every 0.1 s)."""
