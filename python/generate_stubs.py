@@ -324,11 +324,17 @@ def write_module(module, name):
     return text
 
 
+def python_source(module):
+    return str(getattr(module, "__file__", None) or "").endswith(".py")
+
+
 def generate(package):
     stubs = {"__init__.pyi": write_module(package, PACKAGE)}
     for attribute in public_names(package):
         value = getattr(package, attribute)
-        if isinstance(value, types.ModuleType):
+        # A submodule of the extension gets a stub; one written in Python (rollouts.py) carries
+        # its own annotations, which py.typed offers as they are.
+        if isinstance(value, types.ModuleType) and not python_source(value):
             stubs[f"{attribute}.pyi"] = write_module(value, f"{PACKAGE}.{attribute}")
     return stubs
 

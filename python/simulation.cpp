@@ -1,7 +1,7 @@
 // Python bindings of the simulation: the submodule cartesian_impedance.sim (Box, AttachedBox,
 // SquareHole, Simulation, make_scene, hole_boxes, make_peg_in_hole_scene, engine_available,
-// offscreen_rendering_available). Built when the simulation library
-// is (CARTESIAN_IMPEDANCE_PYTHON_SIM).
+// offscreen_rendering_available; BatchRunner and run_many in batch.cpp). Built when the
+// simulation library is (CARTESIAN_IMPEDANCE_PYTHON_SIM).
 
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
@@ -27,22 +27,12 @@
 #include "cartesian_impedance/sim/simulation.hpp"
 #include "conversions.hpp"
 #include "module.hpp"
+#include "simulation.hpp"
 #include "wrappers.hpp"
 
 namespace cartesian_impedance::python {
 
 namespace {
-
-/// Simulation plus the run() claim.
-struct Sim {
-  explicit Sim(ci::sim::Simulation loaded) : sim(std::move(loaded)) {}
-  ci::sim::Simulation& get() {
-    check_free(running, "this Simulation");
-    return sim;
-  }
-  ci::sim::Simulation sim;
-  std::atomic<bool> running{false};
-};
 
 ci::sim::SimulationOptions simulation_options(py::handle timestep, bool gravity_compensation,
                                               const std::string& keyframe,
@@ -546,6 +536,8 @@ void bind_simulation(py::module_& m) {
       py::arg("engine"),
       "(available, reason): whether this build can simulate with the engine 'mujoco' or 'dart', "
       "and why not. Raises Error for an unknown name.");
+
+  bind_batch(sim);
 }
 
 }  // namespace cartesian_impedance::python

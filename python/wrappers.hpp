@@ -21,25 +21,22 @@ namespace ci = cartesian_impedance;
 /// RuntimeError instead of racing with it.
 class Claim {
  public:
-  Claim(std::atomic<bool>& flag, const char* what) : flag_(flag) {
-    if (flag_.exchange(true)) {
-      throw std::runtime_error(std::string(what) +
-                               " is in use by Simulation.run() in another thread");
-    }
+  Claim(std::atomic<bool>& flag, const std::string& what) : flag_(flag) {
+    if (flag_.exchange(true)) throw std::runtime_error(what + kInUse);
   }
   ~Claim() { flag_.store(false); }
   Claim(const Claim&) = delete;
   Claim& operator=(const Claim&) = delete;
+
+  static constexpr const char* kInUse =
+      " is in use by Simulation.run() or BatchRunner.run() in another thread";
 
  private:
   std::atomic<bool>& flag_;
 };
 
 inline void check_free(const std::atomic<bool>& flag, const char* what) {
-  if (flag.load()) {
-    throw std::runtime_error(std::string(what) +
-                             " is in use by Simulation.run() in another thread");
-  }
+  if (flag.load()) throw std::runtime_error(std::string(what) + Claim::kInUse);
 }
 
 /// RobotModel plus a workspace for compute() from Python.

@@ -1,13 +1,17 @@
 """Cartesian impedance control of torque-controlled robot arms (Python bindings).
 
 The package re-exports the extension module cartesian_impedance._core (built from python/*.cpp)
-and adds data_dir(): the folder of the robot models and configurations shipped with it.
+and adds data_dir(): the folder of the robot models and configurations shipped with it, and
+rollouts: rollout functions evaluated over many (params, seed) pairs on a Dask cluster.
 """
 
 import pathlib as _pathlib
 
 from . import _core
 from ._core import *  # noqa: F401,F403  (the bindings are this package's API)
+# Pure Python on top (imports NumPy; Dask only when a cluster is used): always an attribute, so
+# that the package's names do not depend on what was imported before.
+from . import rollouts  # noqa: E402
 
 __doc__ = _core.__doc__
 __version__ = _core.__version__

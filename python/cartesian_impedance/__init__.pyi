@@ -7,6 +7,8 @@ from typing import Any, ClassVar, Iterator, List, Optional
 import numpy
 import numpy.typing
 
+from . import rollouts as rollouts
+
 from . import sim as sim
 
 __version__: str

@@ -2,7 +2,7 @@
 
 import os
 import pathlib
-from typing import List, Optional, Tuple
+from typing import List, Optional, Sequence, Tuple
 
 import numpy
 import numpy.typing
@@ -41,6 +41,26 @@ class AttachedBox:
         """(3,) [m], in the body's frame"""
     @position.setter
     def position(self, value: numpy.typing.ArrayLike) -> None: ...
+
+
+class BatchRunner:
+    """Many independent closed loops (Simulation, ControlLoop) run together on a pool of C++ threads that lives as long as the runner: for batches of rollouts or environments. sims: Simulation objects, loops: ControlLoop objects, one per simulation; pair i is (sims[i], loops[i]): the loop drives every joint of its simulation (model.joint_names = sim.joint_names, in that order). No simulation or loop may appear twice. threads: how many C++ threads run the pairs (the calling one among them), at most one per pair; 0 = one per core."""
+    def __init__(self, sims: Sequence[Simulation], loops: Sequence[cartesian_impedance.ControlLoop], threads: int = ...) -> None:
+        """Raises Error naming the pair whose loop does not fit its simulation, or that repeats a simulation or loop; TypeError for an element that is not a Simulation or ControlLoop."""
+    def __len__(self) -> int:
+        """Number of pairs."""
+    def __repr__(self) -> str: ...
+    @property
+    def loops(self) -> tuple:
+        """The control loops, in the pairs' order."""
+    def run(self, seconds: float) -> numpy.typing.NDArray[numpy.int64]:
+        """Advances every pair by `seconds` of simulated time (round(seconds / timestep) steps of its own simulation), in C++ threads with the GIL released: each pair ends exactly (bit for bit) where sim.run(loop, seconds) would take it alone. Each loop must be started. Returns the steps each pair ran (int64 array, one per pair). Errors name the pair (e.g. 'pair 3: the control loop has not been started ...') and then nothing runs. Meanwhile the simulations and the loops' start/step/state raise RuntimeError in other threads; commands to the loops are fine from any thread. Ctrl+C stops every pair and raises KeyboardInterrupt (checked every 0.1 s)."""
+    @property
+    def sims(self) -> tuple:
+        """The simulations, in the pairs' order."""
+    @property
+    def threads(self) -> int:
+        """Threads that run the pairs: the caller's and threads - 1 of the pool."""
 
 
 class Box:
@@ -201,3 +221,7 @@ def make_scene(robot_mjcf: str | os.PathLike, boxes: List[Box], timestep: float 
 
 def offscreen_rendering_available() -> Tuple[bool, str]:
     """(available, reason): whether render_png() can work in this process, and why not."""
+
+
+def run_many(sims: Sequence[Simulation], loops: Sequence[cartesian_impedance.ControlLoop], seconds: float, threads: int = ...) -> numpy.typing.NDArray[numpy.int64]:
+    """BatchRunner(sims, loops, threads).run(seconds) in one call: its threads are started and ended by this call (a BatchRunner kept for many runs saves that). sims: Simulation objects, loops: ControlLoop objects, one per simulation; pair i is (sims[i], loops[i]): the loop drives every joint of its simulation (model.joint_names = sim.joint_names, in that order). No simulation or loop may appear twice. threads: how many C++ threads run the pairs (the calling one among them), at most one per pair; 0 = one per core. Advances every pair by `seconds` of simulated time (round(seconds / timestep) steps of its own simulation), in C++ threads with the GIL released: each pair ends exactly (bit for bit) where sim.run(loop, seconds) would take it alone. Each loop must be started. Returns the steps each pair ran (int64 array, one per pair). Errors name the pair (e.g. 'pair 3: the control loop has not been started ...') and then nothing runs. Meanwhile the simulations and the loops' start/step/state raise RuntimeError in other threads; commands to the loops are fine from any thread. Ctrl+C stops every pair and raises KeyboardInterrupt (checked every 0.1 s)."""
