@@ -17,6 +17,7 @@ from .base import CartesianImpedanceEnv
 from .tasks import Reach, Wipe
 from .registration import EnvSpec, ids, make, register
 from .robot_interface import RobotActionInterface
+from .vector import VectorEnv, make_vector
 
 register()
 
@@ -24,3 +25,4 @@ __all__ = ["Box", "GYMNASIUM_AVAILABLE", "ActionInterface", "ActionLimits", "obs
            "robot_observation_size", "RobotSpec", "SHIPPED_ROBOTS", "robot_spec",
            "CartesianImpedanceEnv", "Reach", "Wipe", "EnvSpec", "ids", "make", "register",
            "RobotActionInterface"]
+__all__ += ["VectorEnv", "make_vector"]

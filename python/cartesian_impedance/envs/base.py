@@ -187,10 +187,23 @@ class CartesianImpedanceEnv(_EnvBase):
         return self._observation(), self._info(info)
 
     def step(self, action):
+        self.apply_action(action)
+        self.advance()
+        return self.finish_step()
+
+    # step() in its three parts, so that a vector environment (vector.py) can advance many
+    # environments' simulations together between the Python parts.
+
+    def apply_action(self, action):
+        """Checks `action` and sends it to the control loop (nothing changes if it is bad);
+        the first part of step()."""
         if self.loop is None:
             raise RuntimeError("call reset() before step()")
         self.actions.apply(action, self.loop, self.loop.state.controller.pose)
-        self.advance()
+
+    def finish_step(self):
+        """After advance(): counts the step, evaluates the task and returns step()'s
+        (observation, reward, terminated, truncated, info)."""
         self.steps += 1
         reward, terminated, info = self.evaluate()
         status = self.loop.state.controller.status
