@@ -135,9 +135,10 @@ class VectorEnv(_VectorEnvBase):
             raise ci.Error("actions has %d rows, expected num_envs = %d (one per environment)" %
                            (len(actions), self.num_envs))
         # Every action is checked before any is sent: a bad one changes nothing.
+        checked = []
         for i, env in enumerate(self.envs):
             try:
-                env.actions.check(actions[i])
+                checked.append(env.actions.check(actions[i]))
             except ci.Error as error:
                 raise ci.Error("env %d: %s" % (i, error)) from None
         n = self.num_envs
@@ -152,7 +153,8 @@ class VectorEnv(_VectorEnvBase):
                 observations[i], info = env.reset()
                 self._add_info(infos, info, i)
             else:
-                env.apply_action(actions[i])
+                # Checking the clipped action again gives it back unchanged.
+                env.apply_action(checked[i])
                 stepping.append(i)
         self._advance(stepping)
         for i in stepping:
