@@ -48,6 +48,37 @@ def vector_rate(env_id, n, steps, threads):
     return rounds * n / elapsed
 
 
+def phases(env_id, n, rounds, threads):
+    """Per environment step [us]: the Python before (action) and after (observation, reward)
+    the batch, the batch itself, and the same simulation and loops run one after another. Python
+    stays serial, so on c free cores the speed-up is at most
+    (python + serial) / (python + serial / c)."""
+    vector = envs.make_vector(env_id, n, threads=threads, max_episode_steps=rounds + 1)
+    vector.reset(seed=0)
+    vector.action_space.seed(0)
+    every = list(range(n))
+    before = batch = after = serial = 0.0
+    for _ in range(rounds):
+        actions = vector.action_space.sample()
+        start = time.perf_counter()
+        for env, action in zip(vector.envs, actions):
+            env.apply_action(action)
+        applied = time.perf_counter()
+        vector._advance(every)
+        advanced = time.perf_counter()
+        for env in vector.envs:
+            env.finish_step()
+        finished = time.perf_counter()
+        for env in vector.envs:  # then the same again, one pair after another
+            env.sim.run(env.loop, env.period)
+        serial += time.perf_counter() - finished
+        before, batch, after = (before + applied - start, batch + advanced - applied,
+                                after + finished - advanced)
+    vector.close()
+    scale = 1e6 / (rounds * n)
+    return before * scale, batch * scale, after * scale, serial * scale
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--env", default="CartesianImpedance/Reach-v0")
@@ -66,6 +97,13 @@ def main():
                      for _ in range(arguments.repeats))
         print("%4d %18.0f %18.0f %8.2fx" % (n, separate, vector, vector / separate))
     print("load average after: %.2f %.2f %.2f" % os.getloadavg())
+    n = max(int(size) for size in arguments.sizes.split(","))
+    before, batch, after, serial = phases(arguments.env, n, 200, arguments.threads)
+    python = before + after
+    print("n = %d, per environment step: Python %.0f us (action %.0f, observation and reward "
+          "%.0f), batch %.0f us, the same pairs one after another %.0f us; with Python serial "
+          "the speed-up on 2 free cores is at most %.2fx" %
+          (n, python, before, after, batch, serial, (python + serial) / (python + serial / 2)))
 
 
 if __name__ == "__main__":
