@@ -26,8 +26,8 @@ class InsertionSkill:
     speed: the descent per policy step as a fraction of the action's largest step (0.01 m);
     press [m]: how far below the observed opening the reference is held while searching (the
     force on the top face is about stiffness_z x press);
-    radius [m]: the spiral's largest radius (0: no search, straight down);
-    turns: how many turns the spiral takes to reach `radius` (it then circles there);
+    radius [m]: the spiral's radius after `turns` turns (0: no search, straight down);
+    turns: how many turns the spiral takes to reach `radius` (it grows on at the same pitch);
     period [s]: the time one turn takes;
     stiffness_xy, stiffness_z: translational stiffness across and along the hole's axis, as
     actions in [-1, 1] (ActionLimits.stiffness_translation: 100 to 2000 N/m).
@@ -98,7 +98,9 @@ class InsertionSkill:
                 self.search_steps += 1
             t = self.search_steps / env.policy_rate
             angle = 2.0 * math.pi * t / self.period
-            r = self.radius * min(1.0, angle / (2.0 * math.pi * self.turns))
+            # An Archimedean spiral, `radius` after `turns` turns, growing on after that: the
+            # tip, held back by the friction on the top face, circles inside the reference.
+            r = self.radius * angle / (2.0 * math.pi * self.turns)
             target[:2] = goal[:2] + r * np.array([math.cos(angle), math.sin(angle)])
         action = np.zeros(env.action_space.shape, dtype=np.float32)
         action[0:3] = np.clip((target - reference) / step, -1.0, 1.0)
@@ -111,20 +113,31 @@ class InsertionSkill:
         return action
 
 
-def insertion_rollout(params, seed, env_options=None):
-    """One episode of InsertionSkill.from_vector(params) on PegInsertion-v0 (options
-    `env_options`, e.g. goal_noise) from reset(seed=seed): a dict with 'success' (1.0 or 0.0),
-    'return' (the summed reward), 'steps', 'depth' [m] and 'score' = return + 10 success (what
-    cem ranks by). Deterministic for (params, seed); picklable, for rollouts.Pool."""
+def insertion_rollout(params, seed, env_options=None, episodes=1):
+    """`episodes` episodes of InsertionSkill.from_vector(params) on PegInsertion-v0 (options
+    `env_options`, e.g. goal_noise), from reset(seed=s) for the seeds SeedSequence(seed) spawns
+    (episodes=1: seed itself): a dict with 'success' (the fraction of episodes that succeeded),
+    'return' (the mean summed reward), 'steps' (mean), and 'score' = return + 10 success (what
+    cem ranks by; several episodes make it less of a lottery over the hole's draw).
+    Deterministic for (params, seed); picklable, for rollouts.Pool."""
     from .envs import make  # in the worker process
     env = make("CartesianImpedance/PegInsertion-v0", **(env_options or {}))
     skill = InsertionSkill.from_vector(params)
-    obs, info = env.reset(seed=int(seed))
-    total = 0.0
-    terminated = truncated = False
-    while not (terminated or truncated):
-        obs, reward, terminated, truncated, info = env.step(skill(env, obs))
-        total += reward
-    success = float(info["is_success"])
-    return {"success": success, "return": total, "steps": env.steps,
-            "depth": float(info["depth"]), "score": total + 10.0 * success}
+    seeds = [int(seed)] if episodes == 1 else \
+        [int(s) for s in np.random.SeedSequence(int(seed)).generate_state(episodes)]
+    successes, returns, steps = [], [], []
+    for episode_seed in seeds:
+        skill.reset()
+        obs, info = env.reset(seed=episode_seed)
+        total = 0.0
+        terminated = truncated = False
+        while not (terminated or truncated):
+            obs, reward, terminated, truncated, info = env.step(skill(env, obs))
+            total += reward
+        successes.append(float(info["is_success"]))
+        returns.append(total)
+        steps.append(env.steps)
+    success = float(np.mean(successes))
+    total = float(np.mean(returns))
+    return {"success": success, "return": total, "steps": float(np.mean(steps)),
+            "score": total + 10.0 * success}
