@@ -26,15 +26,15 @@ from cartesian_impedance.skills import InsertionSkill, insertion_rollout
 START = InsertionSkill(approach=0.005, speed=0.3, press=0.004, radius=0.0, turns=3.0,
                        period=1.0, stiffness_xy=0.5, stiffness_z=0.5)
 # The sampling spread of each parameter (NAMES' order): about the range where it matters.
-SPREAD = [0.003, 0.15, 0.002, 0.0015, 1.0, 0.4, 0.5, 0.5]
+SPREAD = [0.003, 0.15, 0.003, 0.002, 1.0, 0.4, 0.8, 0.8]
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--iterations", type=int, default=10)
+    parser.add_argument("--iterations", type=int, default=12)
     parser.add_argument("--episodes", type=int, default=4,
                         help="episodes (seeds) per sample of the population")
-    parser.add_argument("--population", type=int, default=24)
+    parser.add_argument("--population", type=int, default=32)
     parser.add_argument("--evaluation-seeds", type=int, default=100)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--goal-noise", type=float, default=0.001, help="[m]")

@@ -55,19 +55,20 @@ def test_a_short_run_of_the_cem_example(tmp_path):
                         "(Debian: python3-distributed)")
     pytest.importorskip("matplotlib", reason="the example plots with matplotlib")
     figures_path, plot_path = tmp_path / "figures.json", tmp_path / "curve.png"
-    # 2 iterations of 6 samples, one episode each, then 10 held-out seeds for the start and the
-    # final mean: 32 episodes on a LocalCluster of 2 workers (12 s on the loaded 2-core VM).
+    # 3 iterations of 8 samples, two episodes each, then 10 held-out seeds for the start and
+    # the final mean: 68 episodes on a LocalCluster of 2 workers (10 s on the loaded 2-core VM).
     result = subprocess.run(
-        [sys.executable, str(EXAMPLE), "--iterations", "2", "--population", "6",
-         "--episodes", "1", "--evaluation-seeds", "10", "--json", str(figures_path),
+        [sys.executable, str(EXAMPLE), "--iterations", "3", "--population", "8",
+         "--episodes", "2", "--evaluation-seeds", "10", "--json", str(figures_path),
          "--plot", str(plot_path)], capture_output=True, text=True, timeout=120, check=False)
     assert result.returncode == 0, result.stderr
-    assert "iteration 2: population success" in result.stdout
+    assert "iteration 3: population success" in result.stdout
     figures = json.loads(figures_path.read_text())
-    assert [row["iteration"] for row in figures["iterations"]] == [1, 2]
+    assert [row["iteration"] for row in figures["iterations"]] == [1, 2, 3]
     assert all(0.0 <= row["population_success"] <= 1.0 for row in figures["iterations"])
     assert sorted(figures["final_mean"]) == sorted(InsertionSkill.NAMES)
     # The run is deterministic (cem's seed, each rollout's seed): measured 0.60 at the start
-    # and 0.70 after two iterations. The full run (README) reaches its figure after 10.
-    assert figures["final_success"] >= figures["start_success"]
+    # and 0.70 after three iterations (one held-out seed more; the full run in python/README.md
+    # goes from 0.48 to 0.94 on 100 seeds in 12 iterations of 32 samples).
+    assert figures["final_success"] > figures["start_success"]
     assert plot_path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
