@@ -1,4 +1,4 @@
-"""PegInsertion: a square peg held at the flange, into a square hole whose pose is drawn at reset."""
+"""PegInsertion: a square peg held at the flange, into a square hole drawn at reset."""
 
 from __future__ import annotations
 
@@ -29,7 +29,7 @@ class PegInsertion(CartesianImpedanceEnv):
     behind the tip).
     Randomised at reset: the start (start_noise [rad] per joint), the hole's position: the
     nominal one plus an offset drawn uniformly from +-hole_noise [m] in x and y (base frame).
-    The scene is rebuilt at each reset with the hole there (a few ms; python/README.md).
+    The scene is rebuilt at each reset with the hole there (0.07 s; python/README.md).
     Goal (observation's task part, 7): the pose the tip must have at the centre of the hole's
     opening to go in: position [m] and orientation (quaternion x, y, z, w; the tip's z axis into
     the hole), base frame. With goal_noise [m] > 0 the observed position is off from the true one
@@ -85,7 +85,9 @@ class PegInsertion(CartesianImpedanceEnv):
         """The SquareHole with its opening `gap` below the nominal start tip, moved by `offset`
         (x, y) [m] in the base frame."""
         tip = self.start_pose.matrix()
-        opening = tip @ np.diag([1.0, -1.0, -1.0, 1.0])  # z out of the hole: against the tip's
+        # The opening's z axis points out of the hole, against the tip's; x and y stay along the
+        # peg's sides.
+        opening = tip @ np.diag([1.0, -1.0, -1.0, 1.0])
         opening[:3, 3] = tip[:3, 3] + tip[:3, 2] * self.gap + [offset[0], offset[1], 0.0]
         return ci.sim.SquareHole(opening, peg_half_width=self.peg_half_width,
                                  clearance=self.clearance, depth=self.depth)
