@@ -95,7 +95,7 @@ def test_box_follows_gymnasium_box():
 # ---- the Gymnasium API ----
 
 def test_ids_and_make():
-    assert envs.ids() == [REACH, WIPE]
+    assert envs.ids() == ["CartesianImpedance/PegInsertion-v0", REACH, WIPE]
     with pytest.raises(ci.Error, match="'CartesianImpedance/Fly-v0' is not one of"):
         envs.make("CartesianImpedance/Fly-v0")
     with pytest.raises(ci.Error, match="robot = 'r2d2' is not a shipped robot"):

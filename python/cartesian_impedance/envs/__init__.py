@@ -15,6 +15,7 @@ from .actions import ActionInterface, ActionLimits, observe_robot, robot_observa
 from .robots import RobotSpec, SHIPPED_ROBOTS, robot_spec
 from .base import CartesianImpedanceEnv
 from .tasks import Reach, Wipe
+from .peg import PegInsertion
 from .registration import EnvSpec, ids, make, register
 from .robot_interface import RobotActionInterface
 from .vector import VectorEnv, make_vector
@@ -23,6 +24,6 @@ register()
 
 __all__ = ["Box", "GYMNASIUM_AVAILABLE", "ActionInterface", "ActionLimits", "observe_robot",
            "robot_observation_size", "RobotSpec", "SHIPPED_ROBOTS", "robot_spec",
-           "CartesianImpedanceEnv", "Reach", "Wipe", "EnvSpec", "ids", "make", "register",
+           "CartesianImpedanceEnv", "Reach", "Wipe", "PegInsertion", "EnvSpec", "ids", "make", "register",
            "RobotActionInterface"]
 __all__ += ["VectorEnv", "make_vector"]

@@ -7,6 +7,7 @@ import dataclasses
 import cartesian_impedance as ci
 
 from . import spaces
+from .peg import PegInsertion
 from .tasks import Reach, Wipe
 
 __all__ = ["EnvSpec", "make", "ids", "register", "ENTRY_POINTS"]
@@ -15,6 +16,7 @@ __all__ = ["EnvSpec", "make", "ids", "register", "ENTRY_POINTS"]
 ENTRY_POINTS = {
     "CartesianImpedance/Reach-v0": Reach,
     "CartesianImpedance/Wipe-v0": Wipe,
+    "CartesianImpedance/PegInsertion-v0": PegInsertion,
 }
 
 
