@@ -99,9 +99,11 @@ def plot(figures, path):
     import matplotlib.pyplot as plt
     rows = figures["iterations"]
     fig, ax = plt.subplots(figsize=(6, 3.5))
-    ax.plot([0] + [r["iteration"] for r in rows],
-            [figures["start_success"]] + [r["population_success"] for r in rows], "o-",
+    ax.plot([r["iteration"] for r in rows], [r["population_success"] for r in rows], "o-",
             label="population (sampled parameters)")
+    # Iteration 0 is the starting guess itself, on the held-out seeds, not a population.
+    ax.plot([0], [figures["start_success"]], "s", color="tab:red",
+            label="start (straight descent), held-out seeds")
     ax.axhline(figures["final_success"], color="g", ls="--",
                label="final mean, held-out seeds")
     ax.set_xlabel("CEM iteration")
