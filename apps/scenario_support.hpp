@@ -117,6 +117,20 @@ std::string load_note(double tuned, double used, const char* unit);
 /// Whether a link of the chain other than the flange's body touches the environment now.
 bool other_link_touches(Rig& rig);
 
+/// Tables with their top at `top_z` [m], half sizes 15, 10, 7, 5 and 3 cm, centred under
+/// `center_xy` and named "table": the candidates of first_table_only_the_flange_meets().
+std::vector<sim::Box> tables_under(const Eigen::Vector2d& center_xy, double top_z);
+
+/// The first of `candidates` that no link but the flange touches while the flange descends
+/// `depth` [m] from `probe`'s state. What it must leave free is the arm's geometry along the
+/// descent, not the controller's motion (a broken controller's flailing then cannot make a
+/// scenario not apply): the joint motion to first order (J^+ dx), checked at five states in
+/// MuJoCo (which finds contacts at a set state) whatever `robot`'s engine. Null if none fits.
+const sim::Box* first_table_only_the_flange_meets(const RobotSetup& robot,
+                                                  const Parameters& parameters, Rig& probe,
+                                                  const std::vector<sim::Box>& candidates,
+                                                  double depth);
+
 /// Steps `rig` one cycle at a time for `seconds`, calling `each` after every cycle with the
 /// flange's speed over that cycle [m/s] (ground truth: the simulation's flange poses).
 void run_measured(Rig& rig, double seconds, const std::function<void(double speed)>& each);

@@ -404,6 +404,36 @@ Outcome reference_step(const RobotSetup& robot, const MomentCallback& moment) {
 // Whether a link of the chain other than the flange's body touches the environment now. Links
 // the simulation names otherwise (an MJCF's bodies) are not asked. Bodies welded to the flange
 // report its contact force (Simulation::contact_wrench), so they count as the flange.
+std::vector<sim::Box> tables_under(const Eigen::Vector2d& center_xy, double top_z) {
+  std::vector<sim::Box> tables;
+  for (const double half_size : {0.15, 0.1, 0.07, 0.05, 0.03}) {
+    tables.push_back(
+        sim::Box::table(center_xy, Eigen::Vector2d::Constant(half_size), top_z, "table"));
+  }
+  return tables;
+}
+
+const sim::Box* first_table_only_the_flange_meets(const RobotSetup& robot,
+                                                  const Parameters& parameters, Rig& probe,
+                                                  const std::vector<sim::Box>& candidates,
+                                                  double depth) {
+  RobotSetup geometry = robot;
+  geometry.engine = sim::Engine::mujoco;
+  const Eigen::MatrixXd step_down =
+      Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(jacobian_now(probe)).pseudoInverse() *
+      six(0, 0, -depth, 0, 0, 0);
+  const auto fits = std::find_if(candidates.begin(), candidates.end(), [&](const sim::Box& box) {
+    Rig check(geometry, parameters, {box});
+    for (int k = 0; k <= 4; ++k) {
+      check.sim().set_state(probe.sim().q() + step_down * (k / 4.0),
+                            JointVector::Zero(probe.model().num_joints()));
+      if (other_link_touches(check)) return false;
+    }
+    return true;
+  });
+  return fits == candidates.end() ? nullptr : &*fits;
+}
+
 bool other_link_touches(Rig& rig) {
   const Eigen::Vector3d flange_contact = rig.contact_force();
   for (const std::string& link : rig.model().joint_links()) {
@@ -468,11 +498,7 @@ Outcome wrench_on_table(const RobotSetup& robot, const MomentCallback& moment) {
   // table must leave free is the arm's geometry along the descent, not the controller's motion:
   // a broken controller's flailing then cannot make the scenario not apply.
   const double table_top = flange.position.z() - 0.03;
-  std::vector<sim::Box> candidates;
-  for (const double half_size : {0.15, 0.1, 0.07, 0.05, 0.03}) {
-    candidates.push_back(sim::Box::table(flange.position.head<2>(),
-                                         Eigen::Vector2d::Constant(half_size), table_top, "table"));
-  }
+  std::vector<sim::Box> candidates = tables_under(flange.position.head<2>(), table_top);
   for (const double half_size : {0.05, 0.03, 0.02}) {
     sim::Box plate;
     plate.name = "table";
@@ -480,23 +506,9 @@ Outcome wrench_on_table(const RobotSetup& robot, const MomentCallback& moment) {
     plate.half_size << half_size, half_size, 0.01;
     candidates.push_back(plate);
   }
-  // The joint motion of the 3 cm descent, to first order (J^+ dx): the geometry the table must
-  // leave free, checked in MuJoCo (which finds contacts at a set state) whatever the engine.
-  RobotSetup geometry = robot;
-  geometry.engine = sim::Engine::mujoco;
-  const Eigen::MatrixXd step_down =
-      Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(jacobian_now(probe)).pseudoInverse() *
-      six(0, 0, -0.03, 0, 0, 0);
-  const auto fits = std::find_if(candidates.begin(), candidates.end(), [&](const sim::Box& box) {
-    Rig check(geometry, parameters, {box});
-    for (int k = 0; k <= 4; ++k) {
-      check.sim().set_state(probe.sim().q() + step_down * (k / 4.0),
-                            JointVector::Zero(probe.model().num_joints()));
-      if (other_link_touches(check)) return false;
-    }
-    return true;
-  });
-  if (fits == candidates.end()) {
+  const sim::Box* fits =
+      first_table_only_the_flange_meets(robot, parameters, probe, candidates, 0.03);
+  if (fits == nullptr) {
     return {{not_applicable("wrench", quantity_any,
                             "another link of the arm would touch every table or plate (down to "
                             "4 x 4 cm) 3 cm under the flange before the flange does")},

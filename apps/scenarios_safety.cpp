@@ -110,26 +110,10 @@ void table_contact(const RobotSetup& robot, Outcome& outcome, const MomentCallba
   const double band = friction_band(probe).force_along.z();
   // A table whose top is 10 cm under the flange, that only the flange touches on its way down.
   const double table_top = flange.position.z() - 0.10;
-  RobotSetup geometry = robot;
-  geometry.engine = sim::Engine::mujoco;
-  const Eigen::MatrixXd step_down =
-      Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(jacobian_now(probe)).pseudoInverse() *
-      six(0, 0, -0.10, 0, 0, 0);
-  std::vector<sim::Box> candidates;
-  for (const double half_size : {0.15, 0.1, 0.07, 0.05, 0.03}) {
-    candidates.push_back(sim::Box::table(flange.position.head<2>(),
-                                         Eigen::Vector2d::Constant(half_size), table_top, "table"));
-  }
-  const auto fits = std::find_if(candidates.begin(), candidates.end(), [&](const sim::Box& box) {
-    Rig check(geometry, parameters, {box});
-    for (int k = 0; k <= 4; ++k) {
-      check.sim().set_state(probe.sim().q() + step_down * (k / 4.0),
-                            JointVector::Zero(probe.model().num_joints()));
-      if (other_link_touches(check)) return false;
-    }
-    return true;
-  });
-  if (fits == candidates.end()) {
+  const std::vector<sim::Box> candidates = tables_under(flange.position.head<2>(), table_top);
+  const sim::Box* fits =
+      first_table_only_the_flange_meets(robot, parameters, probe, candidates, 0.10);
+  if (fits == nullptr) {
     outcome.results.push_back(
         not_applicable(kName, quantity_any,
                        "another link of the arm would touch every table (down to 6 x 6 cm) "

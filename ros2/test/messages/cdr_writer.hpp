@@ -14,6 +14,8 @@
 
 #include <cstdint>
 #include <cstring>
+#include <iomanip>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -73,5 +75,18 @@ class CdrWriter {
   std::vector<uint8_t> bytes_;
   std::vector<size_t> length_offsets_;
 };
+
+// One line per 8 bytes, with the offset from the start of the payload (after the 4-byte
+// encapsulation header), so a failure shows where the two encodings part.
+inline std::string hex(const std::vector<uint8_t>& bytes) {
+  std::ostringstream out;
+  out << std::hex << std::setfill('0');
+  for (size_t i = 0; i < bytes.size(); ++i) {
+    if (i == 4 || (i > 4 && (i - 4) % 8 == 0)) out << "\n" << std::setw(4) << i - 4 << ":";
+    if (i == 0) out << "hdr:";
+    out << " " << std::setw(2) << static_cast<int>(bytes[i]);
+  }
+  return out.str();
+}
 
 }  // namespace ros2_messages_test

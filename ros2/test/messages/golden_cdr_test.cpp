@@ -19,19 +19,6 @@
 namespace ros2_messages_test {
 namespace {
 
-// One line per 8 bytes, with the offset from the start of the payload (after the 4-byte
-// encapsulation header), so a failure shows where the two encodings part.
-std::string hex(const std::vector<uint8_t>& bytes) {
-  std::ostringstream out;
-  out << std::hex << std::setfill('0');
-  for (size_t i = 0; i < bytes.size(); ++i) {
-    if (i == 4 || (i > 4 && (i - 4) % 8 == 0)) out << "\n" << std::setw(4) << i - 4 << ":";
-    if (i == 0) out << "hdr:";
-    out << " " << std::setw(2) << static_cast<int>(bytes[i]);
-  }
-  return out.str();
-}
-
 // The reference itself, against bytes worked out by hand from the rules in cdr_writer.hpp: a
 // PoseStamped-like run (int32, uint32, string, then a double that must skip to an 8-byte offset),
 // a sequence, a bool, a uint64 after it, and the final padding announced in the options.

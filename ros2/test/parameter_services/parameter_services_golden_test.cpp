@@ -16,17 +16,7 @@ namespace parameter_services_test {
 namespace {
 
 using ros2_messages_test::CdrWriter;
-
-std::string hex(const std::vector<uint8_t>& bytes) {
-  std::ostringstream out;
-  out << std::hex << std::setfill('0');
-  for (size_t i = 0; i < bytes.size(); ++i) {
-    if (i == 4 || (i > 4 && (i - 4) % 8 == 0)) out << "\n" << std::setw(4) << i - 4 << ":";
-    if (i == 0) out << "hdr:";
-    out << " " << std::setw(2) << static_cast<int>(bytes[i]);
-  }
-  return out.str();
-}
+using ros2_messages_test::hex;
 
 constexpr std::uint64_t kClient = 0x0102030405060708ull;
 constexpr std::int64_t kSequence = 42;
