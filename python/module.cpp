@@ -71,6 +71,7 @@ PYBIND11_MODULE(_core, m) {
   python::bind_controller(m);
   python::bind_robot_model(m);
   python::bind_control_loop(m);
+  python::bind_policy_interface(m);
 #ifdef CARTESIAN_IMPEDANCE_PYTHON_SIM
   python::bind_simulation(m);
 #endif

@@ -497,6 +497,19 @@ void bind_simulation(py::module_& m) {
           "Total contact wrench [force; torque] (6,) [N; Nm] that everything else exerts on the "
           "body (and bodies welded to it): world frame, torque about the body origin.")
       .def(
+          "track_contact_wrench",
+          [](Sim& s, const std::string& body) { s.get().track_contact_wrench(body); },
+          py::arg("body"),
+          "From now on every step (also inside run() and BatchRunner.run()) adds the body's "
+          "contact_wrench after it; take_mean_contact_wrench() gives the mean. One body at a "
+          "time; '' stops. Raises Error for an unknown body.")
+      .def(
+          "take_mean_contact_wrench",
+          [](Sim& s) { return vector_array(s.get().take_mean_contact_wrench()); },
+          "The mean contact wrench (6,) [N; Nm] of the tracked body over the steps since the "
+          "previous take (or track_contact_wrench(), or reset()), and a new mean begins; zeros "
+          "if no step ran. Raises Error if no body is tracked.")
+      .def(
           "render_png",
           [](Sim& s, PathLike path, int width, int height, const std::string& camera) {
             const ci::sim::Simulation& simulation = s.get();

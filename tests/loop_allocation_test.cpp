@@ -8,6 +8,7 @@
 #include <algorithm>
 
 #include "cartesian_impedance/loop/control_loop.hpp"
+#include "cartesian_impedance/loop/policy_interface.hpp"
 #include "support/allocation_counter.hpp"
 #include "support/model_simulation.hpp"
 #include "support/safety_caps.hpp"
@@ -109,4 +110,43 @@ TEST(LoopAllocation, StepAllocatesNothingWithEverySafetyCapActing) {
   EXPECT_EQ(moving.missing(false), "") << "these parts of the safety layer never acted";
   EXPECT_TRUE(still.payload_estimate) << "the payload estimate never became valid";
   EXPECT_GE(loop.state().commands_applied, 3u);
+}
+
+// A policy's step at 20 Hz: the action sent as commands (reference, stiffness, wrench; a sender's
+// validation may allocate, outside the cycle), 50 cycles of the loop, and the observation read from
+// the published state. Neither the cycles nor the observation (its SVD sized for the arm once)
+// allocate.
+TEST(LoopAllocation, CyclesUnderAPolicyAndItsObservationAllocateNothing) {
+  const ci::RobotModel model = ci::RobotModel::from_urdf_file(
+      std::string(CARTESIAN_IMPEDANCE_SOURCE_DIR) + "/models/panda/panda.urdf", "panda_link0",
+      "panda_link8");
+  ci::JointVector q(7);
+  q << 0, -M_PI / 4, 0, -3 * M_PI / 4, 0, M_PI / 2, M_PI / 4;
+  model_simulation::Simulation sim(model, q);
+  ci::ControlLoop loop(model, ci::Parameters{});
+  loop.start(sim.q, sim.dq);
+  ci::PolicyInterface policy(model, ci::Parameters{}, /*wrench=*/true);
+  policy.reset(loop.latest_state().controller.pose);
+  Eigen::VectorXd observation(policy.observation_size());
+  ci::PolicyInterface::Action action(18);
+
+  long allocations = 0;
+  for (int k = 0; k < 40; ++k) {
+    for (int i = 0; i < 18; ++i) action[i] = std::sin(0.3 * k + i);  // a changing policy
+    ci::LoopState state = loop.latest_state();  // (a copy for the test, not counted)
+    policy.apply(action, loop, state.controller.pose);
+    for (int cycle = 0; cycle < 50; ++cycle) {
+      allocation_counter::Scope scope;
+      const ci::JointVector& tau = loop.step(sim.q, sim.dq, 0.001);
+      allocations += scope.allocations();
+      sim.step(tau, 0.001);
+    }
+    state = loop.latest_state();
+    allocation_counter::Scope scope;
+    policy.observe(state, observation);
+    allocations += scope.allocations();
+  }
+  EXPECT_EQ(allocations, 0);
+  EXPECT_TRUE(observation.allFinite());
+  EXPECT_GT(loop.latest_state().commands_applied, 100u);
 }

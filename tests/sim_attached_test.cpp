@@ -180,6 +180,37 @@ TEST_P(Attached, ThePegStandsOnABlockAndFeelsTheForce) {
   EXPECT_EQ(s.contact_wrench("panda_link8").head<3>(), wrench.head<3>());
 }
 
+// track_contact_wrench averages the body's contact wrench over every step inside the engine's
+// stepping (so a BatchRunner's run measures it too): the mean equals the one taken after each
+// step by hand, bit for bit, and reads the push plus the peg's weight.
+TEST_P(Attached, TrackedContactWrenchIsTheMeanOverTheSteps) {
+  const double mass = 0.4;
+  sim::Simulation s =
+      sim::make_scene(kPandaUrdf, {sim::Box::table({0.31, 0.0}, {0.1, 0.1}, 0.47, "block")},
+                      {peg(mass)}, options_for(GetParam()));
+  s.push("panda_link8", (Vector6d() << 0, 0, -20, 0, 0, 0).finished(),
+         std::numeric_limits<double>::infinity());
+  for (int k = 0; k < 1500; ++k) s.step();
+  s.track_contact_wrench("peg");
+  Vector6d sum = Vector6d::Zero();
+  for (int k = 0; k < 300; ++k) {
+    s.step();
+    sum += s.contact_wrench("peg");
+  }
+  const Vector6d mean = s.take_mean_contact_wrench();
+  EXPECT_EQ(mean, Vector6d(sum / 300.0));
+  EXPECT_NEAR(mean[2], 20.0 + mass * kGravity, 1.0) << mean.transpose();
+  EXPECT_EQ(s.take_mean_contact_wrench(), Vector6d::Zero());  // no step since the take
+  s.step();
+  s.reset();  // drops the sum; the body stays tracked
+  EXPECT_EQ(s.take_mean_contact_wrench(), Vector6d::Zero());
+  EXPECT_ERROR([&] { s.track_contact_wrench("gripper"); }, {"body 'gripper'"});
+  s.step();  // the failed call kept "peg" tracked
+  EXPECT_NO_THROW(s.take_mean_contact_wrench());
+  s.track_contact_wrench("");
+  EXPECT_ERROR([&] { s.take_mean_contact_wrench(); }, {"no body is tracked"});
+}
+
 #ifdef CARTESIAN_IMPEDANCE_COUNT_ALLOCATIONS
 // Leaving the attached weight out of the compensation costs no allocation (MuJoCo; DART's
 // contact solver allocates anyway).
@@ -190,6 +221,7 @@ TEST(AttachedBoxRealTime, StepAllocatesNothingWithAnAttachedBoxInContact) {
          std::numeric_limits<double>::infinity());
   for (int k = 0; k < 500; ++k) s.step();  // warm up: the peg lands on the block
   ASSERT_GT(s.contact_wrench("peg")[2], 10.0);
+  s.track_contact_wrench("peg");  // every step then adds the peg's contact wrench
   allocation_counter::Scope scope;
   for (int k = 0; k < 1000; ++k) s.step();
   EXPECT_EQ(scope.allocations(), 0);

@@ -396,6 +396,53 @@ class Parameters:
         """Raises Error unless every value is in range and every per-joint value has 1 or num_joints entries (0: any count up to MAX_JOINTS)."""
 
 
+class PolicyInterface:
+    """A learned policy's action turned into a ControlLoop's commands, and the robot part of its observation (the C++ class cartesian_impedance::PolicyInterface; cartesian_impedance.envs.ActionInterface wraps it). Action, each value in [-1, 1] (clipped; NaN or a wrong shape raise Error and change nothing): [0:3] translation increment of the reference (x max_translation_step [m], base frame), [3:6] rotation increment (rotation vector x max_rotation_step [rad]), [6:12] stiffness per axis (-1 stiffness_low, +1 stiffness_high), with wrench [12:15] force (x max_force [N]) and [15:18] torque (x max_torque [Nm]), base frame. The reference stays within the leash of the measured pose."""
+    def __init__(self, model: object, parameters: Parameters, wrench: bool = ..., max_translation_step: float = ..., max_rotation_step: float = ..., stiffness_translation: object = ..., stiffness_rotation: object = ..., max_force: float = ..., max_torque: float = ..., reference_leash: object = ...) -> None:
+        """model: the loop's RobotModel; parameters: the loop's Parameters (their limits lower stiffness_high, max_force and max_torque; limits.pose_error is the leash unless reference_leash (translation [m], rotation [rad]) is given). Raises Error naming a limit that is not finite, negative, or a range with low > high."""
+    @property
+    def action_size(self) -> int: ...
+    def apply(self, action: object, loop: ControlLoop) -> numpy.typing.NDArray[numpy.float64]:
+        """Checks the action (a bad one raises Error and changes nothing), moves the reference (kept within the leash of the flange's pose in loop.latest_state()) and sends reference, stiffness and wrench to the loop in one send_all. Returns the checked action."""
+    def check(self, action: object) -> numpy.typing.NDArray[numpy.float64]:
+        """The action as float64, clipped to [-1, 1]; raises Error for a wrong shape or a value that is not finite, naming the index, the value and the field."""
+    @staticmethod
+    def field(index: int) -> str:
+        """The field action[index] sets, e.g. 'stiffness.rotation.y'."""
+    def layout(self) -> str: ...
+    @property
+    def leash(self) -> tuple:
+        """(translation [m], rotation [rad]) the reference stays within of the measured pose."""
+    @property
+    def max_force(self) -> float: ...
+    @property
+    def max_torque(self) -> float: ...
+    @property
+    def observation_size(self) -> int:
+        """2 n + 32: the robot part of the observation."""
+    def observe(self, loop: ControlLoop, goal: object = ...) -> numpy.typing.NDArray[numpy.float32]:
+        """The observation (float32): the robot part from loop.latest_state() (see observe_state), then `goal`."""
+    def observe_state(self, state: LoopState) -> numpy.typing.NDArray[numpy.float64]:
+        """The robot part of the observation (float64, 2 n + 32) from a LoopState: q (n) [rad], dq (n) [rad/s], flange position (3) [m] and orientation (x, y, z, w; w >= 0), flange twist J dq (6) [m/s; rad/s], the external wrench estimate -(J^T)^+ (tau_cartesian + tau_wrench) (6) [N; Nm], the reference position (3) and orientation (4), the stiffness in force (diagonal of K in the base frame, 6) [N/m; Nm/rad]."""
+    @property
+    def reference(self) -> Pose:
+        """The reference the last apply() sent (or reset() set)."""
+    def reset(self, loop: ControlLoop) -> None:
+        """Puts the reference at the flange's pose in loop.latest_state()."""
+    def stiffness(self, action: object) -> numpy.typing.NDArray[numpy.float64]:
+        """The diagonal stiffness (6,) the action asks for."""
+    def stiffness_action(self, stiffness: numpy.typing.ArrayLike) -> numpy.typing.NDArray[numpy.float64]:
+        """The action values [6:12] that ask for `stiffness` (6,)."""
+    @property
+    def stiffness_high(self) -> numpy.typing.NDArray[numpy.float64]:
+        """What +1 asks for, after limits.stiffness.*.max (6,)."""
+    @property
+    def stiffness_low(self) -> numpy.typing.NDArray[numpy.float64]:
+        """What -1 of the stiffness part asks for (6,) [N/m x3, Nm/rad x3]."""
+    @property
+    def wrench(self) -> bool: ...
+
+
 class Pose:
     """A frame's position [m] and orientation (unit quaternion, x, y, z, w), in the base frame. Unpacks as `position, quaternion_xyzw = pose`."""
     def __getstate__(self) -> tuple: ...

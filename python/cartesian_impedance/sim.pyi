@@ -145,6 +145,8 @@ class Simulation:
         """Pose of a site in the world frame (quaternion x, y, z, w)."""
     def step(self, count: int = ...) -> None:
         """Advances by `count` timesteps at the commanded torque (releases the GIL)."""
+    def take_mean_contact_wrench(self) -> numpy.typing.NDArray[numpy.float64]:
+        """The mean contact wrench (6,) [N; Nm] of the tracked body over the steps since the previous take (or track_contact_wrench(), or reset()), and a new mean begins; zeros if no step ran. Raises Error if no body is tracked."""
     @property
     def time(self) -> float:
         """Simulated time [s]."""
@@ -160,6 +162,8 @@ class Simulation:
     @property
     def torque_upper_limits(self) -> numpy.typing.NDArray[numpy.float64]:
         """(n,) [Nm]; +inf without a limited actuator"""
+    def track_contact_wrench(self, body: str) -> None:
+        """From now on every step (also inside run() and BatchRunner.run()) adds the body's contact_wrench after it; take_mean_contact_wrench() gives the mean. One body at a time; '' stops. Raises Error for an unknown body."""
 
 
 class SquareHole:

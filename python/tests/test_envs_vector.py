@@ -83,7 +83,7 @@ def test_make_vector_is_bit_identical_to_separate_envs_through_an_autoreset():
     assert vector.closed
 
 
-def test_staggered_episodes_and_a_task_with_its_own_advance_stay_bit_identical():
+def test_staggered_episodes_wipe_and_a_task_with_its_own_advance_stay_bit_identical():
     # Episodes of 2, 3 and 4 steps: some environments reset while the others run (a one-off
     # batch of those), and the kept runner is renewed after each reset.
     lengths = [2, 3, 4]
@@ -93,12 +93,39 @@ def test_staggered_episodes_and_a_task_with_its_own_advance_stay_bit_identical()
     actions = random_actions(vector.single_action_space, 3, 9, seed=2)
     assert_same_traces(run_vector(vector, [3, 4, 5], actions),
                        run_separately(singles, [3, 4, 5], actions))
-    # Wipe samples its force every millisecond in its own advance(): advanced one by one.
+    # Wipe's normal force is averaged over every millisecond by the simulation itself
+    # (track_contact_wrench), so it runs batched too.
     vector = envs.make_vector(WIPE, 2, seeds=[7, 8], max_episode_steps=2)
+    assert vector._batched == [0, 1]
     singles = [envs.make(WIPE, max_episode_steps=2) for _ in range(2)]
     actions = random_actions(vector.single_action_space, 2, 3, seed=3)
     assert_same_traces(run_vector(vector, None, actions),
                        run_separately(singles, [7, 8], actions))
+    # A task with its own advance() is advanced by it, one environment after another, beside
+    # the batched ones.
+    mixed = [envs.make(REACH, max_episode_steps=3), HalfStepsReach(max_episode_steps=3),
+             envs.make(REACH, max_episode_steps=3)]
+    vector = envs.VectorEnv(mixed, threads=2)
+    assert vector._batched == [0, 2]
+    singles = [envs.make(REACH, max_episode_steps=3), HalfStepsReach(max_episode_steps=3),
+               envs.make(REACH, max_episode_steps=3)]
+    actions = random_actions(vector.single_action_space, 3, 5, seed=4)
+    assert_same_traces(run_vector(vector, [1, 2, 3], actions),
+                       run_separately(singles, [1, 2, 3], actions))
+    assert mixed[1].halves == singles[1].halves > 0
+
+
+class HalfStepsReach(envs.Reach if hasattr(ci, "sim") else object):
+    """A task that runs its policy period in two halves in its own advance()."""
+
+    def __init__(self, **options):
+        super().__init__(**options)
+        self.halves = 0
+
+    def advance(self):
+        for _ in range(2):
+            self.sim.run(self.loop, self.period / 2)
+            self.halves += 1
 
 
 def test_spaces_are_batched_and_the_api_is_gymnasiums():

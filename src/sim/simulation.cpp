@@ -327,6 +327,8 @@ void Simulation::Impl::reset() {
   }
   tau.setZero();
   pushes.clear();
+  tracked_sum.setZero();
+  tracked_steps = 0;
   mj_forward(m, d);
   kinematics_current = true;
   if (physics) physics->set_state(*this);
@@ -583,6 +585,10 @@ void Simulation::step() noexcept {
   }
   s.kinematics_current = false;
   s.read_state();
+  if (s.tracked_body >= 0) {
+    s.tracked_sum += s.contact_wrench(s.tracked_body);
+    ++s.tracked_steps;
+  }
 }
 
 void Simulation::push(const std::string& body_or_site, const Vector6d& wrench_world,
@@ -656,13 +662,34 @@ Pose Simulation::body_pose(const std::string& body) const {
 }
 
 Vector6d Simulation::contact_wrench(const std::string& body) const {
-  const Impl& s = *impl_;
-  const mjModel* m = s.model.get();
-  const mjData* d = s.data.get();
-  const int id = s.find_body(body);
+  return impl_->contact_wrench(impl_->find_body(body));
+}
+
+void Simulation::track_contact_wrench(const std::string& body) {
+  Impl& s = *impl_;
+  s.tracked_body = body.empty() ? -1 : s.find_body(body);
+  s.tracked_sum.setZero();
+  s.tracked_steps = 0;
+}
+
+Vector6d Simulation::take_mean_contact_wrench() {
+  Impl& s = *impl_;
+  if (s.tracked_body < 0) {
+    throw Error("take_mean_contact_wrench: no body is tracked (call track_contact_wrench first)");
+  }
+  const Vector6d mean =
+      s.tracked_steps > 0 ? Vector6d(s.tracked_sum / double(s.tracked_steps)) : Vector6d::Zero();
+  s.tracked_sum.setZero();
+  s.tracked_steps = 0;
+  return mean;
+}
+
+Vector6d Simulation::Impl::contact_wrench(int id) const noexcept {
+  const mjModel* m = model.get();
+  const mjData* d = data.get();
   const int weld = m->body_weldid[id];
-  if (s.physics) return s.physics->contact_wrench(weld, s.physics->body_pose(id).position);
-  s.update_kinematics();
+  if (physics) return physics->contact_wrench(weld, physics->body_pose(id).position);
+  update_kinematics();
   const Eigen::Vector3d origin = Eigen::Map<const Eigen::Vector3d>(d->xpos + 3 * id);
 
   Vector6d wrench = Vector6d::Zero();

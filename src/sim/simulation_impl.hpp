@@ -151,6 +151,12 @@ struct Simulation::Impl {
 
   std::unique_ptr<detail::Physics> physics;  // null: MuJoCo integrates
 
+  // track_contact_wrench(): the body (-1: none), and the sum of its contact wrench after each
+  // step since the last take_mean_contact_wrench() or reset().
+  int tracked_body = -1;
+  Vector6d tracked_sum = Vector6d::Zero();
+  std::int64_t tracked_steps = 0;
+
   mutable std::unique_ptr<detail::Renderer> renderer;  // created by the first render_png()
   mutable detail::DataPtr ghost_data;  // kinematics of a render's ghost, made when first needed
 
@@ -160,6 +166,7 @@ struct Simulation::Impl {
   void expire_pushes() noexcept;  // drops the pushes that end before the next step
   void update_kinematics() const noexcept;
   int find_body(const std::string& name) const;  // throws Error naming the body
+  Vector6d contact_wrench(int body) const noexcept;
 };
 
 }  // namespace cartesian_impedance::sim

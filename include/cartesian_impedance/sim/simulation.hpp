@@ -197,6 +197,19 @@ class Simulation {
   /// @throw Error if the body is unknown.
   Vector6d contact_wrench(const std::string& body) const;
 
+  /// Averages contact_wrench(body) over steps without a call per step (so that a batch of
+  /// simulations run by BatchRunner can measure it): from now on each step() adds the body's
+  /// contact wrench after it, and take_mean_contact_wrench() returns the mean over the steps
+  /// since the previous take (or since this call, or reset()) and starts a new mean. A contact
+  /// force that alternates from one step to the next, as MuJoCo's on a sliding body does, means
+  /// something only as such a mean. One body at a time; "" stops tracking.
+  /// @throw Error if the body is unknown (the tracking is then unchanged).
+  void track_contact_wrench(const std::string& body);
+  /// The mean [N; Nm] (world frame, torque about the body's origin) of the tracked body's
+  /// contact wrench over the steps since the previous take; zero if no step ran since.
+  /// @throw Error if no body is tracked.
+  Vector6d take_mean_contact_wrench();
+
   /// Renders the scene offscreen (EGL, no display needed) and writes an RGB PNG of
   /// width x height pixels. `camera` names an MJCF camera; "" is a free camera looking at the
   /// scene from the robot's right side, at a distance that fits every body of the scene (every

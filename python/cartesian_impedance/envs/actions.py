@@ -108,102 +108,67 @@ class ActionInterface:
               base frame, on the environment
     """
 
-    def __init__(self, parameters, wrench=False, limits: ActionLimits = None):
+    def __init__(self, model, parameters, wrench=False, limits: ActionLimits = None):
         self.limits = limits or ActionLimits()
         self.wrench = bool(wrench)
-        p = parameters
-        k_t = self.limits.stiffness_translation
-        k_r = self.limits.stiffness_rotation
-        self.stiffness_low = np.array([k_t[0]] * 3 + [k_r[0]] * 3, dtype=float)
-        self.stiffness_high = np.array(
-            [min(k_t[1], float(p["limits.stiffness.translation.max"]))] * 3 +
-            [min(k_r[1], float(p["limits.stiffness.rotation.max"]))] * 3)
-        self.stiffness_low = np.minimum(self.stiffness_low, self.stiffness_high)
-        self.max_force = min(self.limits.max_force, float(p["limits.wrench.force"]))
-        self.max_torque = min(self.limits.max_torque, float(p["limits.wrench.torque"]))
-        leash = self.limits.reference_leash
-        if leash is None:
-            leash = (float(p["limits.pose_error.translation"]),
-                     float(p["limits.pose_error.rotation"]))
-        self.leash = tuple(float(x) for x in leash)
-        self.size = 18 if self.wrench else 12
+        k = self.limits
+        # The C++ PolicyInterface does the work (the same class a C++ program uses on a robot):
+        # a few microseconds per action and observation instead of NumPy's hundred.
+        self.core = ci.PolicyInterface(
+            model, parameters, self.wrench, max_translation_step=k.max_translation_step,
+            max_rotation_step=k.max_rotation_step, stiffness_translation=k.stiffness_translation,
+            stiffness_rotation=k.stiffness_rotation, max_force=k.max_force,
+            max_torque=k.max_torque, reference_leash=k.reference_leash)
+        self.stiffness_low = self.core.stiffness_low
+        self.stiffness_high = self.core.stiffness_high
+        self.max_force = self.core.max_force
+        self.max_torque = self.core.max_torque
+        self.leash = self.core.leash
+        self.size = self.core.action_size
         self.action_space = Box(-1.0, 1.0, shape=(self.size,), dtype=np.float32)
-        self.reference_position = np.zeros(3)
-        self.reference_rotation = np.eye(3)
 
     def check(self, action) -> np.ndarray:
         """The action as float64, clipped to [-1, 1]; raises cartesian_impedance.Error naming
         the field for a wrong shape or a value that is not finite."""
-        try:
-            values = np.asarray(action, dtype=np.float64)
-        except (TypeError, ValueError) as error:
-            raise ci.Error("action = %r is not an array of numbers: %s" % (action, error)) \
-                from None
-        if values.shape != (self.size,):
-            raise ci.Error("action has shape %s, expected (%d,) (%s)" %
-                           (values.shape, self.size, self.layout()))
-        bad = np.flatnonzero(~np.isfinite(values))
-        if bad.size:
-            i = int(bad[0])
-            raise ci.Error("action[%d] = %s is not finite; expected a value in [-1, 1] (%s)" %
-                           (i, values[i], self.field(i)))
-        return np.clip(values, -1.0, 1.0)
+        return self.core.check(action)
 
-    def field(self, i) -> str:
-        names = ["translation.x", "translation.y", "translation.z", "rotation.x", "rotation.y",
-                 "rotation.z", "stiffness.translation.x", "stiffness.translation.y",
-                 "stiffness.translation.z", "stiffness.rotation.x", "stiffness.rotation.y",
-                 "stiffness.rotation.z", "force.x", "force.y", "force.z", "torque.x",
-                 "torque.y", "torque.z"]
-        return names[i]
+    @staticmethod
+    def field(i) -> str:
+        return ci.PolicyInterface.field(i)
 
     def layout(self) -> str:
-        return ("translation [0:3], rotation [3:6], stiffness translation [6:9], rotation "
-                "[9:12]" + (", force [12:15], torque [15:18]" if self.wrench else ""))
+        return self.core.layout()
 
-    def reset(self, pose):
-        """Puts the reference at `pose` (the measured flange pose at the start)."""
-        self.reference_position = np.array(pose.position, dtype=float)
-        self.reference_rotation = quaternion_to_matrix(pose.orientation)
+    def reset(self, loop):
+        """Puts the reference at the flange's pose in loop.latest_state() (the start)."""
+        self.core.reset(loop)
 
     def stiffness(self, action) -> np.ndarray:
-        """The diagonal stiffness (6,) [N/m x3, Nm/rad x3] the checked action asks for."""
-        return self.stiffness_low + 0.5 * (action[6:12] + 1.0) * (
-            self.stiffness_high - self.stiffness_low)
+        """The diagonal stiffness (6,) [N/m x3, Nm/rad x3] the action asks for."""
+        return self.core.stiffness(action)
 
     def stiffness_action(self, stiffness) -> np.ndarray:
         """The inverse: the action values [6:12] that ask for `stiffness` (6,)."""
-        span = np.where(self.stiffness_high > self.stiffness_low,
-                        self.stiffness_high - self.stiffness_low, 1.0)
-        return np.clip(2.0 * (np.asarray(stiffness) - self.stiffness_low) / span - 1.0, -1, 1)
+        return self.core.stiffness_action(stiffness)
 
-    def apply(self, action, loop, measured_pose):
-        """Checks `action` (nothing is changed if it is bad), moves the reference and sends the
-        reference, the stiffness and (with wrench) the wrench to `loop`; returns the checked
-        action. measured_pose: the flange's pose now, which the reference stays near."""
-        a = self.check(action)
-        position = self.reference_position + a[0:3] * self.limits.max_translation_step
-        rotation = rotation_vector_to_matrix(a[3:6] * self.limits.max_rotation_step) @ \
-            self.reference_rotation
-        # The leash: the reference stays within reach of the measured pose.
-        measured_position = np.asarray(measured_pose.position, dtype=float)
-        offset = position - measured_position
-        distance = float(np.linalg.norm(offset))
-        if distance > self.leash[0]:
-            position = measured_position + offset * (self.leash[0] / distance)
-        measured_rotation = quaternion_to_matrix(measured_pose.orientation)
-        turn = matrix_to_rotation_vector(rotation @ measured_rotation.T)
-        angle = float(np.linalg.norm(turn))
-        if angle > self.leash[1]:
-            rotation = rotation_vector_to_matrix(turn * (self.leash[1] / angle)) @ \
-                measured_rotation
-        loop.set_reference_pose((position, matrix_to_quaternion(rotation)))
-        loop.set_stiffness(self.stiffness(a), "base")
-        if self.wrench:
-            loop.set_wrench(np.concatenate([a[12:15] * self.max_force,
-                                            a[15:18] * self.max_torque]), "base")
-        self.reference_position, self.reference_rotation = position, rotation
-        return a
+    def apply(self, action, loop):
+        """Checks `action` (nothing is changed if it is bad), moves the reference (kept within
+        the leash of the flange's pose in loop.latest_state()) and sends the reference, the
+        stiffness and (with wrench) the wrench to `loop`; returns the checked action."""
+        return self.core.apply(action, loop)
+
+    def observe(self, loop, goal=None) -> np.ndarray:
+        """The observation (float32): observe_robot's values from loop.latest_state(), then
+        `goal`."""
+        return self.core.observe(loop, goal)
+
+    @property
+    def reference_position(self) -> np.ndarray:
+        return self.core.reference.position
+
+    @property
+    def reference_rotation(self) -> np.ndarray:
+        return quaternion_to_matrix(self.core.reference.orientation)
 
 
 # ---- the robot's part of the observation ----
@@ -217,21 +182,12 @@ def observe_robot(model, state, interface: ActionInterface) -> np.ndarray:
     q (n) [rad], dq (n) [rad/s], flange position (3) [m] and orientation (quaternion x, y, z, w,
     w >= 0) in the base frame, flange twist J dq (6) [m/s; rad/s], the controller's estimate of
     the external wrench on the flange (6) [N; Nm], the reference position (3) [m] and orientation
-    (4), the stiffness in force (diagonal of the filtered K, 6) [N/m; Nm/rad].
+    (4), the stiffness in force (diagonal of the filtered K, 6) [N/m; Nm/rad]. `model` is the
+    interface's (kept for the signature).
 
     The external wrench is what the controller's Cartesian torque balances when the arm is at
     rest: F_ext = -(J^T)^+ (tau_cartesian + tau_wrench), base frame. It reads the contact force
     of a table pressed on; while the arm accelerates it includes the inertial force, and the
     joints' friction shows in it."""
-    controller = state.controller
-    q, dq = np.asarray(state.q), np.asarray(state.dq)
-    jacobian = model.compute(q).jacobian
-    twist = jacobian @ dq
-    tau = np.asarray(controller.tau_cartesian) + np.asarray(controller.tau_wrench)
-    external = -np.linalg.lstsq(jacobian.T, tau, rcond=1e-9)[0]
-    pose = controller.pose
-    orientation = matrix_to_quaternion(quaternion_to_matrix(pose.orientation))
-    stiffness = np.diag(controller.stiffness_base())
-    return np.concatenate([q, dq, pose.position, orientation, twist, external,
-                           interface.reference_position,
-                           matrix_to_quaternion(interface.reference_rotation), stiffness])
+    del model
+    return interface.core.observe_state(state)

@@ -18,7 +18,7 @@ import numpy as np
 import cartesian_impedance as ci
 
 from . import spaces
-from .actions import ActionInterface, ActionLimits, observe_robot, robot_observation_size
+from .actions import ActionInterface, ActionLimits, robot_observation_size
 from .robots import make_simulation, robot_spec
 
 __all__ = ["CartesianImpedanceEnv"]
@@ -97,7 +97,7 @@ class CartesianImpedanceEnv(_EnvBase):
         self.period = 1.0 / self.policy_rate
         if isinstance(action_limits, dict):
             action_limits = ActionLimits(**action_limits)
-        self.actions = ActionInterface(self.parameters,
+        self.actions = ActionInterface(self.model, self.parameters,
                                        self.default_wrench if wrench is None else wrench,
                                        action_limits)
         self.action_space = self.actions.action_space
@@ -180,7 +180,7 @@ class CartesianImpedanceEnv(_EnvBase):
         self.loop = ci.ControlLoop(self.model, self.parameters)
         self.loop.start(self.sim.q, self.sim.dq)
         self.sim.run(self.loop, self.sim.timestep)  # one cycle: the state holds the pose
-        self.actions.reset(self.loop.state.controller.pose)
+        self.actions.reset(self.loop)
         self.steps = 0
         self.goal = np.asarray(self.reset_task(rng), dtype=float)
         _, _, info = self.evaluate()
@@ -199,7 +199,7 @@ class CartesianImpedanceEnv(_EnvBase):
         the first part of step()."""
         if self.loop is None:
             raise RuntimeError("call reset() before step()")
-        self.actions.apply(action, self.loop, self.loop.state.controller.pose)
+        self.actions.apply(action, self.loop)
 
     def finish_step(self):
         """After advance(): counts the step, evaluates the task and returns step()'s
@@ -252,8 +252,7 @@ class CartesianImpedanceEnv(_EnvBase):
         return self.loop.state.controller.pose
 
     def _observation(self):
-        robot = observe_robot(self.model, self.loop.state, self.actions)
-        return np.concatenate([robot, self.task_observation()]).astype(np.float32)
+        return self.actions.observe(self.loop, self.task_observation())
 
     def _info(self, info):
         safety = self.loop.state.controller.safety

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .actions import ActionInterface, ActionLimits, observe_robot
+from .actions import ActionInterface, ActionLimits
 
 __all__ = ["RobotActionInterface"]
 
@@ -30,15 +30,14 @@ class RobotActionInterface:
             action_limits = ActionLimits(**action_limits)
         self.loop = loop
         self.model = model
-        self.actions = ActionInterface(parameters, wrench, action_limits)
+        self.actions = ActionInterface(model, parameters, wrench, action_limits)
         self.action_space = self.actions.action_space
 
     def reset(self):
-        self.actions.reset(self.loop.latest_state().controller.pose)
+        self.actions.reset(self.loop)
 
     def act(self, action):
-        return self.actions.apply(action, self.loop, self.loop.latest_state().controller.pose)
+        return self.actions.apply(action, self.loop)
 
     def observation(self, goal=()):
-        robot = observe_robot(self.model, self.loop.latest_state(), self.actions)
-        return np.concatenate([robot, np.asarray(goal, dtype=float)]).astype(np.float32)
+        return self.actions.observe(self.loop, np.asarray(goal, dtype=float))

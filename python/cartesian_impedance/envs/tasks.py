@@ -85,6 +85,11 @@ class Wipe(CartesianImpedanceEnv):
         return [ci.sim.Box([start[0], start[1], self.table_top - 0.025], [half, half, 0.025],
                            name="wipe_table")]
 
+    def build_simulation(self, plain):
+        sim = super().build_simulation(plain)
+        sim.track_contact_wrench(self.robot.tip_link)  # every millisecond, also in a batch
+        return sim
+
     def reset_task(self, rng):
         start = np.asarray(self.flange_pose.position)
         if self.robot.translation_axes[1]:
@@ -98,19 +103,14 @@ class Wipe(CartesianImpedanceEnv):
         end = start[:2] + self.wipe_length * self.direction
         return np.array([end[0], end[1], self.table_top, self.target_force])
 
-    def advance(self):
-        # MuJoCo's contact force on a sliding flange alternates between 0 and about twice its
-        # mean from one millisecond to the next (the flange does not move off the table): only
-        # its mean over the step means anything, so it is sampled every simulation step.
-        steps = max(1, int(round(self.period / self.sim.timestep)))
-        total = 0.0
-        for _ in range(steps):
-            self.sim.run(self.loop, self.sim.timestep)
-            total += float(self.sim.contact_wrench(self.robot.tip_link)[2])
-        self.force = total / steps
-
     def evaluate(self):
-        force = self.force if self.steps > 0 else 0.0
+        # The mean over the step: MuJoCo's contact force on a sliding flange alternates between
+        # 0 and about twice its mean from one millisecond to the next (the flange does not move
+        # off the table), so the simulation averages it over every millisecond of the step. At
+        # reset the one cycle run is dropped.
+        mean = float(self.sim.take_mean_contact_wrench()[2])
+        force = mean if self.steps > 0 else 0.0
+        self.force = force
         distance = float(np.linalg.norm(np.asarray(self.flange_pose.position)[:2] -
                                         self.goal[:2]))
         in_band = abs(force - self.target_force) <= self.band

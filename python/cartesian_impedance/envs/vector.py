@@ -62,12 +62,13 @@ class VectorEnv(_VectorEnvBase):
 
     One step: each environment's action is checked (a bad one raises cartesian_impedance.Error
     naming the environment, e.g. 'env 2: action has shape ...', and then nothing has changed)
-    and sent to its control loop (Python); the simulations and loops of all stepping
-    environments run one policy period together on `threads` C++ threads with the GIL released
-    (sim.BatchRunner); then each observation and reward is computed (Python). Each environment
-    ends bit for bit where a separate environment with the same seed and actions would. A task
-    that overrides advance() (Wipe samples its force every millisecond) is advanced by its own
-    advance(), one environment after another.
+    and sent to its control loop (C++, PolicyInterface); the simulations and loops of all
+    stepping environments run one policy period together on `threads` C++ threads with the GIL
+    released (sim.BatchRunner); then each observation (C++) and reward (Python) is computed.
+    Each environment ends bit for bit where a separate environment with the same seed and actions would. A task
+    that overrides advance() is advanced by its own advance(), one environment after another
+    (Wipe does not: the simulation itself averages its contact force over every millisecond,
+    Simulation.track_contact_wrench).
     """
 
     metadata = {"autoreset_mode": AUTORESET_MODE, "render_modes": ["rgb_array"]}
