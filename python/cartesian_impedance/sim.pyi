@@ -45,8 +45,8 @@ class AttachedBox:
 
 class BatchRunner:
     """Many independent closed loops (Simulation, ControlLoop) run together on a pool of C++ threads that lives as long as the runner: for batches of rollouts or environments. sims: Simulation objects, loops: ControlLoop objects, one per simulation; pair i is (sims[i], loops[i]): the loop drives every joint of its simulation (model.joint_names = sim.joint_names, in that order). No simulation or loop may appear twice. threads: how many C++ threads run the pairs (the calling one among them), at most one per pair; 0 = one per core."""
-    def __init__(self, sims: Sequence[Simulation], loops: Sequence[cartesian_impedance.ControlLoop], threads: int = ...) -> None:
-        """Raises Error naming the pair whose loop does not fit its simulation, or that repeats a simulation or loop; TypeError for an element that is not a Simulation or ControlLoop."""
+    def __init__(self, sims: Sequence[Simulation], loops: Sequence[cartesian_impedance.ControlLoop], threads: int = ..., spin: float = ...) -> None:
+        """Raises Error naming the pair whose loop does not fit its simulation, or that repeats a simulation or loop; TypeError for an element that is not a Simulation or ControlLoop. spin [s]: after a run, each pool thread looks for the next one this long before it sleeps (yielding its core to anyone who wants it): a learning loop's next run then starts without a thread wake-up, which takes up to 0.5 ms on a VM; 0 sleeps at once and uses no CPU between runs (for processes that share their cores). At most 1 s."""
     def __len__(self) -> int:
         """Number of pairs."""
     def __repr__(self) -> str: ...
@@ -58,6 +58,9 @@ class BatchRunner:
     @property
     def sims(self) -> tuple:
         """The simulations, in the pairs' order."""
+    @property
+    def spin(self) -> float:
+        """[s] how long a pool thread spins after a run before it sleeps."""
     @property
     def threads(self) -> int:
         """Threads that run the pairs: the caller's and threads - 1 of the pool."""

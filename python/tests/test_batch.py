@@ -53,8 +53,10 @@ def assert_same(alone, batched, where):
 def test_batch_ends_each_pair_bit_for_bit_where_sim_run_takes_it_alone(panda):
     alone = [arm(panda, *kind) for kind in kinds()]
     batched = [arm(panda, *kind) for kind in kinds()]
-    batch = ci.sim.BatchRunner([s for s, _ in batched], [l for _, l in batched], threads=2)
-    assert len(batch) == len(batched) and batch.threads == 2
+    # spin=0: the pool sleeps between runs (C++'s test measures it); the results are the same.
+    batch = ci.sim.BatchRunner([s for s, _ in batched], [l for _, l in batched], threads=2,
+                               spin=0)
+    assert len(batch) == len(batched) and batch.threads == 2 and batch.spin == 0.0
     assert batch.sims[1] is batched[1][0] and batch.loops[2] is batched[2][1]
     for call, seconds in enumerate([0.3, 0.2, 0.25]):
         for i in range(len(alone)):
@@ -105,7 +107,12 @@ def test_errors_name_the_pair_and_nothing_runs(panda):
         ci.sim.BatchRunner(sims, None)
     with pytest.raises(ci.Error, match=r"^threads = 65 is outside \[0, 64\]"):
         ci.sim.BatchRunner(sims, loops, threads=65)
+    with pytest.raises(ci.Error, match=r"^spin = 2 s is outside \[0, 1\] s"):
+        ci.sim.BatchRunner(sims, loops, spin=2.0)
+    with pytest.raises(ci.Error, match=r"^spin = nan s"):
+        ci.sim.BatchRunner(sims, loops, spin=float("nan"))
     batch = ci.sim.BatchRunner(sims, loops)
+    assert batch.spin == 0.002
     with pytest.raises(ci.Error, match=r"^seconds = nan must be finite and >= 0"):
         batch.run(float("nan"))
     for sim, loop in pairs:  # nothing ran

@@ -105,7 +105,7 @@ def test_staggered_episodes_wipe_and_a_task_with_its_own_advance_stay_bit_identi
     # the batched ones.
     mixed = [envs.make(REACH, max_episode_steps=3), HalfStepsReach(max_episode_steps=3),
              envs.make(REACH, max_episode_steps=3)]
-    vector = envs.VectorEnv(mixed, threads=2)
+    vector = envs.VectorEnv(mixed, threads=2, spin=0.0)  # its pool sleeps between steps
     assert vector._batched == [0, 2]
     singles = [envs.make(REACH, max_episode_steps=3), HalfStepsReach(max_episode_steps=3),
                envs.make(REACH, max_episode_steps=3)]
@@ -176,3 +176,5 @@ def test_bad_actions_and_seeds_raise_naming_the_environment_and_change_nothing()
         envs.make_vector(REACH, 2, seeds=[1, 2, 3, 4])
     with pytest.raises(ci.Error, match="n = 0"):
         envs.make_vector(REACH, 0)
+    with pytest.raises(ci.Error, match=r"spin = -0.1 s is outside \[0, 1\] s"):
+        envs.make_vector(REACH, 1, spin=-0.1)

@@ -31,8 +31,14 @@ std::int64_t steps_for(double seconds, const Simulation& simulation, std::size_t
 
 }  // namespace
 
-BatchRunner::BatchRunner(const std::vector<BatchPair>& pairs, int threads) {
+BatchRunner::BatchRunner(const std::vector<BatchPair>& pairs, int threads,
+                         std::chrono::microseconds spin)
+    : spin_(spin) {
   if (pairs.empty()) throw Error("a batch needs at least one (simulation, control loop) pair");
+  if (spin.count() < 0 || spin > kMaxSpin) {
+    throw Error("spin = " + std::to_string(spin.count()) + " us is outside [0, " +
+                std::to_string(kMaxSpin.count()) + "] us");
+  }
   if (threads < 0 || threads > kMaxThreads) {
     throw Error("threads = " + std::to_string(threads) + " is outside [0, " +
                 std::to_string(kMaxThreads) + "] (0 = one per core)");
@@ -195,10 +201,10 @@ void BatchRunner::serve() noexcept {
   std::unique_lock<std::mutex> lock(mutex_);
   for (;;) {
     // Waking a sleeping thread takes up to half a millisecond on a virtual machine, as long as
-    // 100 steps of a pair: after a run, look for the next one without sleeping for a moment
-    // (a learning loop's next call comes within microseconds), then sleep.
+    // 100 steps of a pair: after a run, look for the next one without sleeping for spin_ (a
+    // learning loop's next call comes within microseconds), then sleep.
     lock.unlock();
-    const auto spin_end = std::chrono::steady_clock::now() + kSpin;
+    const auto spin_end = std::chrono::steady_clock::now() + spin_;
     while (published_generation_.load(std::memory_order_acquire) == seen &&
            std::chrono::steady_clock::now() < spin_end) {
       std::this_thread::yield();

@@ -48,14 +48,25 @@ class BatchRunner {
   /// The largest pool a runner makes (threads = 0 chooses one per core up to this).
   static constexpr int kMaxThreads = 64;
 
+  /// The default of `spin`: waking a sleeping thread takes up to half a millisecond on a virtual
+  /// machine, as long as 100 steps of a pair, and a learning loop's next run comes within
+  /// microseconds.
+  static constexpr std::chrono::microseconds kDefaultSpin{2000};
+  /// The longest spin accepted (1 s).
+  static constexpr std::chrono::microseconds kMaxSpin{1000000};
+
   /// `threads`: how many threads run the pairs, at most one per pair (more would idle); 0 = one
   /// per core (std::thread::hardware_concurrency()). The thread that calls run() is one of them;
   /// the runner starts the others, which live as long as it does.
+  /// `spin`: after a run, each pool thread looks for the next run without sleeping for this long
+  /// (yielding the core to any thread that wants it) before it sleeps. 0 = sleep at once: no CPU
+  /// used between runs, for processes that share their cores, at the cost of a wake-up per run.
   /// @throws Error naming the pair by its index: a null simulation or loop, a simulation or a
   ///         loop given in two pairs (they would race), a loop whose model's joints are not the
   ///         simulation's (names and order); if `pairs` is empty, or threads is outside
-  ///         [0, kMaxThreads].
-  explicit BatchRunner(const std::vector<BatchPair>& pairs, int threads = 0);
+  ///         [0, kMaxThreads], or spin is outside [0, kMaxSpin].
+  explicit BatchRunner(const std::vector<BatchPair>& pairs, int threads = 0,
+                       std::chrono::microseconds spin = kDefaultSpin);
   ~BatchRunner();
   BatchRunner(const BatchRunner&) = delete;
   BatchRunner& operator=(const BatchRunner&) = delete;
@@ -64,6 +75,8 @@ class BatchRunner {
   std::size_t size() const noexcept { return runners_.size(); }
   /// Threads that run the pairs: the caller's and threads() - 1 of the pool.
   int threads() const noexcept { return threads_; }
+  /// How long a pool thread spins after a run before it sleeps.
+  std::chrono::microseconds spin() const noexcept { return spin_; }
 
   /// Advances every pair by `steps` closed-loop steps (ClosedLoopRunner::step: each loop's
   /// torque applied, the simulation one timestep further). Returns the steps each pair ran, in
@@ -118,7 +131,7 @@ class BatchRunner {
   std::condition_variable finished_;
   std::uint64_t generation_ = 0;
   std::atomic<std::uint64_t> published_generation_{0};  // generation_, read without the lock
-  static constexpr std::chrono::microseconds kSpin{2000};
+  std::chrono::microseconds spin_ = kDefaultSpin;
   int busy_ = 0;
   bool exiting_ = false;
   std::vector<std::thread> workers_;

@@ -73,7 +73,7 @@ class VectorEnv(_VectorEnvBase):
 
     metadata = {"autoreset_mode": AUTORESET_MODE, "render_modes": ["rgb_array"]}
 
-    def __init__(self, envs, seeds=None, threads=0):
+    def __init__(self, envs, seeds=None, threads=0, spin=0.002):
         envs = list(envs)
         if not envs:
             raise ci.Error("num_envs = 0: a vector environment needs at least one environment")
@@ -82,6 +82,9 @@ class VectorEnv(_VectorEnvBase):
         self.envs = envs
         self.num_envs = len(envs)
         self.threads = int(threads)
+        self.spin = float(spin)
+        if not 0.0 <= self.spin <= 1.0:
+            raise ci.Error("spin = %r s is outside [0, 1] s" % (spin,))
         first = envs[0]
         for i, env in enumerate(envs):
             if env.action_space.shape != first.action_space.shape or \
@@ -182,7 +185,7 @@ class VectorEnv(_VectorEnvBase):
             return
         # reset() makes a new loop, so the kept runner (its threads) is renewed after resets.
         if self._runner is None or any(a is not b for a, b in zip(loops, self._runner_loops)):
-            self._runner = ci.sim.BatchRunner(sims, loops, self.threads)
+            self._runner = ci.sim.BatchRunner(sims, loops, self.threads, self.spin)
             self._runner_loops = tuple(loops)
         self._runner.run(period)
 
@@ -229,14 +232,16 @@ class VectorEnv(_VectorEnvBase):
         return "VectorEnv(%s, num_envs=%d)" % (getattr(self.spec, "id", "?"), self.num_envs)
 
 
-def make_vector(env_id, n, seeds=None, threads=0, **options):
+def make_vector(env_id, n, seeds=None, threads=0, spin=0.002, **options):
     """A VectorEnv of `n` environments make(env_id, **options) (see make()). seeds: what the
     first reset() without a seed uses (an int: env i gets seeds + i; or a sequence of n ints);
     threads: C++ threads that run the simulations (0 = one per core, at most one per
-    environment). Raises cartesian_impedance.Error for an unknown id, n < 1 or a wrong number of
+    environment); spin [s]: how long those threads look for the next step before they sleep
+    (sim.BatchRunner; 0 uses no CPU between steps, for processes that share their cores, at the
+    cost of a thread wake-up per step). Raises cartesian_impedance.Error for an unknown id, n < 1 or a wrong number of
     seeds."""
     if int(n) < 1:
         raise ci.Error("n = %d environments must be >= 1" % int(n))
     if seeds is not None:
         _seeds(seeds, int(n), "seeds")  # a wrong count fails before n environments are built
-    return VectorEnv([make(env_id, **options) for _ in range(int(n))], seeds, threads)
+    return VectorEnv([make(env_id, **options) for _ in range(int(n))], seeds, threads, spin)
