@@ -40,8 +40,11 @@ SIGNATURE = re.compile(r"^(?:\d+\. )?(?P<name>\w+)\((?P<args>.*)\)(?: -> (?P<ret
 class Writer:
     """The text of one stub file: its body, and the imports the body turned out to need."""
 
-    def __init__(self, module_name):
+    def __init__(self, module_name, outer_classes=()):
         self.module_name = module_name  # cartesian_impedance or cartesian_impedance.sim
+        # The package's classes a submodule's signatures may name bare (a pybind11 type name
+        # such as "Pose | tuple[...]"): qualified with the package there.
+        self.outer_classes = tuple(outer_classes)
         self.lines = []
 
     def line(self, indent, text=""):
@@ -53,6 +56,8 @@ class Writer:
             text = text.replace(PACKAGE + ".sim.", "sim.")
         else:
             text = text.replace(self.module_name + ".", "")
+            for outer in self.outer_classes:
+                text = re.sub(r"(?<![.\w])%s\b" % outer, f"{PACKAGE}.{outer}", text)
         if self.module_name == PACKAGE:
             text = re.sub(r"\b" + PACKAGE + r"\.", "", text)
         text = re.sub(r"\bnumpy\.ndarray\[", "numpy.typing.NDArray[", text)
@@ -208,6 +213,8 @@ def write_callable(writer, indent, name, function, method=False, static=False):
         ret = inspect.formatannotation(signature.return_annotation)
         entries = [(arguments, ret, inspect.getdoc(function) or "")]
     for arguments, ret, doc in entries:
+        if name in ("__eq__", "__ne__") and ret == "object":
+            ret = "bool"  # or NotImplemented for another type, which type checkers take as bool
         write_function(writer, indent, name, arguments, ret, doc, method, static, len(entries) > 1)
 
 
@@ -280,8 +287,8 @@ def public_names(module):
     return sorted(name for name in vars(module) if not name.startswith("_"))
 
 
-def write_module(module, name):
-    writer = Writer(name)
+def write_module(module, name, outer_classes=()):
+    writer = Writer(name, [c for c in outer_classes if not hasattr(module, c)])
     constants, classes, functions = [], [], []
     for attribute in public_names(module):
         value = getattr(module, attribute)
@@ -335,7 +342,8 @@ def generate(package):
         # A submodule of the extension gets a stub; one written in Python (rollouts.py) carries
         # its own annotations, which py.typed offers as they are.
         if isinstance(value, types.ModuleType) and not python_source(value):
-            stubs[f"{attribute}.pyi"] = write_module(value, f"{PACKAGE}.{attribute}")
+            classes = [n for n in public_names(package) if isinstance(getattr(package, n), type)]
+            stubs[f"{attribute}.pyi"] = write_module(value, f"{PACKAGE}.{attribute}", classes)
     return stubs
 
 

@@ -169,7 +169,7 @@ class Pool:
             raise RuntimeError("this Pool is closed")
         return self._map_on_cluster(rollout, listed, chunk_size)
 
-    def _map_on_cluster(self, rollout, listed, chunk_size):
+    def _map_on_cluster(self, rollout, listed, chunk_size) -> list:
         import distributed
         from distributed.scheduler import KilledWorker
 
@@ -300,7 +300,7 @@ class CemResult:
     history: List[dict]
 
 
-def cem(rollout: Rollout, mean: Sequence[float], std: Sequence[float], *, iterations: int = 10,
+def cem(rollout: Rollout, mean: Any, std: Any, *, iterations: int = 10,
         population: int = 32, elite_fraction: float = 0.25, score: Any = "score",
         maximize: bool = True, std_smoothing: float = 0.5, min_std: float = 0.0, seed: int = 0,
         pool: Optional[Pool] = None,
@@ -319,8 +319,8 @@ def cem(rollout: Rollout, mean: Sequence[float], std: Sequence[float], *, iterat
     better with ``maximize`` (lower without). ``seed`` fixes the samples and the rollouts' seeds,
     so a run is reproducible, serial or on any cluster. The pool (or the LocalCluster started
     here) is kept across iterations."""
-    mean = np.array(mean, dtype=float).reshape(-1)
-    std = np.array(std, dtype=float).reshape(-1)
+    mean_in, std_in = mean, std
+    mean, std = np.array(mean_in, dtype=float).reshape(-1), np.array(std_in, dtype=float).reshape(-1)
     if mean.shape != std.shape or mean.size == 0:
         raise ValueError("mean has shape %s and std %s: give two vectors of the same length >= 1"
                          % (mean.shape, std.shape))
@@ -372,5 +372,6 @@ def cem(rollout: Rollout, mean: Sequence[float], std: Sequence[float], *, iterat
     finally:
         if own is not None:
             own.close()
+    assert best is not None  # iterations >= 1
     return CemResult(mean=mean, std=std, best_params=best[1], best_score=best[0],
                      best_result=best[2], history=history)

@@ -171,7 +171,7 @@ class Simulation:
 
 class SquareHole:
     """A square hole in a block made of static boxes (hole_boxes()): four walls and a floor."""
-    def __init__(self, opening: Pose | tuple[numpy.typing.ArrayLike, numpy.typing.ArrayLike] | numpy.typing.ArrayLike, peg_half_width: float = ..., clearance: float = ..., depth: float = ..., wall: float = ..., floor: float = ..., name: str = ...) -> None:
+    def __init__(self, opening: cartesian_impedance.Pose | tuple[numpy.typing.ArrayLike, numpy.typing.ArrayLike] | numpy.typing.ArrayLike, peg_half_width: float = ..., clearance: float = ..., depth: float = ..., wall: float = ..., floor: float = ..., name: str = ...) -> None:
         """opening: pose of the centre of the hole's opening in the block's top face (world frame; its z axis points out of the hole, its x and y axes along the hole's sides); peg_half_width [m]: half the width of the square peg it takes; clearance [m]: hole width minus peg width (clearance / 2 on each side of a centred peg); depth [m] to the hole's floor; wall [m]: block material beside the hole; floor [m] below it (0: a through hole); name: the boxes are <name>_wall_x_plus, ..., <name>_floor."""
     def __repr__(self) -> str: ...
     @property

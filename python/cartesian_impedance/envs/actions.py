@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Optional
 
 import numpy as np
 
@@ -91,7 +92,7 @@ class ActionLimits:
     stiffness_rotation: tuple = (5.0, 150.0)
     max_force: float = 30.0
     max_torque: float = 3.0
-    reference_leash: tuple = None
+    reference_leash: Optional[tuple] = None
 
 
 class ActionInterface:
@@ -108,7 +109,7 @@ class ActionInterface:
               base frame, on the environment
     """
 
-    def __init__(self, model, parameters, wrench=False, limits: ActionLimits = None):
+    def __init__(self, model, parameters, wrench=False, limits: Optional[ActionLimits] = None):
         self.limits = limits or ActionLimits()
         self.wrench = bool(wrench)
         k = self.limits

@@ -12,6 +12,7 @@ import os
 import shutil
 import tempfile
 import warnings
+from typing import Any
 
 import numpy as np
 
@@ -23,11 +24,11 @@ from .robots import make_simulation, robot_spec
 
 __all__ = ["CartesianImpedanceEnv"]
 
+_EnvBase: Any
 try:  # gymnasium.make and its wrappers need a gymnasium.Env
-    import gymnasium as _gymnasium
-    _EnvBase = _gymnasium.Env
+    import gymnasium as _gymnasium_module
+    _EnvBase = _gymnasium_module.Env
 except ImportError:
-    _gymnasium = None
     _EnvBase = object
 
 

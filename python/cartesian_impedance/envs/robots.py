@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-from typing import Optional, Sequence
+from typing import Any, Optional, Sequence
 
 import numpy as np
 
@@ -42,7 +42,7 @@ class RobotSpec:
     config: str = ""
     start_q: Optional[Sequence[float]] = None
     translation_axes: Sequence[bool] = (True, True, True)
-    tool: object = None
+    tool: Any = None
 
     def load_model(self) -> "ci.RobotModel":
         if self.tool is None:
@@ -144,9 +144,9 @@ def make_simulation(spec: RobotSpec, model, engine: str, boxes=()):
     if not available:
         raise ci.Error("engine = '%s' is not available: %s" % (engine, reason))
     names = list(model.joint_names)
-    start_q = spec.start_q
+    start_q: Any = spec.start_q
     if engine == "mujoco" and spec.mjcf:
-        options = dict(joint_names=names, engine=engine)
+        options: dict = dict(joint_names=names, engine=engine)
         if start_q is not None:
             options["start_q"] = list(start_q)
         return ci.sim.make_scene(spec.mjcf, list(boxes), **options)

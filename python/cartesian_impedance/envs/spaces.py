@@ -74,6 +74,7 @@ class _Box:
         """The generator sample() draws from (seeded from fresh entropy on first use)."""
         if self._np_random is None:
             self.seed()
+        assert self._np_random is not None
         return self._np_random
 
     def seed(self, seed=None):

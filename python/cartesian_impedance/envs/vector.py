@@ -3,6 +3,8 @@ advanced together on threads (sim.BatchRunner, GIL released), with Gymnasium's v
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 import cartesian_impedance as ci
@@ -13,6 +15,8 @@ from .registration import make
 
 __all__ = ["VectorEnv", "make_vector", "AUTORESET_MODE"]
 
+_VectorEnvBase: Any
+AUTORESET_MODE: Any
 try:  # gymnasium.vector's wrappers need a gymnasium.vector.VectorEnv
     import gymnasium.vector as _gymnasium_vector
     _VectorEnvBase = _gymnasium_vector.VectorEnv
