@@ -51,8 +51,9 @@ void MeasurementBuffer::read(JointMeasurement& out) const noexcept {
 
 // ---- TorqueOutbox -----------------------------------------------------------------------------
 
-TorqueOutbox::TorqueOutbox(int num_joints) {
-  staging_.tau = JointVector::Zero(checked_joint_count("TorqueOutbox", num_joints));
+TorqueOutbox::TorqueOutbox(int num_joints)
+    : num_joints_(checked_joint_count("TorqueOutbox", num_joints)) {
+  staging_.tau = JointVector::Zero(num_joints_);
   buffer_.publish(staging_);
   sem_init(&semaphore_, 0, 0);
 }

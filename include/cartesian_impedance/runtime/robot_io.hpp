@@ -88,6 +88,8 @@ class TorqueOutbox final : public TorqueSink {
   TorqueOutbox(const TorqueOutbox&) = delete;
   TorqueOutbox& operator=(const TorqueOutbox&) = delete;
 
+  int num_joints() const noexcept { return num_joints_; }
+
   /// Control thread: publishes and wakes the consumer. Real-time safe.
   void write(const JointVector& tau, std::uint64_t cycle) noexcept override;
 
@@ -104,6 +106,7 @@ class TorqueOutbox final : public TorqueSink {
   sem_t semaphore_;
   bool any_ = false;  // the consumer's: has it returned a torque yet, and which
   std::uint64_t last_cycle_ = 0;
+  int num_joints_;
 };
 
 }  // namespace cartesian_impedance::runtime
