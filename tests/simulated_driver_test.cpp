@@ -23,6 +23,10 @@
 #include "cartesian_impedance/sim/simulation.hpp"
 #include "support/robots.hpp"
 
+#ifdef CARTESIAN_IMPEDANCE_COUNT_ALLOCATIONS
+#include "support/allocation_counter.hpp"
+#endif
+
 namespace ci = cartesian_impedance;
 namespace rt = cartesian_impedance::runtime;
 namespace sim = cartesian_impedance::sim;
@@ -291,3 +295,35 @@ TEST(SimulatedDriver, RejectsMismatchedJointCountsAndOptionsOutOfRange) {
   EXPECT_THROW(driver.pause_measurements(std::numeric_limits<double>::infinity()), ci::Error);
   driver.pause_measurements(0.0);
 }
+
+#ifdef CARTESIAN_IMPEDANCE_COUNT_ALLOCATIONS
+TEST(SimulatedDriver, TicksAllocateNothingWhileDrivingPausedAndBraked) {
+  const ci::RobotModel model = robots::panda();
+  sim::Simulation simulation = panda_simulation(model, true);
+  ci::ControlLoop loop(model, holding_parameters(simulation, false));
+  rt::MeasurementBuffer measurements(model.num_joints());
+  rt::TorqueOutbox torques(model.num_joints());
+  rt::ControlThread control({1000.0, 0.02, 0});
+  sim::SimulatedDriver driver(simulation, measurements, torques);
+  control.start(loop, measurements, &torques);
+  driver.start();
+  ASSERT_TRUE(simulate_for(driver, 0.05));
+  long allocations = 0;
+  sim::SimulatedDriverState state;
+  {
+    allocation_counter::Scope scope;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));  // driven
+    driver.pause_measurements(0.1);  // the control thread fails closed, the driver goes on
+    std::this_thread::sleep_for(std::chrono::milliseconds(150));
+    control.stop();  // torques stop: the driver brakes
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    state = driver.state();
+    allocations = scope.allocations();
+  }
+  driver.stop();
+  EXPECT_EQ(allocations, 0);
+  EXPECT_EQ(state.torque_timeouts, 1u);
+  EXPECT_TRUE(state.held);
+  EXPECT_GE(control.statistics().stale_episodes, 1u);
+}
+#endif
