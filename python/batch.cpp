@@ -132,13 +132,13 @@ class Batch {
   int threads() const { return batch_->threads(); }
   py::tuple simulations() const { return tuple_of(simulations_); }
   py::tuple loops() const { return tuple_of(loops_); }
-  bool running() const { return running_.load(); }
+  bool running() const { return running_.load() != nullptr; }
 
  private:
   std::vector<py::object> simulations_;
   std::vector<py::object> loops_;
   std::unique_ptr<ci::sim::BatchRunner> batch_;
-  std::atomic<bool> running_{false};
+  Holder running_{nullptr};
 };
 
 }  // namespace

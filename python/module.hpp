@@ -19,6 +19,9 @@ void bind_controller(pybind11::module_& m);
 void bind_robot_model(pybind11::module_& m);
 /// ControlLoop (loop.cpp).
 void bind_control_loop(pybind11::module_& m);
+/// The submodule runtime: ControlThread and the hand-offs MeasurementBuffer, TorqueOutbox
+/// (runtime.cpp). After ControlLoop; before the simulation, whose SimulatedDriver uses them.
+void bind_runtime(pybind11::module_& m);
 #ifdef CARTESIAN_IMPEDANCE_PYTHON_SIM
 /// The submodule sim (simulation.cpp).
 void bind_simulation(pybind11::module_& m);
