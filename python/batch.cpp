@@ -135,13 +135,13 @@ class Batch {
   std::chrono::microseconds spin() const { return batch_->spin(); }
   py::tuple simulations() const { return tuple_of(simulations_); }
   py::tuple loops() const { return tuple_of(loops_); }
-  bool running() const { return running_.load(); }
+  bool running() const { return running_.load() != nullptr; }
 
  private:
   std::vector<py::object> simulations_;
   std::vector<py::object> loops_;
   std::unique_ptr<ci::sim::BatchRunner> batch_;
-  std::atomic<bool> running_{false};
+  Holder running_{nullptr};
 };
 
 }  // namespace

@@ -430,7 +430,7 @@ void bind_control_loop(py::module_& m) {
         const ci::RobotModel& model = self.loop.model();
         std::string text = "ControlLoop(robot='" + model.robot_name() + "', " +
                            std::to_string(model.num_joints()) + " joints, ";
-        if (self.running.load()) return text + "running in Simulation.run())";
+        if (const char* by = self.running.load()) return text + "in use by " + by + ")";
         const ci::LoopState& state = self.loop.state();
         if (!self.loop.started()) {
           text += "not started";

@@ -11,15 +11,17 @@
 // Threads: ControlLoop commands (the setters, execute_trajectory) may come from any Python thread,
 // as in C++. Simulation.run() releases the GIL while it steps; the simulation and the loop's cycle
 // (start, step, state) are claimed for that time, so another thread touching them gets a
-// RuntimeError instead of a data race.
+// RuntimeError instead of a data race. A runtime.ControlThread and a sim.SimulatedDriver are C++
+// threads that claim what they use the same way, from start() to stop(), and keep it alive.
 //
 // Files: module.cpp (this module and its exceptions), conversions.hpp/.cpp (Python <-> Eigen, the
 // argument types), parameters.cpp (Parameters and the parameter table), controller.cpp
 // (enumerations, Pose, the states, CartesianImpedanceController), loop.cpp (RobotModel,
-// ControlLoop), simulation.cpp (the submodule sim), commands.hpp (the setters the controller and
-// the loop share), wrappers.hpp (what Python owns beside a library object); cartesian_impedance/
-// (the package around this module: __init__.py with data_dir(), the stubs written by
-// generate_stubs.py, py.typed).
+// ControlLoop), runtime.hpp/.cpp (the submodule runtime: the control thread and its hand-offs),
+// simulation.cpp (the submodule sim; driver.cpp: its SimulatedDriver), commands.hpp (the setters
+// the controller and the loop share), wrappers.hpp (what Python owns beside a library object);
+// cartesian_impedance/ (the package around this module: __init__.py with data_dir(), the stubs
+// written by generate_stubs.py, py.typed).
 
 #include <pybind11/pybind11.h>
 
@@ -72,6 +74,7 @@ PYBIND11_MODULE(_core, m) {
   python::bind_robot_model(m);
   python::bind_control_loop(m);
   python::bind_policy_interface(m);
+  python::bind_runtime(m);
 #ifdef CARTESIAN_IMPEDANCE_PYTHON_SIM
   python::bind_simulation(m);
 #endif

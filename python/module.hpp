@@ -21,6 +21,9 @@ void bind_robot_model(pybind11::module_& m);
 void bind_control_loop(pybind11::module_& m);
 /// PolicyInterface (policy.cpp).
 void bind_policy_interface(pybind11::module_& m);
+/// The submodule runtime: ControlThread and the hand-offs MeasurementBuffer, TorqueOutbox
+/// (runtime.cpp). After ControlLoop; before the simulation, whose SimulatedDriver uses them.
+void bind_runtime(pybind11::module_& m);
 #ifdef CARTESIAN_IMPEDANCE_PYTHON_SIM
 /// The submodule sim (simulation.cpp).
 void bind_simulation(pybind11::module_& m);

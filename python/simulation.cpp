@@ -522,7 +522,8 @@ void bind_simulation(py::module_& m) {
           "Renders offscreen (EGL) to an RGB PNG of width x height pixels; camera: an MJCF "
           "camera name, '' = a free camera from the robot's right. Releases the GIL.")
       .def("__repr__", [](Sim& s) {
-        if (s.running.load()) return std::string("Simulation(running in Simulation.run())");
+        if (const char* by = s.running.load())
+          return std::string("Simulation(in use by ") + by + ")";
         const ci::sim::Simulation& simulation = s.sim;
         return "Simulation('" + simulation.model_name() + "', " +
                ci::sim::engine_name(simulation.engine()) + ", " +
@@ -551,6 +552,7 @@ void bind_simulation(py::module_& m) {
       "and why not. Raises Error for an unknown name.");
 
   bind_batch(sim);
+  bind_simulated_driver(sim);
 }
 
 }  // namespace cartesian_impedance::python

@@ -20,10 +20,13 @@ struct Sim {
     return sim;
   }
   ci::sim::Simulation sim;
-  std::atomic<bool> running{false};
+  Holder running{nullptr};
 };
 
 /// BatchRunner and run_many() in the submodule sim (batch.cpp); after Simulation.
 void bind_batch(py::module_& sim);
+/// SimulatedDriver and DriverState in the submodule sim (driver.cpp); after Simulation and the
+/// submodule runtime.
+void bind_simulated_driver(py::module_& sim);
 
 }  // namespace cartesian_impedance::python

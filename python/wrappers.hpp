@@ -17,26 +17,38 @@ namespace cartesian_impedance::python {
 namespace py = pybind11;
 namespace ci = cartesian_impedance;
 
-/// Marks an object as in use by a call that has released the GIL; other threads then get a
-/// RuntimeError instead of racing with it.
+/// Who uses an object from another thread with the GIL released (a run, a control thread, a
+/// simulated driver), as a refusal names it; null while nobody does.
+using Holder = std::atomic<const char*>;
+
+/// Marks an object as in use by a call that has released the GIL, or by a C++ thread; other
+/// threads then get a RuntimeError naming the holder instead of racing with it.
 class Claim {
  public:
-  Claim(std::atomic<bool>& flag, const std::string& what) : flag_(flag) {
-    if (flag_.exchange(true)) throw std::runtime_error(what + kInUse);
+  /// The holder of the simulation's runs (Simulation.run(), BatchRunner.run()).
+  static constexpr const char* kRuns = "Simulation.run() or BatchRunner.run()";
+
+  Claim(Holder& holder, const std::string& what, const char* by = kRuns) : holder_(holder) {
+    const char* current = nullptr;
+    if (!holder_.compare_exchange_strong(current, by))
+      throw std::runtime_error(what + in_use(current));
   }
-  ~Claim() { flag_.store(false); }
+  ~Claim() { holder_.store(nullptr); }
   Claim(const Claim&) = delete;
   Claim& operator=(const Claim&) = delete;
 
-  static constexpr const char* kInUse =
-      " is in use by Simulation.run() or BatchRunner.run() in another thread";
+  /// " is in use by <by> in another thread"
+  static std::string in_use(const char* by) {
+    return std::string(" is in use by ") + by + " in another thread";
+  }
 
  private:
-  std::atomic<bool>& flag_;
+  Holder& holder_;
 };
 
-inline void check_free(const std::atomic<bool>& flag, const char* what) {
-  if (flag.load()) throw std::runtime_error(std::string(what) + Claim::kInUse);
+inline void check_free(const Holder& holder, const char* what) {
+  if (const char* by = holder.load())
+    throw std::runtime_error(std::string(what) + Claim::in_use(by));
 }
 
 /// RobotModel plus a workspace for compute() from Python.
@@ -61,7 +73,7 @@ class Loop {
 
   py::object model_object;
   ci::ControlLoop loop;
-  std::atomic<bool> running{false};
+  Holder running{nullptr};
 };
 
 }  // namespace cartesian_impedance::python

@@ -646,6 +646,19 @@ TEST(TorqueOutbox, HandsEachCycleOnOnceAndWakesForShutdown) {
   EXPECT_FALSE(outbox.wait(1.0, sample));
 }
 
+TEST(TorqueOutbox, AWakeBeforeAnyTorqueReturnsNoTorque) {
+  // The outbox starts with a zero torque in its buffer that no cycle wrote: a consumer woken for
+  // shutdown before the first cycle must not get it as one (it would send the robot zero).
+  rt::TorqueOutbox outbox(3);
+  rt::TorqueSample sample;
+  outbox.wake();
+  EXPECT_FALSE(outbox.wait(1.0, sample));
+  outbox.write(ci::JointVector::Constant(3, 1.0), 0);  // a sink may number its first cycle 0
+  ASSERT_TRUE(outbox.wait(0.01, sample));
+  EXPECT_EQ(sample.cycle, 0u);
+  EXPECT_EQ(sample.tau, ci::JointVector::Constant(3, 1.0));
+}
+
 TEST(MeasurementBuffer, NumbersAndStampsEachMeasurement) {
   rt::MeasurementBuffer buffer(2);
   rt::JointMeasurement out;

@@ -9,6 +9,8 @@ import numpy.typing
 
 from . import rollouts as rollouts
 
+from . import runtime as runtime
+
 from . import sim as sim
 
 __version__: str

@@ -95,6 +95,82 @@ class Box:
         """A table on the floor whose top is at top_z [m], centred at center_xy (2,) [m], half extents half_size_xy (2,) [m]."""
 
 
+class DriverState:
+    """The simulated arm and the driver's counters as of its latest tick."""
+    def __repr__(self) -> str: ...
+    @property
+    def dq(self) -> numpy.typing.NDArray[numpy.float64]:
+        """Joint velocities (n,) [rad/s]."""
+    @property
+    def held(self) -> bool:
+        """The arm is held (not stepped): before the first torque, and braked after a torque timeout."""
+    @property
+    def late_ticks(self) -> int:
+        """ticks that ended after the next tick's deadline"""
+    @property
+    def measurements(self) -> int:
+        """measurements published"""
+    @property
+    def measurements_paused(self) -> bool:
+        """the latest tick published no measurement (pause_measurements())"""
+    @property
+    def q(self) -> numpy.typing.NDArray[numpy.float64]:
+        """Joint positions (n,) [rad]."""
+    @property
+    def rejected_torques(self) -> int:
+        """torques not applied: wrong size or not finite"""
+    @property
+    def steps(self) -> int:
+        """simulation steps since start() (ticks not held)"""
+    @property
+    def tau(self) -> numpy.typing.NDArray[numpy.float64]:
+        """The commanded torque applied in the tick (n,) [Nm], after the actuators' clipping and without the simulated firmware's gravity compensation; zero while held."""
+    @property
+    def ticks(self) -> int:
+        """ticks since start()"""
+    @property
+    def time(self) -> float:
+        """[s] simulated time"""
+    @property
+    def torque_cycle(self) -> int:
+        """the loop cycle of the newest torque taken"""
+    @property
+    def torque_timeouts(self) -> int:
+        """times the arm was braked because torques stopped"""
+    @property
+    def torques(self) -> int:
+        """new torques taken from the outbox"""
+
+
+class SimulatedDriver:
+    """A stand-in for a robot's driver: a C++ thread that steps the simulation in real time, one timestep per tick on absolute deadlines, applying the newest torque of a runtime.TorqueOutbox and publishing the measured q and dq to a runtime.MeasurementBuffer, for a runtime.ControlThread. Like a Panda on FCI, the arm is held (not stepped) until the first torque, a tick without a new torque applies the last one again, and after torque_timeout without one the arm is braked (velocity zeroed, not stepped) until torques return. While it runs the simulation is the driver's: read the arm with state(). A context manager: `with` stops it; so does dropping the last reference."""
+    def __enter__(self) -> object: ...
+    def __exit__(self, exc_type: object, exc_value: object, traceback: object) -> bool:
+        """Stops the driver."""
+    def __init__(self, simulation: Simulation, measurements: cartesian_impedance.runtime.MeasurementBuffer, torques: cartesian_impedance.runtime.TorqueOutbox, torque_timeout: float = ..., realtime_priority: int = ...) -> None:
+        """simulation: the arm (the control loop's model must have its joints, in its order); measurements, torques: the hand-offs given to ControlThread.start(), of the simulation's joint count; torque_timeout [s] in (0, 1e6]: after this long without a new torque the arm is braked (0.02: FCI's 20 lost packets at 1 kHz); realtime_priority: SCHED_FIFO priority, 0 = normal scheduling. All three objects are kept alive as long as the driver. Raises Error if the joint counts differ or an option is out of range."""
+    def __repr__(self) -> str: ...
+    def pause_measurements(self, seconds: float) -> None:
+        """Publishes no measurement for the next `seconds` [s] of wall-clock time (within [0, 1e6]; 0 ends a pause) while the arm goes on moving, as a driver that lost its connection: the control thread's measurements go stale and it fails closed, and resumes when they return."""
+    @property
+    def period(self) -> float:
+        """[s] between ticks: the simulation's timestep."""
+    @property
+    def running(self) -> bool:
+        """True from start() until stop()."""
+    def start(self) -> None:
+        """Starts the thread: it publishes the current state at once, then ticks every timestep. Claims the simulation, the buffer's writing and the outbox's consuming until stop(). Raises Error if it runs already."""
+    def state(self) -> DriverState:
+        """The DriverState as of the latest tick (any thread, also while running)."""
+    def statistics(self) -> cartesian_impedance.runtime.ControlThreadStatistics:
+        """The ticks' timing since start(), a runtime.ControlThreadStatistics: cycles are ticks, overruns late ticks."""
+    def stop(self) -> None:
+        """Ends the thread after its current tick and joins it (with the GIL released); the simulation is then the caller's again, as the last tick left it."""
+    @property
+    def torque_timeout(self) -> float:
+        """[s]"""
+
+
 class Simulation:
     """A simulated robot (MuJoCo or DART). Not thread-safe: one thread drives it. Loaders and setters raise Error on bad input."""
     def __repr__(self) -> str: ...

@@ -1,9 +1,8 @@
 """cartesian_impedance.envs: the Gymnasium API (spaces, the 5-tuple, seeding, reset after an
 episode ends, render), each task's behaviour under a scripted policy and under policies that must
 fail, the stiffness in the action reaching the law, bad actions, and the same actions on a
-ControlLoop stepped by a stand-in driver thread."""
+ControlLoop that the runtime's control thread steps from a simulated robot driver."""
 
-import threading
 import time
 
 import numpy as np
@@ -298,10 +297,12 @@ def test_other_robots_and_dart():
 
 # ---- the same actions on a loop stepped by a driver ----
 
-def test_robot_action_interface_on_a_loop_stepped_by_a_driver_thread():
-    # A stand-in for a robot and its driver: a simulated Panda stepped at 1 kHz (real time) by
-    # its own thread, which alone calls loop.step(); the policy runs at 20 Hz on this thread and
-    # sees the loop only through RobotActionInterface (latest_state(), commands).
+def test_robot_action_interface_on_the_control_thread_with_a_simulated_driver():
+    # As on a robot: the driver (a simulated Panda stepped in real time, one 1 ms timestep per
+    # tick, by its own C++ thread) publishes the joint state; the runtime's control thread steps
+    # the loop from it at 1 kHz on absolute deadlines and hands each torque back to the driver.
+    # The policy runs at 20 Hz on this thread and sees the loop only through
+    # RobotActionInterface (latest_state(), commands).
     data = ci.data_dir()
     model = ci.RobotModel.from_urdf_file(data / "models/panda/panda.urdf", "panda_link0",
                                          "panda_link8")
@@ -309,20 +310,17 @@ def test_robot_action_interface_on_a_loop_stepped_by_a_driver_thread():
     robot = ci.sim.Simulation.from_mjcf_file(data / "models/panda/panda.xml",
                                              joint_names=model.joint_names)
     loop = ci.ControlLoop(model, parameters)
-    loop.start(robot.q, robot.dq)
-    stop = threading.Event()
-
-    def driver():
-        deadline = time.monotonic()
-        while not stop.is_set():
-            robot.set_torque(loop.step(robot.q, robot.dq, robot.timestep))
-            robot.step()
-            deadline += robot.timestep
-            time.sleep(max(0.0, deadline - time.monotonic()))
-
-    thread = threading.Thread(target=driver)
-    thread.start()
-    try:
+    measurements = ci.runtime.MeasurementBuffer(model.num_joints)
+    torques = ci.runtime.TorqueOutbox(model.num_joints)
+    with ci.runtime.ControlThread(rate=1000.0) as control, \
+            ci.sim.SimulatedDriver(robot, measurements, torques) as driver:
+        control.start(loop, measurements, torques)
+        driver.start()
+        began = time.monotonic()
+        give_up = began + 10.0
+        while loop.latest_state().cycle == 0 and time.monotonic() < give_up:
+            time.sleep(0.001)  # the control thread starts the loop at the first measurement
+        assert control.running
         interface = envs.RobotActionInterface(loop, model, parameters)
         interface.reset()
         start = loop.latest_state().controller.pose.position
@@ -337,11 +335,19 @@ def test_robot_action_interface_on_a_loop_stepped_by_a_driver_thread():
             time.sleep(0.05)
         with pytest.raises(ci.Error, match=r"action\[0\] = inf"):
             interface.act(np.array([np.inf] + [0.0] * 11))
-    finally:
-        stop.set()
-        thread.join()
+        elapsed = time.monotonic() - began
+    statistics, state = control.statistics(), driver.state()
     assert np.linalg.norm(loop.latest_state().controller.pose.position - goal) < 0.02
     assert loop.latest_state().controller.status == ci.Status.ok
+    # Both threads ran the whole time: at 1 kHz they would count 1000 per second; on a loaded
+    # machine a late wake-up skips cycles (and ticks), so at least half of them.
+    assert statistics.cycles > 0.5 * elapsed / control.period
+    assert state.ticks > 0.5 * elapsed / driver.period
+    # The arm moved by the driver's steps, under the control thread's torques: it was never
+    # braked for want of them, and the loop's cycles match what the driver received.
+    assert not state.held and state.torque_timeouts == 0 and state.rejected_torques == 0
+    assert state.steps > 0.5 * elapsed / driver.period
+    assert 0 < state.torque_cycle <= loop.latest_state().cycle
 
 
 def test_gymnasium_make_where_installed():

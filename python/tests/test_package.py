@@ -54,3 +54,12 @@ def test_sim_is_a_submodule():
     assert sim is ci.sim
     assert sim.__name__ == "cartesian_impedance.sim"
     assert sim.Simulation.__module__ == "cartesian_impedance.sim"
+
+
+def test_runtime_is_a_submodule():
+    import cartesian_impedance.runtime as runtime
+
+    assert runtime is ci.runtime
+    assert runtime.__name__ == "cartesian_impedance.runtime"
+    assert runtime.ControlThread.__module__ == "cartesian_impedance.runtime"
+    assert "loop: cartesian_impedance.ControlLoop" in runtime.ControlThread.start.__doc__

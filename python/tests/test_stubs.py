@@ -55,7 +55,7 @@ def extension_names(module):
 
 
 def modules():
-    found = [(ci, STUB_DIR / "__init__.pyi")]
+    found = [(ci, STUB_DIR / "__init__.pyi"), (ci.runtime, STUB_DIR / "runtime.pyi")]
     if has_sim():
         found.append((ci.sim, STUB_DIR / "sim.pyi"))
     return found
@@ -97,7 +97,7 @@ def test_the_stubs_are_what_the_generator_writes():
 def test_the_stubs_and_py_typed_sit_beside_the_module():
     # Editors and type checkers look for them there (PEP 561), in the build tree as in an install.
     package = pathlib.Path(ci.__file__).parent
-    for name in ["__init__.pyi", "py.typed"] + (["sim.pyi"] if has_sim() else []):
+    for name in ["__init__.pyi", "runtime.pyi", "py.typed"] + (["sim.pyi"] if has_sim() else []):
         assert (package / name).is_file(), f"{package} lacks {name}"
     assert isinstance(ci._core, types.ModuleType)
 

@@ -37,7 +37,7 @@ package = pathlib.Path(ci.__file__).resolve().parent
 data = ci.data_dir().resolve()
 for what, path in [("the module", package), ("its data", data)]:
     assert venv in path.parents, f"{what} is not from the venv {venv}: {path}"
-for name in ["__init__.pyi", "sim.pyi", "py.typed", "data/models/panda/panda.xml",
+for name in ["__init__.pyi", "sim.pyi", "runtime.pyi", "py.typed", "data/models/panda/panda.xml",
              "data/config/panda.yaml", "envs/__init__.py"]:
     assert (package / name).is_file(), f"the installed package lacks {name}"
 

@@ -51,8 +51,9 @@ void MeasurementBuffer::read(JointMeasurement& out) const noexcept {
 
 // ---- TorqueOutbox -----------------------------------------------------------------------------
 
-TorqueOutbox::TorqueOutbox(int num_joints) {
-  staging_.tau = JointVector::Zero(checked_joint_count("TorqueOutbox", num_joints));
+TorqueOutbox::TorqueOutbox(int num_joints)
+    : num_joints_(checked_joint_count("TorqueOutbox", num_joints)) {
+  staging_.sample.tau = JointVector::Zero(num_joints_);
   buffer_.publish(staging_);
   sem_init(&semaphore_, 0, 0);
 }
@@ -62,8 +63,9 @@ TorqueOutbox::~TorqueOutbox() {
 }
 
 void TorqueOutbox::write(const JointVector& tau, std::uint64_t cycle) noexcept {
-  staging_.tau = tau;
-  staging_.cycle = cycle;
+  staging_.sample.tau = tau;
+  staging_.sample.cycle = cycle;
+  ++staging_.sequence;
   buffer_.publish(staging_);
   sem_post(&semaphore_);
 }
@@ -84,11 +86,12 @@ bool TorqueOutbox::wait(double timeout, TorqueSample& sample) noexcept {
          errno == EINTR) {
   }
   if (result != 0) return false;
-  buffer_.read(sample);
-  // Several posts may be answered by one read: report each cycle's torque once.
-  if (any_ && sample.cycle == last_cycle_) return false;
-  any_ = true;
-  last_cycle_ = sample.cycle;
+  buffer_.read(received_);
+  // Several posts may be answered by one read: report each written torque once, and the initial
+  // one, which no cycle wrote, never (a wake() before the first write posts too).
+  if (received_.sequence == returned_) return false;
+  returned_ = received_.sequence;
+  sample = received_.sample;
   return true;
 }
 

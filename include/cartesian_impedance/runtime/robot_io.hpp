@@ -88,22 +88,30 @@ class TorqueOutbox final : public TorqueSink {
   TorqueOutbox(const TorqueOutbox&) = delete;
   TorqueOutbox& operator=(const TorqueOutbox&) = delete;
 
+  int num_joints() const noexcept { return num_joints_; }
+
   /// Control thread: publishes and wakes the consumer. Real-time safe.
   void write(const JointVector& tau, std::uint64_t cycle) noexcept override;
 
-  /// Consumer thread (one): waits up to `timeout` [s] for a torque it has not returned yet. True
-  /// with `sample` filled if there is one; false after the timeout or a wake().
+  /// Consumer thread (one): waits up to `timeout` [s] for a torque written since the last one it
+  /// returned. True with `sample` filled if there is one; false after the timeout or a wake()
+  /// (also one before the first write: nothing was written yet).
   bool wait(double timeout, TorqueSample& sample) noexcept;
 
   /// Wakes the consumer early (for shutdown): its wait() returns false unless a new torque came.
   void wake() noexcept;
 
  private:
-  SnapshotBuffer<TorqueSample, 4> buffer_;
-  TorqueSample staging_;  // the control thread's
+  struct Written {
+    TorqueSample sample;
+    std::uint64_t sequence = 0;  // 1, 2, ... per write(); 0: the initial zero, never written
+  };
+  SnapshotBuffer<Written, 4> buffer_;
+  Written staging_;   // the control thread's
+  Written received_;  // the consumer's, and the sequence of the newest torque it returned
+  std::uint64_t returned_ = 0;
   sem_t semaphore_;
-  bool any_ = false;  // the consumer's: has it returned a torque yet, and which
-  std::uint64_t last_cycle_ = 0;
+  int num_joints_;
 };
 
 }  // namespace cartesian_impedance::runtime
