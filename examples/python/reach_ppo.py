@@ -11,8 +11,11 @@ action is evaluated on held-out seeds. Debian: python3-torch.
 Usage (from the repository root, after building the module):
 
     PYTHONPATH=build/python /usr/bin/python3 examples/python/reach_ppo.py
-        [--iterations 40] [--envs 4] [--steps 128] [--seed 0] [--plot reach_ppo.png]
+        [--iterations 150] [--envs 8] [--steps 128] [--seed 0] [--plot reach_ppo.png]
         [--json results.json]
+
+Measured (python/README.md): 150 iterations of 8 x 128 steps (154k environment steps, 94 s on the
+two-core VM) take the held-out success from 5 % to 100 %.
 """
 
 import argparse
@@ -79,21 +82,27 @@ class Policy(nn.Module):
 
 
 def evaluate(policy, norm, seeds):
-    """Success rate and mean final distance [m] of the mean action over episodes from `seeds`."""
+    """Success rate, mean final distance [m] and the mean cosine between the first action's
+    translation and the direction to the goal, of the mean action over episodes from `seeds`."""
     env = envs.make(ENV, **OPTIONS)
-    successes, distances = [], []
+    n = env.model.num_joints
+    successes, distances, cosines = [], [], []
     for seed in seeds:
         obs, info = env.reset(seed=int(seed))
         done = False
         while not done:
             with torch.no_grad():
                 action = policy.mean(torch.as_tensor(norm(obs), dtype=torch.float32)).numpy()
+            if not cosines or len(cosines) < len(successes) + 1:
+                toward = obs[-3:] - obs[2 * n:2 * n + 3]
+                cosines.append(float(action[:3] @ toward /
+                                     (np.linalg.norm(action[:3]) * np.linalg.norm(toward) + 1e-12)))
             obs, _, terminated, truncated, info = env.step(np.clip(action, -1, 1))
             done = terminated or truncated
         successes.append(float(info["is_success"]))
         distances.append(info["distance"])
     env.close()
-    return float(np.mean(successes)), float(np.mean(distances))
+    return float(np.mean(successes)), float(np.mean(distances)), float(np.mean(cosines))
 
 
 def train(iterations, n_envs, steps, seed, held_out):
@@ -105,7 +114,7 @@ def train(iterations, n_envs, steps, seed, held_out):
     obs_size = norm.size
     policy = Policy(obs_size, action_size)
     optimizer = torch.optim.Adam(policy.parameters(), lr=1e-3)
-    gamma, lam, clip, epochs, minibatch = 0.99, 0.95, 0.2, 10, 128
+    gamma, lam, clip, epochs, minibatch = 0.99, 0.95, 0.2, 10, 256
 
     before = evaluate(policy, norm, held_out)
     obs, _ = vector.reset(seed=seed)
@@ -178,15 +187,17 @@ def train(iterations, n_envs, steps, seed, held_out):
     elapsed = time.perf_counter() - began
     vector.close()
     after = evaluate(policy, norm, held_out)
-    return {"before": {"success": before[0], "final_distance": before[1]},
-            "after": {"success": after[0], "final_distance": after[1]},
+    return {"before": {"success": before[0], "final_distance": before[1],
+                       "direction_cosine": before[2]},
+            "after": {"success": after[0], "final_distance": after[1],
+                      "direction_cosine": after[2]},
             "curve": curve, "train_seconds": elapsed, "held_out_seeds": len(held_out)}
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--iterations", type=int, default=40)
-    parser.add_argument("--envs", type=int, default=4)
+    parser.add_argument("--iterations", type=int, default=150)
+    parser.add_argument("--envs", type=int, default=8)
     parser.add_argument("--steps", type=int, default=128, help="steps per environment per "
                         "iteration")
     parser.add_argument("--seed", type=int, default=0)
@@ -197,8 +208,10 @@ def main():
     held_out = 2**31 + np.arange(args.held_out)  # seeds training never uses
     result = train(args.iterations, args.envs, args.steps, args.seed, held_out)
     for name in ("before", "after"):
-        print("%s training: success %.2f on %d held-out seeds, mean final distance %.3f m" %
-              (name, result[name]["success"], args.held_out, result[name]["final_distance"]))
+        print("%s training: success %.2f on %d held-out seeds, mean final distance %.3f m, "
+              "first action toward the goal: cosine %.2f" %
+              (name, result[name]["success"], args.held_out, result[name]["final_distance"],
+               result[name]["direction_cosine"]))
     print("training: %.1f s" % result["train_seconds"])
     if args.json:
         with open(args.json, "w") as out:
