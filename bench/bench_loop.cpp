@@ -10,6 +10,7 @@
 
 #include "cartesian_impedance/core/error.hpp"
 #include "cartesian_impedance/loop/control_loop.hpp"
+#include "cartesian_impedance/loop/policy_interface.hpp"
 #include "support/allocation_counter.hpp"
 #include "support/safety_caps.hpp"
 
@@ -233,6 +234,48 @@ BENCHMARK_CAPTURE(BM_ModelKinematics, kdl, ci::ModelBackend::kdl)
     ->Arg(0)
     ->Arg(1)
     ->ArgName("dynamics");
+
+// A policy's step at 20 Hz without the 50 cycles in between: the action into the loop's commands
+// (PolicyInterface::apply: reference on the leash, stiffness, wrench; validated and queued) and
+// the observation (observe: J dq and the external wrench by SVD). The loop steps once per
+// iteration so that its inbox is emptied; BM_LoopStep gives that step's own cost.
+void BM_PolicyApplyAndObserve(benchmark::State& state) {
+  const ci::RobotModel model = panda();
+  ci::ControlLoop loop(model, ci::Parameters{});
+  ci::JointVector q = ready(), dq = ci::JointVector::Constant(7, 0.01);
+  loop.start(q, dq);
+  ci::PolicyInterface policy(model, ci::Parameters{}, /*wrench=*/true);
+  policy.reset(loop.latest_state().controller.pose);
+  ci::PolicyInterface::Action action(18);
+  Eigen::VectorXd observation(policy.observation_size());
+  ci::LoopState loop_state = loop.latest_state();
+  int k = 0;
+  for (auto _ : state) {
+    for (int i = 0; i < 18; ++i) action[i] = std::sin(0.1 * ++k);
+    policy.apply(action, loop, loop_state.controller.pose);
+    loop.step(q, dq, 0.001);
+    loop_state = loop.latest_state();
+    policy.observe(loop_state, observation);
+    benchmark::DoNotOptimize(observation.data());
+    q += 0.001 * dq;
+  }
+}
+BENCHMARK(BM_PolicyApplyAndObserve);
+
+// observe() alone.
+void BM_PolicyObserve(benchmark::State& state) {
+  const ci::RobotModel model = panda();
+  ci::ControlLoop loop(model, ci::Parameters{});
+  loop.start(ready(), ci::JointVector::Constant(7, 0.01));
+  ci::PolicyInterface policy(model, ci::Parameters{}, false);
+  const ci::LoopState loop_state = loop.latest_state();
+  Eigen::VectorXd observation(policy.observation_size());
+  for (auto _ : state) {
+    policy.observe(loop_state, observation);
+    benchmark::DoNotOptimize(observation.data());
+  }
+}
+BENCHMARK(BM_PolicyObserve);
 
 }  // namespace
 BENCHMARK_MAIN();
