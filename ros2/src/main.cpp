@@ -1,5 +1,5 @@
-// cartesian_impedance_ros2: the Cartesian impedance controller on ROS 2 topics over DDS (see the
-// README's "ROS 2" section). Exit codes, one rule: 0 after SIGINT or SIGTERM; 2 if what the node
+// cartesian_impedance_ros2: the Cartesian impedance controller on ROS 2 topics over DDS (see
+// ros2/README.md). Exit codes, one rule: 0 after SIGINT or SIGTERM; 2 if what the node
 // was given is wrong - the command line (a remap too), a parameter, a file it names (params file,
 // parameters_file, urdf_path, mjcf_path) or robot_description, e.g. a URDF that does not load or
 // an MJCF that does not match it - found before the control thread starts, with a message naming

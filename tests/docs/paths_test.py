@@ -8,7 +8,8 @@ import re
 import sys
 
 root = pathlib.Path(sys.argv[1]).resolve()
-documents = [root / "README.md", root / "ros" / "README.md", root / "python" / "README.md",
+documents = [root / "README.md", root / "ros" / "README.md", root / "ros2" / "README.md",
+             root / "python" / "README.md",
              root / "models" / "README.md", *sorted((root / "docs").glob("*.md"))]
 top_level = {p.name for p in root.iterdir() if not p.name.startswith(".")}
 # Paths that name what a build or a run creates, not files of the repository.

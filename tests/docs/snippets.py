@@ -31,7 +31,10 @@ import sys
 import tempfile
 import time
 
-DOCUMENTS = ["README.md", "ros/README.md", "python/README.md", "models/README.md", "docs/*.md"]
+DOCUMENTS = [
+    "README.md", "ros/README.md", "ros2/README.md", "python/README.md", "models/README.md",
+    "docs/*.md"
+]
 TESTS = {"docs_shell", "docs_cpp", "docs_cpp_cmake", "docs_demo", "docs_ros"}
 MARKER = re.compile(r"^<!--\s*snippet:\s*(.*?)\s*-->\s*$")
 
