@@ -173,7 +173,13 @@ void bind_policy_interface(py::module_& m) {
           "observe",
           [](Policy& self, const Loop& loop, py::handle goal) {
             Eigen::VectorXd goal_values;
-            if (!goal.is_none()) read_vector(goal, "goal", Length{-1, kUnbounded}, goal_values);
+            if (!goal.is_none()) {  // any length, none included
+              const py::array_t<double> values = real_array(goal, "goal");
+              if (values.ndim() != 1) {
+                throw py::value_error("goal must have shape (k,), got shape " + shape_text(values));
+              }
+              goal_values = Eigen::Map<const Eigen::VectorXd>(values.data(), values.shape(0));
+            }
             const int robot = self.policy.observation_size();
             Eigen::VectorXd values(robot + goal_values.size());
             self.policy.observe(loop.loop.latest_state(), values.head(robot));

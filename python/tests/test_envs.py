@@ -357,3 +357,21 @@ def test_gymnasium_make_where_installed():
     obs, info = env.reset(seed=0)
     assert isinstance(env.observation_space, gymnasium.spaces.Box)
     assert env.observation_space.contains(obs)
+
+
+def test_robot_action_interface_observation_without_a_goal_is_the_robots_part():
+    data = ci.data_dir()
+    model = ci.RobotModel.from_urdf_file(data / "models/panda/panda.urdf", "panda_link0",
+                                         "panda_link8")
+    parameters = ci.Parameters.load(data / "config/panda.yaml")
+    loop = ci.ControlLoop(model, parameters)
+    loop.start([0, -0.785, 0, -2.356, 0, 1.571, 0.785], [0.0] * 7)
+    interface = envs.RobotActionInterface(loop, model, parameters)
+    interface.reset()
+    robot = interface.observation()
+    assert robot.shape == (2 * 7 + 32,) and robot.dtype == np.float32
+    with_goal = interface.observation([0.4, 0.0, 0.5])
+    np.testing.assert_array_equal(with_goal[:-3], robot)
+    np.testing.assert_allclose(with_goal[-3:], [0.4, 0.0, 0.5], rtol=1e-7)
+    with pytest.raises(ValueError, match=r"goal must have shape \(k,\), got shape \(1, 3\)"):
+        interface.observation([[0.4, 0.0, 0.5]])
