@@ -27,14 +27,10 @@ struct Policy {
 };
 
 ci::PolicyInterface::Action read_action(const ci::PolicyInterface& policy, py::handle action) {
-  py::array_t<double, py::array::c_style | py::array::forcecast> values;
-  try {
-    values = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(action);
-  } catch (const py::error_already_set&) {
-    values = {};
-  }
+  // ensure() converts what NumPy can and is empty (its error cleared) for anything else.
+  const auto values =
+      py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(action);
   if (!values) {
-    PyErr_Clear();
     throw ci::Error("action = " + std::string(py::repr(action)) + " is not an array of numbers");
   }
   if (values.ndim() != 1 || values.shape(0) != policy.action_size()) {
@@ -86,7 +82,9 @@ void bind_policy_interface(py::module_& m) {
                    read_range(reference_leash, "reference_leash (translation, rotation)");
                limits.reference_leash = std::array<double, 2>{leash.min, leash.max};
              }
-             (void)model.cast<Model&>();  // a TypeError here, not inside the constructor
+             if (!py::isinstance<Model>(model)) {  // as ControlLoop's constructor
+               throw py::type_error("model must be a RobotModel, got " + type_name(model));
+             }
              return std::make_unique<Policy>(std::move(model), parameters, wrench, limits);
            }),
            py::arg("model"), py::arg("parameters"), py::arg("wrench") = false,

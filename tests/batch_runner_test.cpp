@@ -145,10 +145,10 @@ TEST(BatchRunner, UsesOneThreadPerCoreAtMostOnePerPair) {
   EXPECT_EQ(sim::BatchRunner(pairs_of(arms), 1).threads(), 1);
 }
 
-// With spin 0 the pool's thread sleeps as soon as a run ends: the process uses no CPU while it
-// waits for the next run (measured: 0 ms of 200). Spinning, the thread keeps a core busy
-// (yielding it to anyone who wants it) for up to the spin: here over the whole 200 ms, of which
-// it gets well over 50 ms even on a loaded machine. The results are the same either way.
+// With spin 0 the pool's thread sleeps as soon as a run ends: the process uses next to no CPU
+// while it waits for the next run (under 20 ms of the 200 it waits). Spinning, the thread keeps a
+// core busy (yielding it to anyone who wants it) for up to the spin: here the whole 200 ms, of
+// which it should get well over 50 ms even on a loaded machine. The results are the same.
 TEST(BatchRunner, WithoutSpinThePoolSleepsBetweenRuns) {
   using std::chrono::microseconds;
   Arms alone = make_arms({Kind::panda_mujoco, Kind::panda_mujoco});

@@ -6,16 +6,17 @@
 
 #include <gtest/gtest.h>
 
-#include <functional>
 #include <string>
 #include <vector>
 
 #include "cartesian_impedance/core/error.hpp"
 #include "cartesian_impedance/loop/control_loop.hpp"
 #include "cartesian_impedance/model/robot_model.hpp"
+#include "support/errors.hpp"
 #include "support/model_fixtures.hpp"
 
 namespace ci = cartesian_impedance;
+using test_errors::error_of;
 
 namespace {
 
@@ -30,15 +31,6 @@ ci::RobotModel planar3_without_last_inertial() {
   const std::size_t end = urdf.find("</inertial>", begin) + std::string("</inertial>").size();
   urdf.erase(begin, end - begin);
   return ci::RobotModel::from_urdf_string(urdf, "base_link", "tool0");
-}
-
-std::string error_of(const std::function<void()>& action) {
-  try {
-    action();
-  } catch (const ci::Error& error) {
-    return error.what();
-  }
-  return "<no error>";
 }
 
 // Steps `loop` at q = (0.3, 0.5, 0.4), at rest, with the reference 5 cm away: every cycle must

@@ -10,12 +10,14 @@
 #include <string>
 
 #include "cartesian_impedance/core/error.hpp"
+#include "support/errors.hpp"
 #include "support/model_simulation.hpp"
 #include "support/robots.hpp"
 
 namespace ci = cartesian_impedance;
 using ci::PolicyInterface;
 using ci::Vector6d;
+using test_errors::error_of;
 
 namespace {
 
@@ -42,15 +44,6 @@ PolicyInterface::Action action_of(std::initializer_list<double> values) {
   Eigen::Index i = 0;
   for (double value : values) action[i++] = value;
   return action;
-}
-
-std::string error_of(const std::function<void()>& call) {
-  try {
-    call();
-  } catch (const ci::Error& error) {
-    return error.what();
-  }
-  return "(no error)";
 }
 
 }  // namespace

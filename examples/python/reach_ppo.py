@@ -93,7 +93,7 @@ def evaluate(policy, norm, seeds):
         while not done:
             with torch.no_grad():
                 action = policy.mean(torch.as_tensor(norm(obs), dtype=torch.float32)).numpy()
-            if not cosines or len(cosines) < len(successes) + 1:
+            if env.steps == 0:  # the episode's first action
                 toward = obs[-3:] - obs[2 * n:2 * n + 3]
                 cosines.append(float(action[:3] @ toward /
                                      (np.linalg.norm(action[:3]) * np.linalg.norm(toward) + 1e-12)))

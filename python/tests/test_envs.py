@@ -375,3 +375,5 @@ def test_robot_action_interface_observation_without_a_goal_is_the_robots_part():
     np.testing.assert_allclose(with_goal[-3:], [0.4, 0.0, 0.5], rtol=1e-7)
     with pytest.raises(ValueError, match=r"goal must have shape \(k,\), got shape \(1, 3\)"):
         interface.observation([[0.4, 0.0, 0.5]])
+    with pytest.raises(TypeError, match="model must be a RobotModel, got str"):
+        ci.PolicyInterface("panda", parameters)

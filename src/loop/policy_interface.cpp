@@ -7,31 +7,23 @@
 #include <Eigen/Geometry>
 
 #include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/core/math.hpp"
 
 namespace cartesian_impedance {
 namespace {
 
-// One of the two signs of a rotation's quaternion, so that an observation does not jump between
-// q and -q.
-Eigen::Quaterniond positive_w(const Eigen::Matrix3d& rotation) {
-  Eigen::Quaterniond q(rotation);
-  q.normalize();
-  if (q.w() < 0.0) q.coeffs() = -q.coeffs();
-  return q;
+// The unit quaternion of `q` with w >= 0 (one of its two signs), so that an observation does
+// not jump between q and -q.
+Eigen::Quaterniond positive_w(const Eigen::Quaterniond& q) {
+  Eigen::Quaterniond unit = q.normalized();
+  if (unit.w() < 0.0) unit.coeffs() = -unit.coeffs();
+  return unit;
 }
 
-Eigen::Matrix3d rotation_from_vector(const Eigen::Vector3d& rotation_vector) {
+Eigen::Quaterniond from_rotation_vector(const Eigen::Vector3d& rotation_vector) {
   const double angle = rotation_vector.norm();
-  if (angle < 1e-12) return Eigen::Matrix3d::Identity();
-  return Eigen::AngleAxisd(angle, rotation_vector / angle).toRotationMatrix();
-}
-
-// The rotation vector of `rotation`, angle in [0, pi].
-Eigen::Vector3d rotation_vector(const Eigen::Matrix3d& rotation) {
-  const Eigen::Quaterniond q = positive_w(rotation);
-  const double sin_half = q.vec().norm();
-  if (sin_half < 1e-12) return Eigen::Vector3d::Zero();
-  return 2.0 * std::atan2(sin_half, q.w()) * q.vec() / sin_half;
+  if (angle < 1e-12) return Eigen::Quaterniond::Identity();
+  return Eigen::Quaterniond(Eigen::AngleAxisd(angle, rotation_vector / angle));
 }
 
 void require_finite_at_least(double value, double bound, const std::string& field) {
@@ -91,6 +83,7 @@ PolicyInterface::PolicyInterface(const RobotModel& model, const Parameters& para
   max_force_ = std::min(limits.max_force, parameters.limits.wrench.force);
   max_torque_ = std::min(limits.max_torque, parameters.limits.wrench.torque);
   commands_.reserve(3);
+  svd_.setThreshold(1e-9);  // as documented for observe(); compute() keeps it
 }
 
 const char* PolicyInterface::field(int index) noexcept {
@@ -154,24 +147,24 @@ Vector6d PolicyInterface::stiffness_action(const Vector6d& stiffness) const noex
 
 void PolicyInterface::reset(const Pose& measured) noexcept {
   reference_.position = measured.position;
-  reference_.orientation = positive_w(measured.orientation.normalized().toRotationMatrix());
+  reference_.orientation = positive_w(measured.orientation);
 }
 
 void PolicyInterface::apply(const Action& checked, ControlLoop& loop, const Pose& measured) {
   Eigen::Vector3d position =
       reference_.position + checked.segment<3>(0) * limits_.max_translation_step;
-  Eigen::Matrix3d rotation =
-      rotation_from_vector(checked.segment<3>(3) * limits_.max_rotation_step) *
-      reference_.orientation.toRotationMatrix();
+  Eigen::Quaterniond rotation =
+      from_rotation_vector(checked.segment<3>(3) * limits_.max_rotation_step) *
+      reference_.orientation;
   // The leash: the reference stays within reach of the measured pose.
   const Eigen::Vector3d offset = position - measured.position;
   const double distance = offset.norm();
   if (distance > leash_[0]) position = measured.position + offset * (leash_[0] / distance);
-  const Eigen::Matrix3d measured_rotation = measured.orientation.normalized().toRotationMatrix();
-  const Eigen::Vector3d turn = rotation_vector(rotation * measured_rotation.transpose());
+  const Eigen::Quaterniond measured_rotation = measured.orientation.normalized();
+  const Eigen::Vector3d turn = orientation_error(rotation, measured_rotation);
   const double angle = turn.norm();
   if (angle > leash_[1]) {
-    rotation = rotation_from_vector(turn * (leash_[1] / angle)) * measured_rotation;
+    rotation = from_rotation_vector(turn * (leash_[1] / angle)) * measured_rotation;
   }
   const Pose reference{position, positive_w(rotation)};
 
@@ -194,14 +187,12 @@ void PolicyInterface::observe(const LoopState& state, Eigen::Ref<Eigen::VectorXd
   out.segment(n, n) = state.dq;
   int at = 2 * n;
   out.segment<3>(at) = controller.pose.position;
-  out.segment<4>(at + 3) =
-      positive_w(controller.pose.orientation.normalized().toRotationMatrix()).coeffs();
+  out.segment<4>(at + 3) = positive_w(controller.pose.orientation).coeffs();
   at += 7;
   if (workspace_.compute(state.q, state.dq, kinematics_, ModelTerms::none)) {
     out.segment<6>(at) = kinematics_.jacobian * state.dq;
     jacobian_transpose_ = kinematics_.jacobian.transpose();
     svd_.compute(jacobian_transpose_, Eigen::ComputeFullU | Eigen::ComputeFullV);
-    svd_.setThreshold(1e-9);
     out.segment<6>(at + 6) = -svd_.solve(controller.tau_cartesian + controller.tau_wrench);
   } else {
     out.segment<12>(at).setZero();
