@@ -129,6 +129,9 @@ Rig::Rig(const RobotSetup& robot, const Parameters& parameters, const std::vecto
     sim_.body_pose(robot_.flange);  // throws, naming it, if it is neither
   }
   set_mutation(runner_, robot_.mutation);
+  // The rig owns its loop, and its scenarios change safety settings on purpose while the arm runs
+  // (a payload declared as it is hung, torque limits lowered by a reload).
+  loop_->allow_runtime_safety_changes();
   runner_.start();
   previous_tau_ = JointVector::Zero(model_.num_joints());
 }

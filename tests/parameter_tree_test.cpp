@@ -88,6 +88,8 @@ ci::Parameters every_field_changed() {
       **flag = !**flag;
     }
   }
+  // The payload's moment must fit under the torque cap (consistency_fault()).
+  p.payload.center_of_mass = Eigen::Vector3d(0.075, 0.05, 0.025);
   return p;
 }
 

@@ -461,6 +461,15 @@ TEST(YamlConfig, RoundTripOfSeededRandomParameters) {
     }
     ci::EnergyTankParameters& tank = p.safety.energy_tank;
     if (tank.initial > tank.capacity) std::swap(tank.initial, tank.capacity);
+    // A declared payload the force caps can hold (consistency_fault()).
+    const double g = ci::CartesianImpedanceController::kGravity;
+    ci::PayloadParameters& payload = p.payload;
+    const ci::MaxForceParameters& cap = p.safety.max_force;
+    if (cap.force > 0.0) payload.mass = std::min(payload.mass, 0.999 * cap.force / g);
+    const double moment = payload.mass * g * payload.center_of_mass.norm();
+    if (cap.torque > 0.0 && moment > cap.torque) {
+      payload.center_of_mass *= 0.999 * cap.torque / moment;
+    }
     ASSERT_NO_THROW(ci::validate(p));
     const std::string yaml = ci::parameters_to_yaml(p);
     ci::Parameters back;

@@ -115,6 +115,10 @@ ValidCommand validate_command(Command command, int num_joints) {
             validate(c, num_joints);
             return num_joints;
           },
+          [num_joints](ParameterUpdate& c) {
+            validate(c.values, num_joints);
+            return num_joints;
+          },
       },
       command);
   return ValidCommand(std::move(command), joints);

@@ -214,6 +214,8 @@ void CartesianImpedanceController::commit(const Parameters& parameters, Targets 
     state_.safety.payload_mass = parameters.payload.mass;
     state_.safety.payload_center_of_mass = parameters.payload.center_of_mass;
     state_.safety.tank_level = parameters.safety.energy_tank.initial;
+    state_.safety.pose_error_in_force = parameters.limits.pose_error;
+    state_.safety.workspace_in_force = parameters.safety.workspace;
   }
   state_.safety.tank_level =
       std::min(state_.safety.tank_level, parameters.safety.energy_tank.capacity);
@@ -263,6 +265,13 @@ void CartesianImpedanceController::start(const RobotState& robot,
   safety.payload_mass = parameters_.payload.mass;
   safety.payload_center_of_mass = parameters_.payload.center_of_mass;
   safety.tank_level = parameters_.safety.energy_tank.initial;
+  // The settings that store energy start as configured, except a box the arm starts outside of:
+  // it starts around the end effector (no wall energy that nothing paid for) and closes in as the
+  // end effector moves into the configured box.
+  safety.pose_error_in_force = parameters_.limits.pose_error;
+  safety.workspace_in_force = parameters_.safety.workspace;
+  safety.workspace_in_force.min = safety.workspace_in_force.min.cwiseMin(pose.position);
+  safety.workspace_in_force.max = safety.workspace_in_force.max.cwiseMax(pose.position);
   refresh_damping_mode();
   state_.pose = pose;
   state_.tau = tau_previous;
@@ -286,11 +295,18 @@ void CartesianImpedanceController::start(const RobotState& robot,
 }
 
 void CartesianImpedanceController::apply(const Command& command) {
-  apply(validate_command(command, num_joints_));
+  const ValidCommand valid = validate_command(command, num_joints_);
+  if (const auto* update = std::get_if<ParameterUpdate>(&valid.command())) {
+    Parameters merged = parameters_;
+    copy_parameters(update->values, merged, update->names);
+    checks::raise(consistency_fault(merged));
+  }
+  apply(valid);
 }
 
 bool CartesianImpedanceController::apply(const ValidCommand& valid) noexcept {
   if (valid.num_joints() != 0 && valid.num_joints() != num_joints_) return false;
+  bool applied = true;
   // The reference pose and nullspace target are filtered toward directly; every other command
   // also changes the configuration (parameters() keeps what was commanded) and is saturated.
   const auto change = [this](unsigned quantities, const auto& edit) noexcept {
@@ -345,20 +361,71 @@ bool CartesianImpedanceController::apply(const ValidCommand& valid) noexcept {
           [&](const Parameters& c) {
             change(Commanded::everything, [&](Parameters& parameters, Targets& commanded) {
               parameters = c;
-              commanded.stiffness =
-                  stacked(parameters.stiffness.translation, parameters.stiffness.rotation)
-                      .asDiagonal();
-              commanded.damping_ratio =
-                  stacked(parameters.damping_ratio.translation, parameters.damping_ratio.rotation);
-              commanded.nullspace_stiffness =
-                  per_joint(parameters.nullspace.stiffness, num_joints_);
-              commanded.nullspace_damping_ratio = parameters.nullspace.damping_ratio;
-              commanded.wrench << parameters.wrench.force, parameters.wrench.torque;
+              recommand(parameters, Commanded::everything, commanded);
+            });
+          },
+          [&](const ParameterUpdate& c) {
+            // Merged into the parameters in force now, which may differ from those the sender
+            // checked it against (another update came first): the result must still hold
+            // together, else nothing changes.
+            Parameters merged = parameters_;
+            copy_parameters(c.values, merged, c.names);
+            if (consistency_fault(merged)) {
+              applied = false;
+              return;
+            }
+            const unsigned quantities = quantities_named(c.names);
+            change(quantities, [&](Parameters& parameters, Targets& commanded) {
+              parameters = merged;
+              recommand(parameters, quantities, commanded);
             });
           },
       },
       valid.command());
-  return true;
+  return applied;
+}
+
+unsigned CartesianImpedanceController::quantities_named(const ParameterNames& names) noexcept {
+  // The rows of each commanded quantity, found once by name.
+  static const auto rows_of = [](std::initializer_list<std::string_view> prefixes) {
+    ParameterNames rows;
+    const std::vector<ParameterInfo>& table = parameter_table();
+    for (std::size_t i = 0; i < table.size(); ++i) {
+      for (const std::string_view prefix : prefixes) {
+        if (table[i].name.substr(0, prefix.size()) == prefix) rows[i] = true;
+      }
+    }
+    return rows;
+  };
+  static const ParameterNames stiffness = rows_of({"stiffness."});
+  static const ParameterNames damping = rows_of({"damping_ratio.", "nullspace.damping_ratio"});
+  static const ParameterNames nullspace = rows_of({"nullspace.stiffness"});
+  static const ParameterNames wrench = rows_of({"wrench."});
+  // Saturation re-reads every commanded value against the limits anyway; the flags of the
+  // quantities named are set afresh.
+  return ((names & stiffness).any() ? Commanded::stiffness : 0u) |
+         ((names & damping).any() ? Commanded::damping_ratio : 0u) |
+         ((names & nullspace).any() ? Commanded::nullspace_stiffness : 0u) |
+         ((names & wrench).any() ? Commanded::wrench : 0u);
+}
+
+void CartesianImpedanceController::recommand(const Parameters& parameters, unsigned quantities,
+                                             Targets& commanded) const noexcept {
+  if ((quantities & Commanded::stiffness) != 0) {
+    commanded.stiffness =
+        stacked(parameters.stiffness.translation, parameters.stiffness.rotation).asDiagonal();
+  }
+  if ((quantities & Commanded::damping_ratio) != 0) {
+    commanded.damping_ratio =
+        stacked(parameters.damping_ratio.translation, parameters.damping_ratio.rotation);
+    commanded.nullspace_damping_ratio = parameters.nullspace.damping_ratio;
+  }
+  if ((quantities & Commanded::nullspace_stiffness) != 0) {
+    commanded.nullspace_stiffness = per_joint(parameters.nullspace.stiffness, num_joints_);
+  }
+  if ((quantities & Commanded::wrench) != 0) {
+    commanded.wrench << parameters.wrench.force, parameters.wrench.torque;
+  }
 }
 
 void CartesianImpedanceController::update_gains(double dt) noexcept {
@@ -377,6 +444,8 @@ void CartesianImpedanceController::filter_targets() noexcept {
   Targets& filtered = state_.filtered;
   law_->reference_before = filtered.pose;
   law_->stiffness_before = filtered.stiffness;
+  law_->nullspace_q_before = filtered.nullspace_q;
+  law_->nullspace_stiffness_before = filtered.nullspace_stiffness;
   const double a_pose = gains_.pose;
   filtered.pose.position =
       (1.0 - a_pose) * filtered.pose.position + a_pose * commanded.pose.position;

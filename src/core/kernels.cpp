@@ -9,18 +9,17 @@ namespace cartesian_impedance {
 
 namespace {
 
-// Solves A x = b in place for a symmetric positive definite 6x6 A (only its lower triangle is
-// read, and overwritten by the factor) through A = L D L^T. Written out because at this size
-// Eigen's LLT spends most of its time in the set-up of its general blocked triangular solver; and
-// L D L^T rather than Cholesky because the cost here is the chain of latencies from one column to
-// the next, and L D L^T has one division in it per column where Cholesky has a square root and a
-// division. Right-looking (each column updates the rest at once), so that the next pivot waits
-// for one multiply-subtract after the division, not for a sum over all earlier columns; the loops
-// have constant bounds, which the compiler unrolls completely. False if A is not positive
-// definite.
-bool cholesky_solve(const Matrix6d& system, const Vector6d& rhs, Vector6d& x) noexcept {
+// Factors a symmetric positive definite 6x6 A = L D L^T (only its lower triangle is read): L's
+// strictly lower part goes to `factor`'s lower triangle, D^-1 to `inverse_pivot`. Written out
+// because at this size Eigen's LLT spends most of its time in the set-up of its general blocked
+// triangular solver; and L D L^T rather than Cholesky because the cost here is the chain of
+// latencies from one column to the next, and L D L^T has one division in it per column where
+// Cholesky has a square root and a division. Right-looking (each column updates the rest at
+// once), so that the next pivot waits for one multiply-subtract after the division, not for a sum
+// over all earlier columns; the loops have constant bounds, which the compiler unrolls
+// completely. False if A is not positive definite.
+bool ldlt_factor(const Matrix6d& system, Matrix6d& factor, Vector6d& inverse_pivot) noexcept {
   Matrix6d a = system;  // a local, so that the unrolled code keeps it in registers
-  Vector6d inverse_pivot;
 #pragma GCC unroll 6
   for (int j = 0; j < 6; ++j) {
     const double pivot = a(j, j);
@@ -38,21 +37,27 @@ bool cholesky_solve(const Matrix6d& system, const Vector6d& rhs, Vector6d& x) no
       for (int i = k; i < 6; ++i) a(i, k) -= a(i, j) * unscaled[k];
     }
   }
+  factor = a;
+  return true;
+}
+
+// x = A^-1 b with A = L D L^T as ldlt_factor() left it.
+void ldlt_solve(const Matrix6d& factor, const Vector6d& inverse_pivot, const Vector6d& rhs,
+                Vector6d& x) noexcept {
   Vector6d b = rhs;
 #pragma GCC unroll 6
   for (int i = 0; i < 6; ++i) {  // L y = b
 #pragma GCC unroll 6
-    for (int k = 0; k < i; ++k) b[i] -= a(i, k) * b[k];
+    for (int k = 0; k < i; ++k) b[i] -= factor(i, k) * b[k];
   }
 #pragma GCC unroll 6
   for (int i = 0; i < 6; ++i) b[i] *= inverse_pivot[i];  // D z = y
 #pragma GCC unroll 6
   for (int i = 5; i >= 0; --i) {  // L^T x = z
 #pragma GCC unroll 6
-    for (int k = i + 1; k < 6; ++k) b[i] -= a(k, i) * b[k];
+    for (int k = i + 1; k < 6; ++k) b[i] -= factor(k, i) * b[k];
   }
   x = b;
-  return true;
 }
 
 // out = left * right^T for two 6 x n matrices. Column c of the result is
@@ -79,9 +84,20 @@ void outer_sum(const Jacobian& left, const Jacobian& right, Matrix6d& out) noexc
 void NullspaceProjector::solve_task_system() noexcept {
   // L D L^T is the fast path; a singular J with lambda = 0 makes the matrix only semi-definite,
   // and Eigen's pivoting LDLT then still returns a finite least-squares answer.
-  if (!cholesky_solve(task_gram_, task_vector_, task_solution_)) {
+  factored_ = ldlt_factor(task_gram_, task_factor_, task_inverse_pivot_);
+  if (factored_) {
+    ldlt_solve(task_factor_, task_inverse_pivot_, task_vector_, task_solution_);
+  } else {
     task_ldlt_.compute(task_gram_);
     task_solution_ = task_ldlt_.solve(task_vector_);
+  }
+}
+
+void NullspaceProjector::solve_task_again(const Vector6d& rhs, Vector6d& x) const noexcept {
+  if (factored_) {
+    ldlt_solve(task_factor_, task_inverse_pivot_, rhs, x);
+  } else {
+    x = task_ldlt_.solve(rhs);
   }
 }
 
@@ -89,6 +105,7 @@ void NullspaceProjector::project(const Jacobian& jacobian, double lambda, const 
                                  JointVector& projected) noexcept {
   const Eigen::Index n = jacobian.cols();
   const double lambda_squared = lambda * lambda;
+  last_ = n >= 6 ? Path::task : Path::joint;
   if (n >= 6) {
     // N tau_0 = tau_0 - J^T (J J^T + lambda^2 I)^-1 (J tau_0): O(6n) beyond the 6x6 factorisation.
     // (The factorisation reads the lower triangle of J J^T only.)
@@ -105,7 +122,8 @@ void NullspaceProjector::project(const Jacobian& jacobian, double lambda, const 
     joint_system_ = joint_gram_;
     joint_system_.diagonal().array() += lambda_squared;
     joint_llt_.compute(joint_system_);
-    if (joint_llt_.info() == Eigen::Success) {
+    joint_llt_ok_ = joint_llt_.info() == Eigen::Success;
+    if (joint_llt_ok_) {
       joint_vector_ = joint_llt_.solve(tau_0);
     } else {
       joint_ldlt_.compute(joint_system_);
@@ -121,7 +139,11 @@ bool NullspaceProjector::project_dynamic(const Jacobian& jacobian, const JointMa
                                          JointVector& projected) noexcept {
   const Eigen::Index n = jacobian.cols();
   mass_llt_.compute(mass);
-  if (mass_llt_.info() != Eigen::Success) return false;
+  if (mass_llt_.info() != Eigen::Success) {
+    last_ = Path::none;
+    return false;
+  }
+  last_ = n >= 6 ? Path::dynamic_task : Path::dynamic_joint;
   mass_inverse_jt_ = mass_llt_.solve(jacobian.transpose());  // M^-1 J^T, n x 6
   joint_vector_ = mass_llt_.solve(tau_0);                    // M^-1 tau_0
   if (n >= 6) {
@@ -144,6 +166,63 @@ bool NullspaceProjector::project_dynamic(const Jacobian& jacobian, const JointMa
     projected.noalias() -= joint_gram_ * solved;
   }
   return true;
+}
+
+void NullspaceProjector::project_again(const Jacobian& jacobian, const JointVector& tau,
+                                       JointVector& projected) noexcept {
+  switch (last_) {
+    case Path::none:
+      projected = tau;
+      return;
+    case Path::task:
+      jacobian_times(jacobian, tau, task_vector_);
+      solve_task_again(task_vector_, task_solution_);
+      jacobian_transpose_times(jacobian, task_solution_, projected);
+      projected = tau - projected;
+      return;
+    case Path::joint:
+      joint_vector_ = joint_llt_ok_ ? JointVector(joint_llt_.solve(tau))
+                                    : JointVector(joint_ldlt_.solve(tau));
+      projected = tau;
+      projected.noalias() -= joint_gram_ * joint_vector_;
+      return;
+    case Path::dynamic_task:
+      joint_vector_ = mass_llt_.solve(tau);
+      task_vector_.noalias() = jacobian * joint_vector_;
+      solve_task_again(task_vector_, task_solution_);
+      projected = tau;
+      projected.noalias() -= jacobian.transpose() * task_solution_;
+      return;
+    case Path::dynamic_joint: {
+      joint_vector_ = mass_llt_.solve(tau);
+      const JointVector solved = joint_lu_.solve(joint_vector_);
+      projected = tau;
+      projected.noalias() -= joint_gram_ * solved;
+      return;
+    }
+  }
+}
+
+void NullspaceProjector::task_force(const Jacobian& jacobian, double lambda,
+                                    const JointVector& tau, Vector6d& force) noexcept {
+  jacobian_times(jacobian, tau, task_vector_);
+  if (last_ == Path::task) {
+    // The last projection factored J J^T + lambda^2 I already.
+    solve_task_again(task_vector_, force);
+    return;
+  }
+  // A damping of at least 1e-3 keeps the system regular where J loses rank (an arm with fewer
+  // than six joints, a singular pose with lambda = 0).
+  Matrix6d gram;
+  outer_sum(jacobian, jacobian, gram);
+  gram.diagonal().array() += std::max(lambda * lambda, 1e-6);
+  Matrix6d factor;
+  Vector6d inverse_pivot;
+  if (ldlt_factor(gram, factor, inverse_pivot)) {
+    ldlt_solve(factor, inverse_pivot, task_vector_, force);
+  } else {
+    force.setZero();
+  }
 }
 
 namespace {

@@ -119,9 +119,32 @@ class NullspaceProjector {
   bool project_dynamic(const Jacobian& jacobian, const JointMatrix& mass, double lambda,
                        const JointVector& tau_0, JointVector& projected) noexcept;
 
+  /// N tau with the projector of the last project() or project_dynamic() call (same J and M),
+  /// reusing its factorisation: a second torque projected for little more than two products.
+  /// `tau` and `projected` may not alias.
+  void project_again(const Jacobian& jacobian, const JointVector& tau,
+                     JointVector& projected) noexcept;
+
+  /// The static force at the end effector [N; Nm, base frame] that the joint torque `tau` presses
+  /// with against a rigid contact there, in the damped least-squares sense:
+  /// (J J^T + lambda^2 I)^-1 J tau (lambda at least 1e-3 where J J^T is singular). Reuses the
+  /// factorisation of the last project() call when it had one.
+  void task_force(const Jacobian& jacobian, double lambda, const JointVector& tau,
+                  Vector6d& force) noexcept;
+
  private:
   // task_solution_ = task_gram_^-1 task_vector_ (the 6x6 system both projectors solve).
   void solve_task_system() noexcept;
+  // x = task_gram_^-1 rhs with the factorisation solve_task_system() made.
+  void solve_task_again(const Vector6d& rhs, Vector6d& x) const noexcept;
+
+  // Which system the last projection factored: project_again() and task_force() reuse it.
+  enum class Path { none, task, joint, dynamic_task, dynamic_joint };
+  Path last_ = Path::none;
+  bool joint_llt_ok_ = false;
+  bool factored_ = false;  // task_factor_ holds the L D L^T of task_gram_ (else task_ldlt_)
+  Matrix6d task_factor_;
+  Vector6d task_inverse_pivot_;
 
   Eigen::LDLT<Matrix6d> task_ldlt_;
   Eigen::LLT<JointMatrix> joint_llt_;

@@ -42,20 +42,26 @@ CartesianImpedanceController::Law::Law(int num_joints)
       max_step(JointVector::Zero(num_joints)),
       tau_spring(JointVector::Zero(num_joints)),
       tau_damping(JointVector::Zero(num_joints)),
-      tau_kept(JointVector::Zero(num_joints)) {
+      tau_kept(JointVector::Zero(num_joints)),
+      nullspace_q_before(JointVector::Zero(num_joints)),
+      nullspace_stiffness_before(JointVector::Zero(num_joints)),
+      nullspace_damping_torque(JointVector::Zero(num_joints)),
+      nullspace_damping_projected(JointVector::Zero(num_joints)) {
   forget_damping();
 }
 
 bool CartesianImpedanceController::evaluate_law(const RobotState& robot, double dt,
                                                 Fault& fault) noexcept {
   measure_pose(robot);
-  pay_stiffness_change();
+  charge_parameter_changes(robot);
+  clip_pose_error();
   const JointMatrix& mass = mass_with_payload(robot);
   if (!compute_damping(robot, mass, fault)) return false;
   spring_damper(robot, dt);
   if (!nullspace(robot, mass, fault)) return false;
+  fill_tank_from_nullspace(robot, dt);
   commanded_wrench();
-  safety_layer();
+  safety_layer(robot);
   cartesian_torques(robot);
   gravity(robot);
   estimate_payload(dt);
@@ -97,18 +103,23 @@ bool CartesianImpedanceController::evaluate_halt(const RobotState& robot, Fault&
   return false;
 }
 
-// e = [p - p_d; log(R R_d^T)], clipped so that a far reference pulls no harder than a near one.
+// e = [p - p_d; log(R R_d^T)].
 void CartesianImpedanceController::measure_pose(const RobotState& robot) noexcept {
   state_.pose.position = robot.pose.position;
   state_.pose.orientation = robot.pose.orientation.normalized();
   law_->rotation = state_.pose.orientation.toRotationMatrix();
+  law_->unclipped_error = pose_error(state_.pose, state_.filtered.pose);
+  state_.pose_error = law_->unclipped_error;
+}
+
+// The error clipped (with the limits in force, which the tank may hold back) so that a far
+// reference pulls no harder than a near one.
+void CartesianImpedanceController::clip_pose_error() noexcept {
   Vector6d& error = state_.pose_error;
-  error = pose_error(state_.pose, state_.filtered.pose);
+  const PoseErrorLimits& clip = state_.safety.pose_error_in_force;
   ActiveLimits& limits = state_.limits;
-  limits.translation_error_clipped =
-      clip_norm(error.head<3>(), parameters_.limits.pose_error.translation);
-  limits.rotation_error_clipped =
-      clip_norm(error.tail<3>(), parameters_.limits.pose_error.rotation);
+  limits.translation_error_clipped = clip_norm(error.head<3>(), clip.translation);
+  limits.rotation_error_clipped = clip_norm(error.tail<3>(), clip.rotation);
 }
 
 // D in the stiffness frame, never below the minimum damping. It follows the filtered K: a
@@ -202,12 +213,13 @@ void CartesianImpedanceController::spring_damper(const RobotState& robot, double
 
 // tau_cartesian = J^T (spring + damping, walls and brake), after the safety layer, plus the
 // joint-limit walls (in joint space, unprojected).
+// (The safety envelope's correction of the joint-limit walls, what it took off their task-space
+// force, is in the damping force.)
 void CartesianImpedanceController::cartesian_torques(const RobotState& robot) noexcept {
   const Vector6d force = law_->spring_force + law_->damping_force;
   jacobian_transpose_times(robot.jacobian, force, state_.tau_cartesian);
-  const bool walls = robot.joint_wall_torque.size() == num_joints_;
-  if (walls) state_.tau_cartesian += robot.joint_wall_torque;
-  state_.safety.joint_limit_wall = walls && !robot.joint_wall_torque.isZero(0.0);
+  if (law_->joint_walls) state_.tau_cartesian += robot.joint_wall_torque;
+  state_.safety.joint_limit_wall = law_->joint_walls;
   jacobian_transpose_times(robot.jacobian, state_.wrench_base, state_.tau_wrench);
 }
 
@@ -223,9 +235,9 @@ bool CartesianImpedanceController::nullspace(const RobotState& robot, const Join
   } else {
     law.nullspace_damping = (2.0 * filtered.nullspace_damping_ratio) * stiffness_ns.cwiseSqrt();
   }
-  law.tau_0 = -stiffness_ns.cwiseProduct(robot.q - filtered.nullspace_q) -
-              law.nullspace_damping.cwiseMax(parameters_.minimum_damping.nullspace)
-                  .cwiseProduct(robot.dq - filtered.nullspace_dq);
+  law.nullspace_damping_torque = -law.nullspace_damping.cwiseMax(parameters_.minimum_damping.nullspace)
+                                      .cwiseProduct(robot.dq - filtered.nullspace_dq);
+  law.tau_0 = law.nullspace_damping_torque - stiffness_ns.cwiseProduct(robot.q - filtered.nullspace_q);
   if (robot.secondary_torque.size() == num_joints_) law.tau_0 += robot.secondary_torque;
   const double lambda = parameters_.nullspace.pseudo_inverse_damping;
   if (parameters_.dynamics.dynamically_consistent_nullspace) {
@@ -246,6 +258,20 @@ bool CartesianImpedanceController::nullspace(const RobotState& robot, const Join
     law.projector.project(robot.jacobian, lambda, law.tau_0, state_.tau_nullspace);
   }
   return true;
+}
+
+// What the projected nullspace damping dissipates, (dq - dq_d)^T N D_ns (dq - dq_d) dt, fills the
+// tank too, so that a raise of the nullspace stiffness paid from it is paid back by the motion it
+// causes. Only while the tank is not full (then nothing can be added): the extra projection
+// reuses the cycle's factorisation.
+void CartesianImpedanceController::fill_tank_from_nullspace(const RobotState& robot,
+                                                            double dt) noexcept {
+  const EnergyTankParameters& tank = parameters_.safety.energy_tank;
+  if (!tank.enabled || scheduled_ || !(state_.safety.tank_level < tank.capacity)) return;
+  Law& law = *law_;
+  law.projector.project_again(robot.jacobian, law.nullspace_damping_torque,
+                              law.nullspace_damping_projected);
+  fill_tank(-(robot.dq - state_.filtered.nullspace_dq).dot(law.nullspace_damping_projected) * dt);
 }
 
 // F in the base frame, rotated there when it is given in the end effector's; tau_wrench = J^T F

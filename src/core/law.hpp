@@ -33,6 +33,22 @@ struct CartesianImpedanceController::Law {
   Vector6d twist = Vector6d::Zero();
   // The filtered K before this cycle's filter step: the energy tank pays for the difference.
   Matrix6d stiffness_before = Matrix6d::Zero();
+  // The filtered nullspace target and stiffness before this cycle's filter step: the tank pays
+  // for a raise of the stiffness, 1/2 e^T dK_ns e.
+  JointVector nullspace_q_before, nullspace_stiffness_before;
+  // The nullspace damping torque, before and after the projection: what it dissipates fills the
+  // tank (computed while the tank is not full).
+  JointVector nullspace_damping_torque, nullspace_damping_projected;
+  // The pose error before clipping, base frame.
+  Vector6d unclipped_error = Vector6d::Zero();
+  // The safety envelope's terms, base frame: the workspace walls' spring and damper, the force
+  // the joint-limit walls press with at the end effector (joint_walls: they act this cycle), and
+  // what the nullspace torque leaks there.
+  Eigen::Vector3d wall_spring = Eigen::Vector3d::Zero();
+  Eigen::Vector3d wall_damper = Eigen::Vector3d::Zero();
+  Vector6d joint_wall_force = Vector6d::Zero();
+  Vector6d nullspace_leak = Vector6d::Zero();
+  bool joint_walls = false;
   // The filtered reference before this cycle's filter step: the speed cap limits the step.
   Pose reference_before;
   // M(q) with the payload's inertia (payload.mass > 0 and a dynamic option on), and the

@@ -112,6 +112,13 @@ class Decoder {
  public:
   explicit Decoder(Parameters& parameters) : parameters_(parameters) {}
 
+  // The rows read so far.
+  ParameterNames given() const {
+    ParameterNames names;
+    for (const auto& [name, where] : given_) names[parameter_index(*find_parameter(name))] = true;
+    return names;
+  }
+
   void read_map(const ParameterValue& map, const std::string& prefix) {
     for (const ParameterMember& member : map.as_map()) {
       const std::string path = join(prefix, member.key);
@@ -424,11 +431,14 @@ void assign_parameter(Parameters& parameters, std::string_view name, const Param
   decode_field(*row, value, parameters);
 }
 
-Parameters decode_parameters(const ParameterValue& tree, const Parameters& base,
-                             std::string_view source) {
+namespace {
+
+Parameters decode_onto(const ParameterValue& tree, const Parameters& base, std::string_view source,
+                       ParameterNames* given) {
   Parameters parameters = base;
+  Decoder decoder(parameters);
   if (tree.is(ParameterValue::Kind::map)) {
-    Decoder(parameters).read_map(tree, "");
+    decoder.read_map(tree, "");
   } else if (!tree.is(ParameterValue::Kind::empty)) {
     fail(Reason::wrong_type, tree.location,
          "the top level must be a map of parameters, got " + tree.describe());
@@ -438,7 +448,22 @@ Parameters decode_parameters(const ParameterValue& tree, const Parameters& base,
   } catch (const Error& error) {
     fail(Reason::invalid, source, error.what());
   }
+  if (given != nullptr) *given = decoder.given();
   return parameters;
+}
+
+}  // namespace
+
+Parameters decode_parameters(const ParameterValue& tree, const Parameters& base,
+                             std::string_view source) {
+  return decode_onto(tree, base, source, nullptr);
+}
+
+ParameterUpdate decode_parameter_update(const ParameterValue& tree, const Parameters& base,
+                                        std::string_view source) {
+  ParameterUpdate update;
+  update.values = decode_onto(tree, base, source, &update.names);
+  return update;
 }
 
 // ---- encoding -------------------------------------------------------------------------------

@@ -5,7 +5,9 @@
 #include <cstdio>
 #include <limits>
 #include <sstream>
+#include <type_traits>
 
+#include "cartesian_impedance/core/checks.hpp"
 #include "cartesian_impedance/core/error.hpp"
 #include "cartesian_impedance/core/parameter_tree.hpp"
 
@@ -255,12 +257,6 @@ std::string with_unit(double value, std::string_view unit) {
   return text;
 }
 
-void check_ranges(const Range& range, std::string_view name, std::string_view unit) {
-  if (range.min > range.max) {
-    throw Error(std::string(name) + ".min = " + with_unit(range.min, unit) + " is greater than " +
-                std::string(name) + ".max = " + with_unit(range.max, unit));
-  }
-}
 
 }  // namespace
 
@@ -290,7 +286,11 @@ void ParameterInfo::check(std::string_view element, double value) const {
 }
 
 const std::vector<ParameterInfo>& parameter_table() {
-  static const std::vector<ParameterInfo> table = make_table();
+  static const std::vector<ParameterInfo> table = [] {
+    std::vector<ParameterInfo> rows = make_table();
+    if (rows.size() > kMaxParameterRows) throw Error("the parameter table outgrew ParameterNames");
+    return rows;
+  }();
   return table;
 }
 
@@ -376,25 +376,186 @@ void validate(const Parameters& parameters, int num_joints) {
       }
     }
   }
-  const LimitParameters& limits = parameters.limits;
-  check_ranges(limits.stiffness.translation, "limits.stiffness.translation", "N/m");
-  check_ranges(limits.stiffness.rotation, "limits.stiffness.rotation", "Nm/rad");
-  check_ranges(limits.damping_ratio, "limits.damping_ratio", "");
-  check_ranges(limits.nullspace_stiffness, "limits.nullspace_stiffness", "Nm/rad");
-  check_ranges(parameters.plausibility.dt, "plausibility.dt", "s");
+  checks::raise(consistency_fault(parameters));
+}
+
+namespace {
+
+// The fault of a range whose min lies above its max: its texts are the range's own, static.
+struct RangeRule {
+  const char* min_name;
+  const char* reason;  // "is greater than <name>.max"
+  const char* unit;
+  const Range& (*range)(const Parameters&);
+};
+
+}  // namespace
+
+Fault consistency_fault(const Parameters& parameters) noexcept {
+  static const RangeRule kRanges[] = {
+      {"limits.stiffness.translation.min", "is greater than limits.stiffness.translation.max",
+       "N/m", [](const Parameters& p) -> const Range& { return p.limits.stiffness.translation; }},
+      {"limits.stiffness.rotation.min", "is greater than limits.stiffness.rotation.max", "Nm/rad",
+       [](const Parameters& p) -> const Range& { return p.limits.stiffness.rotation; }},
+      {"limits.damping_ratio.min", "is greater than limits.damping_ratio.max", "",
+       [](const Parameters& p) -> const Range& { return p.limits.damping_ratio; }},
+      {"limits.nullspace_stiffness.min", "is greater than limits.nullspace_stiffness.max",
+       "Nm/rad",
+       [](const Parameters& p) -> const Range& { return p.limits.nullspace_stiffness; }},
+      {"plausibility.dt.min", "is greater than plausibility.dt.max", "s",
+       [](const Parameters& p) -> const Range& { return p.plausibility.dt; }},
+  };
+  for (const RangeRule& rule : kRanges) {
+    const Range& range = rule.range(parameters);
+    if (range.min > range.max) {
+      return Fault{rule.min_name, -1, range.min, rule.reason, range.max, true, rule.unit};
+    }
+  }
+  static const char* const kWorkspaceReasons[3] = {"is greater than safety.workspace.max.x",
+                                                   "is greater than safety.workspace.max.y",
+                                                   "is greater than safety.workspace.max.z"};
   const WorkspaceParameters& box = parameters.safety.workspace;
   for (int i = 0; i < 3; ++i) {
     if (box.min[i] > box.max[i]) {
-      throw Error(std::string("safety.workspace.min") + kAxisSuffix[i] + " = " +
-                  with_unit(box.min[i], "m") + " is greater than safety.workspace.max" +
-                  kAxisSuffix[i] + " = " + with_unit(box.max[i], "m"));
+      return Fault{"safety.workspace.min", i,    box.min[i], kWorkspaceReasons[i],
+                   box.max[i],             true, "m",        Fault::Form::axis};
     }
   }
   const EnergyTankParameters& tank = parameters.safety.energy_tank;
   if (tank.initial > tank.capacity) {
-    throw Error("safety.energy_tank.initial = " + with_unit(tank.initial, "J") +
-                " is greater than safety.energy_tank.capacity = " + with_unit(tank.capacity, "J"));
+    return Fault{"safety.energy_tank.initial",
+                 -1,
+                 tank.initial,
+                 "is greater than safety.energy_tank.capacity",
+                 tank.capacity,
+                 true,
+                 "J"};
   }
+  // Whether the declared load is carried or not, the force the arm presses with differs by its
+  // weight (the compensation holds a load that is there, and pushes up where there is none): the
+  // force cap can bound both only if the weight alone fits under it.
+  const PayloadParameters& payload = parameters.payload;
+  const MaxForceParameters& cap = parameters.safety.max_force;
+  constexpr double kStandardGravity = 9.81;  // CartesianImpedanceController::kGravity
+  const double weight = payload.mass * kStandardGravity;
+  if (cap.force > 0.0 && weight > cap.force) {
+    return Fault{"payload.mass",
+                 -1,
+                 payload.mass,
+                 "weighs more than the force cap holds, safety.max_force.force / g",
+                 cap.force / kStandardGravity,
+                 true,
+                 "kg"};
+  }
+  const double lever = payload.center_of_mass.norm();
+  if (cap.torque > 0.0 && weight * lever > cap.torque) {
+    return Fault{"payload.center_of_mass",
+                 -1,
+                 lever,
+                 "(its norm) holds the payload's weight out farther than the torque cap allows, "
+                 "safety.max_force.torque / (payload.mass g)",
+                 cap.torque / weight,
+                 true,
+                 "m"};
+  }
+  return Fault{};
+}
+
+ParameterUpdate ParameterUpdate::of(const Parameters& values,
+                                    std::initializer_list<std::string_view> names) {
+  ParameterUpdate update{values, {}};
+  const std::vector<ParameterInfo>& table = parameter_table();
+  for (const std::string_view name : names) {
+    bool found = false;
+    for (std::size_t i = 0; i < table.size(); ++i) {
+      const std::string_view row = table[i].name;
+      if (row == name || (row.size() > name.size() && row.substr(0, name.size()) == name &&
+                          row[name.size()] == '.')) {
+        update.names[i] = true;
+        found = true;
+      }
+    }
+    if (!found) throw unknown_parameter(name);
+  }
+  return update;
+}
+
+std::vector<std::string_view> ParameterUpdate::row_names() const {
+  std::vector<std::string_view> rows;
+  const std::vector<ParameterInfo>& table = parameter_table();
+  for (std::size_t i = 0; i < table.size(); ++i) {
+    if (names[i]) rows.push_back(table[i].name);
+  }
+  return rows;
+}
+
+std::size_t parameter_index(const ParameterInfo& row) {
+  return static_cast<std::size_t>(&row - parameter_table().data());
+}
+
+namespace {
+
+// Calls `each(a_field, b_field)` with the two fields of one row, of the same type.
+template <typename Each>
+void visit_row(const ParameterInfo& row, Parameters& a, Parameters& b, Each&& each) noexcept {
+  const ParameterField field_a = row.field(a);
+  const ParameterField field_b = row.field(b);
+  std::visit(
+      [&](auto* pointer_a) {
+        using Pointer = decltype(pointer_a);
+        each(*pointer_a, **std::get_if<Pointer>(&field_b));
+      },
+      field_a);
+}
+
+}  // namespace
+
+void copy_parameters(const Parameters& from, Parameters& to, const ParameterNames& names) noexcept {
+  const std::vector<ParameterInfo>& table = parameter_table();
+  Parameters& source = const_cast<Parameters&>(from);  // read only
+  for (std::size_t i = 0; i < table.size(); ++i) {
+    if (!names[i]) continue;
+    visit_row(table[i], to, source, [](auto& target, const auto& value) { target = value; });
+  }
+}
+
+ParameterNames changed_parameters(const Parameters& a, const Parameters& b) noexcept {
+  const std::vector<ParameterInfo>& table = parameter_table();
+  Parameters& left = const_cast<Parameters&>(a);  // read only
+  Parameters& right = const_cast<Parameters&>(b);
+  ParameterNames changed;
+  for (std::size_t i = 0; i < table.size(); ++i) {
+    visit_row(table[i], left, right, [&](const auto& x, const auto& y) {
+      using T = std::decay_t<decltype(x)>;
+      if constexpr (std::is_same_v<T, JointVector>) {
+        changed[i] = x.size() != y.size() || x != y;
+      } else {
+        changed[i] = !(x == y);
+      }
+    });
+  }
+  return changed;
+}
+
+bool is_safety_setting(std::string_view name) {
+  for (const std::string_view group : {"safety", "limits", "plausibility", "payload"}) {
+    if (name == group ||
+        (name.size() > group.size() && name.substr(0, group.size()) == group &&
+         name[group.size()] == '.')) {
+      return true;
+    }
+  }
+  return false;
+}
+
+const ParameterNames& safety_settings() {
+  static const ParameterNames names = [] {
+    ParameterNames set;
+    const std::vector<ParameterInfo>& table = parameter_table();
+    for (std::size_t i = 0; i < table.size(); ++i) set[i] = is_safety_setting(table[i].name);
+    return set;
+  }();
+  return names;
 }
 
 std::string value_text(const Parameters& parameters, const ParameterInfo& info) {

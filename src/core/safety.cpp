@@ -1,6 +1,7 @@
-// The safety layer of CartesianImpedanceController (parameters safety.* and payload.*): caps on
-// what any valid command can make the arm do. Each function is noexcept, allocation-free and of
-// fixed cost; with every cap off it costs a few comparisons.
+// The safety layer of CartesianImpedanceController (parameters safety.*, payload.*, and the
+// energy-storing limits.pose_error): caps on what any valid command can make the arm do. Each
+// function is noexcept, allocation-free and of fixed cost; with every cap off it costs a few
+// comparisons.
 
 #include <algorithm>
 #include <cmath>
@@ -24,6 +25,64 @@ double spring_energy_weight(double length, double clip) noexcept {
 // extra damping near the cap) a few times the law's own damping, so the discrete loop stays far
 // from its stability limit.
 constexpr double kGovernorBand = 0.8;
+
+// Iterations for the largest affordable part of a change whose stored energy is not linear in it
+// (a clip, a box): enough for the Illinois method to find it to round-off on any change in range.
+constexpr int kMaxIterations = 60;
+
+// The largest s in [0, 1] with |s d + b| <= cap, for |b| <= cap (s = 0 fits); 0 if |b| > cap.
+double largest_fitting(const Eigen::Vector3d& d, const Eigen::Vector3d& b, double cap) noexcept {
+  const double excess = b.squaredNorm() - cap * cap;
+  if (excess > 0.0) return 0.0;
+  const double dd = d.squaredNorm();
+  const double db = d.dot(b);
+  if (dd + 2.0 * db + excess <= 0.0) return 1.0;
+  // dd s^2 + 2 db s + excess = 0: the larger root, >= 0 since excess <= 0.
+  const double root = (-db + std::sqrt(std::max(db * db - dd * excess, 0.0))) / dd;
+  return std::clamp(root, 0.0, 1.0);
+}
+
+// The largest s for which both |s d + offset| <= cap and |s d + offset + payload| <= cap: the
+// press of the sum whether a declared payload is carried (its compensation holds its weight) or
+// not (it pushes).
+double largest_fitting_both(const Eigen::Vector3d& d, const Eigen::Vector3d& offset,
+                            const Eigen::Vector3d& payload, double cap) noexcept {
+  return std::min(largest_fitting(d, offset, cap), largest_fitting(d, offset + payload, cap));
+}
+
+// The wall's stored energy 1/2 k |p - box(p)|^2 for a box and stiffness.
+double wall_energy(const Eigen::Vector3d& position, const Eigen::Vector3d& min,
+                   const Eigen::Vector3d& max, double stiffness) noexcept {
+  return 0.5 * stiffness * (position - position.cwiseMax(min).cwiseMin(max)).squaredNorm();
+}
+
+// The largest s in [0, 1] whose cost(s) fits into `level` >= 0, given cost(0) = 0 and
+// cost(1) > level: by regula falsi with the Illinois modification (it converges superlinearly,
+// also where the cost is nearly linear in s over a change many orders larger than what the tank
+// pays, which bisection would resolve only after some 40 steps), keeping the affordable end.
+template <typename Cost>
+double largest_affordable(double level, const Cost& cost) noexcept {
+  double low = 0.0, high = 1.0;
+  double f_low = -level, f_high = cost(1.0) - level;
+  int side = 0;
+  for (int i = 0; i < kMaxIterations && f_low < -1e-9 * level && high - low > 1e-15; ++i) {
+    double s = (low * f_high - high * f_low) / (f_high - f_low);
+    if (!(s > low && s < high)) s = 0.5 * (low + high);
+    const double f = cost(s) - level;
+    if (f <= 0.0) {
+      low = s;
+      f_low = f;
+      if (side == -1) f_high *= 0.5;
+      side = -1;
+    } else {
+      high = s;
+      f_high = f;
+      if (side == 1) f_low *= 0.5;
+      side = 1;
+    }
+  }
+  return low;
+}
 
 }  // namespace
 
@@ -89,6 +148,65 @@ void CartesianImpedanceController::filter_payload() noexcept {
       (1.0 - a) * safety.payload_center_of_mass + a * parameters_.payload.center_of_mass;
 }
 
+// Every run-time change that can raise the energy stored in the controller's springs is paid
+// from the tank: the Cartesian stiffness (as filtered), the nullspace stiffness, the pose-error
+// clip and the workspace box and its wall stiffness. A change that releases energy is applied at
+// once and returns it to the tank; one the tank cannot pay is applied as far as it can and waits
+// for the rest (the stiffnesses through their filters, the clip and the box in
+// SafetyState::*_in_force). So "kinetic + stored + tank energy never grows" holds for any schedule
+// of these parameters, not only of the stiffness.
+void CartesianImpedanceController::charge_parameter_changes(const RobotState& robot) noexcept {
+  SafetyState& safety = state_.safety;
+  safety.tank_draw = 0.0;
+  safety.stiffness_change_scale = 1.0;
+  const EnergyTankParameters& tank = parameters_.safety.energy_tank;
+  if (!tank.enabled || scheduled_) {
+    safety.pose_error_in_force = parameters_.limits.pose_error;
+    safety.workspace_in_force = parameters_.safety.workspace;
+    safety.settings_held = false;
+    return;
+  }
+  pay_stiffness_change();
+  pay_nullspace_stiffness_change(robot);
+  pay_pose_error_limit_change();
+  pay_workspace_change();
+  const PoseErrorLimits& clip = parameters_.limits.pose_error;
+  const WorkspaceParameters& box = parameters_.safety.workspace;
+  const WorkspaceParameters& in_force = safety.workspace_in_force;
+  safety.settings_held = safety.pose_error_in_force.translation != clip.translation ||
+                         safety.pose_error_in_force.rotation != clip.rotation ||
+                         in_force.min != box.min || in_force.max != box.max ||
+                         in_force.stiffness != box.stiffness;
+}
+
+// The energy of the clipped spring K (stiffness frame) at the pose error `error` (base frame,
+// unclipped) with the clips `clip`: w_t e_t^T K_tt e_t + w_r e_r^T K_rr e_r + e_t^T K_tr e_r for
+// the clipped halves, w the weights of spring_energy_weight().
+double CartesianImpedanceController::spring_energy(const Vector6d& error, const Matrix6d& stiffness,
+                                                   const PoseErrorLimits& clip) const noexcept {
+  Vector6d clipped = error;
+  const double translation_weight =
+      spring_energy_weight(clipped.head<3>().norm(), clip.translation);
+  const double rotation_weight = spring_energy_weight(clipped.tail<3>().norm(), clip.rotation);
+  clip_norm(clipped.head<3>(), clip.translation);
+  clip_norm(clipped.tail<3>(), clip.rotation);
+  if (parameters_.stiffness.frame == Frame::end_effector) {
+    const Eigen::Matrix3d& rotation = law_->rotation;
+    clipped.head<3>() = rotation.transpose() * clipped.head<3>().eval();
+    clipped.tail<3>() = rotation.transpose() * clipped.tail<3>().eval();
+  }
+  if (stiffness_diagonal_) {
+    const Vector6d squared = clipped.cwiseAbs2();
+    return translation_weight * stiffness.diagonal().head<3>().dot(squared.head<3>()) +
+           rotation_weight * stiffness.diagonal().tail<3>().dot(squared.tail<3>());
+  }
+  return 0.5 * clipped.dot(stiffness * clipped) +
+         (translation_weight - 0.5) *
+             clipped.head<3>().dot(stiffness.topLeftCorner<3, 3>() * clipped.head<3>()) +
+         (rotation_weight - 0.5) *
+             clipped.tail<3>().dot(stiffness.bottomRightCorner<3, 3>() * clipped.tail<3>());
+}
+
 // Raising the stiffness by dK while the pose error is e stores 1/2 e^T dK e in the spring: energy
 // the arm did not have, which is what lets a stiffness schedule (soft while the error grows,
 // stiff while it shrinks) pump an oscillation up. The tank pays for it; lowering the stiffness
@@ -96,10 +214,6 @@ void CartesianImpedanceController::filter_payload() noexcept {
 // the energy allows, and the filter carries the rest on from there.
 void CartesianImpedanceController::pay_stiffness_change() noexcept {
   SafetyState& safety = state_.safety;
-  safety.tank_draw = 0.0;
-  safety.stiffness_change_scale = 1.0;
-  const EnergyTankParameters& tank = parameters_.safety.energy_tank;
-  if (!tank.enabled || scheduled_) return;
   Matrix6d& stiffness = state_.filtered.stiffness;
   const Matrix6d& before = law_->stiffness_before;
   if (stiffness == before) return;
@@ -107,36 +221,11 @@ void CartesianImpedanceController::pay_stiffness_change() noexcept {
   // came first and the reference moved after it. A reference step is not the tank's to pay (the
   // speed and force caps bound it), so a stiffness command sent with a new reference, or a
   // stiffness raised at rest, costs nothing; a raise while the arm is away from its reference
-  // costs what it stores.
-  Vector6d error = pose_error(state_.pose, law_->reference_before);
-  // Beyond limits.pose_error the spring pulls with its force at the clip, so its energy grows by
-  // c u^T K u for every metre further (c the clip, u the error's direction): a raise there stores
-  // (|e| / c - 1/2) e_c^T dK e_c, not 1/2 e_c^T dK e_c. (That is the clipped spring's energy for an
-  // isotropic K; for another, clipping keeps the force's size, not a potential.)
-  const PoseErrorLimits& clip = parameters_.limits.pose_error;
-  const double translation_weight = spring_energy_weight(error.head<3>().norm(), clip.translation);
-  const double rotation_weight = spring_energy_weight(error.tail<3>().norm(), clip.rotation);
-  clip_norm(error.head<3>(), clip.translation);
-  clip_norm(error.tail<3>(), clip.rotation);
-  if (parameters_.stiffness.frame == Frame::end_effector) {
-    const Eigen::Matrix3d& rotation = law_->rotation;
-    error.head<3>() = rotation.transpose() * error.head<3>().eval();
-    error.tail<3>() = rotation.transpose() * error.tail<3>().eval();
-  }
-  double cost;
-  if (stiffness_diagonal_) {
-    const Vector6d change = stiffness.diagonal() - before.diagonal();
-    const Vector6d squared = error.cwiseAbs2();
-    cost = translation_weight * change.head<3>().dot(squared.head<3>()) +
-           rotation_weight * change.tail<3>().dot(squared.tail<3>());
-  } else {
-    const Matrix6d change = stiffness - before;
-    cost = 0.5 * error.dot(change * error) +
-           (translation_weight - 0.5) *
-               error.head<3>().dot(change.topLeftCorner<3, 3>() * error.head<3>()) +
-           (rotation_weight - 0.5) *
-               error.tail<3>().dot(change.bottomRightCorner<3, 3>() * error.tail<3>());
-  }
+  // costs what it stores. (The stored energy is linear in K, so the part of the change that the
+  // tank can pay is in proportion.)
+  const Vector6d error = pose_error(state_.pose, law_->reference_before);
+  const PoseErrorLimits& clip = safety.pose_error_in_force;
+  const double cost = spring_energy(error, stiffness, clip) - spring_energy(error, before, clip);
   if (cost > safety.tank_level) {
     // What the tank holds pays for the part of the change it covers, and the tank is then empty:
     // exactly, as level - cost * (level / cost) may round below zero.
@@ -148,12 +237,102 @@ void CartesianImpedanceController::pay_stiffness_change() noexcept {
       stiffness = before + scale * (stiffness - before);
     }
     safety.stiffness_change_scale = scale;
-    safety.tank_draw = level;
+    safety.tank_draw += level;
     safety.tank_level = 0.0;
     return;
   }
-  safety.tank_draw = cost;
-  safety.tank_level = std::min(safety.tank_level - cost, tank.capacity);
+  safety.tank_draw += cost;
+  safety.tank_level =
+      std::min(safety.tank_level - cost, parameters_.safety.energy_tank.capacity);
+}
+
+// The nullspace spring stores 1/2 e^T K_ns e, e = q - q_d: a raise of K_ns while the joints are
+// away from their target is paid like a raise of K (from the target before this cycle's step).
+void CartesianImpedanceController::pay_nullspace_stiffness_change(const RobotState& robot) noexcept {
+  Law& law = *law_;
+  JointVector& stiffness = state_.filtered.nullspace_stiffness;
+  const JointVector& before = law.nullspace_stiffness_before;
+  if (stiffness == before) return;
+  SafetyState& safety = state_.safety;
+  const double cost =
+      0.5 * (stiffness - before).dot((robot.q - law.nullspace_q_before).cwiseAbs2());
+  if (cost > safety.tank_level) {
+    const double level = std::max(safety.tank_level, 0.0);
+    stiffness = before + (level / cost) * (stiffness - before);
+    safety.tank_draw += level;
+    safety.tank_level = 0.0;
+    return;
+  }
+  safety.tank_draw += cost;
+  safety.tank_level =
+      std::min(safety.tank_level - cost, parameters_.safety.energy_tank.capacity);
+}
+
+// Beyond limits.pose_error the spring pulls with its force at the clip, k c, whatever the error: a
+// raised clip lets it pull harder at once, storing k (|e| (c' - c) - (c'^2 - c^2) / 2) that nothing
+// paid for (measured before: a clip raised while the error shrinks and lowered while it grows
+// pumped a 5 cm error up to 92 cm). The clips in force follow limits.pose_error as the tank pays.
+void CartesianImpedanceController::pay_pose_error_limit_change() noexcept {
+  SafetyState& safety = state_.safety;
+  const PoseErrorLimits& target = parameters_.limits.pose_error;
+  PoseErrorLimits& in_force = safety.pose_error_in_force;
+  if (in_force.translation == target.translation && in_force.rotation == target.rotation) return;
+  const PoseErrorLimits from = in_force;
+  const Vector6d error = pose_error(state_.pose, law_->reference_before);
+  const Matrix6d& stiffness = state_.filtered.stiffness;
+  const double before = spring_energy(error, stiffness, from);
+  const auto at = [&](double s) {
+    return PoseErrorLimits{from.translation + s * (target.translation - from.translation),
+                           from.rotation + s * (target.rotation - from.rotation)};
+  };
+  const auto cost = [&](double s) { return spring_energy(error, stiffness, at(s)) - before; };
+  const double whole = cost(1.0);
+  const double s = whole <= safety.tank_level ? 1.0 : largest_affordable(safety.tank_level, cost);
+  const double paid = s == 1.0 ? whole : cost(s);
+  in_force = s == 1.0 ? target : at(s);
+  safety.tank_draw += paid;
+  safety.tank_level = std::clamp(safety.tank_level - paid, 0.0,
+                                 parameters_.safety.energy_tank.capacity);
+}
+
+// The wall stores 1/2 k_w |p - box(p)|^2: moving the box past the end effector, or stiffening a
+// wall it is outside of, would throw it back with energy nobody paid for (measured before: a box
+// moved 0.15 m past the flange threw it back at 1.35 m/s). The box in force follows the
+// parameters as the tank pays; a face that would pass the end effector stops at it (that costs
+// nothing) and follows it in, since the reference is clipped into the box of the parameters.
+void CartesianImpedanceController::pay_workspace_change() noexcept {
+  SafetyState& safety = state_.safety;
+  const WorkspaceParameters& target = parameters_.safety.workspace;
+  WorkspaceParameters& in_force = safety.workspace_in_force;
+  in_force.damping = target.damping;
+  if (in_force.min == target.min && in_force.max == target.max &&
+      in_force.stiffness == target.stiffness) {
+    return;
+  }
+  const WorkspaceParameters from = in_force;
+  const Eigen::Vector3d& position = state_.pose.position;
+  const double before = wall_energy(position, from.min, from.max, from.stiffness);
+  const auto cost = [&](double s) {
+    return wall_energy(position, from.min + s * (target.min - from.min),
+                       from.max + s * (target.max - from.max),
+                       from.stiffness + s * (target.stiffness - from.stiffness)) -
+           before;
+  };
+  const double whole = cost(1.0);
+  const double s = whole <= safety.tank_level ? 1.0 : largest_affordable(safety.tank_level, cost);
+  const double paid = s == 1.0 ? whole : cost(s);
+  if (s == 1.0) {
+    in_force.min = target.min;
+    in_force.max = target.max;
+    in_force.stiffness = target.stiffness;
+  } else {
+    in_force.min = from.min + s * (target.min - from.min);
+    in_force.max = from.max + s * (target.max - from.max);
+    in_force.stiffness = from.stiffness + s * (target.stiffness - from.stiffness);
+  }
+  safety.tank_draw += paid;
+  safety.tank_level = std::clamp(safety.tank_level - paid, 0.0,
+                                 parameters_.safety.energy_tank.capacity);
 }
 
 void CartesianImpedanceController::fill_tank(double energy) noexcept {
@@ -184,49 +363,122 @@ const JointMatrix& CartesianImpedanceController::mass_with_payload(
   return law.mass;
 }
 
-void CartesianImpedanceController::safety_layer() noexcept {
+// The envelope: the walls first, then the caps on the sum of every Cartesian term (walls
+// included), then the walls join the damping (the last to give way in the torque shaping).
+void CartesianImpedanceController::safety_layer(const RobotState& robot) noexcept {
   SafetyState& safety = state_.safety;
   safety.translation_drive_scale = 1.0;
   safety.rotation_drive_scale = 1.0;
   safety.braking = false;
   safety.force_scale = 1.0;
   safety.torque_scale = 1.0;
-  safety.workspace_penetration.setZero();
-  safety.wall_force.setZero();
-  cap_force();
-  govern_speed();
-  push_back_from_walls();
+  safety.nullspace_scale = 1.0;
+  Law& law = *law_;
+  law.joint_walls = robot.joint_wall_torque.size() == num_joints_ &&
+                    !robot.joint_wall_torque.isZero(0.0);
+  walls();
+  const MaxForceParameters& force_cap = parameters_.safety.max_force;
+  const MaxSpeedParameters& speed_cap = parameters_.safety.max_speed;
+  const bool capped = force_cap.force > 0.0 || force_cap.torque > 0.0 ||
+                      speed_cap.translation > 0.0 || speed_cap.rotation > 0.0;
+  law.joint_wall_force.setZero();
+  if (capped && law.joint_walls) {
+    law.projector.task_force(robot.jacobian, parameters_.nullspace.pseudo_inverse_damping,
+                             robot.joint_wall_torque, law.joint_wall_force);
+  }
+  const Vector6d joint_wall_before = law.joint_wall_force;
+  // What the nullspace torque leaks to the end effector: it joins the sum where a cap acts on it.
+  law.nullspace_leak.setZero();
+  if (capped) {
+    law.projector.task_force(robot.jacobian, parameters_.nullspace.pseudo_inverse_damping,
+                             state_.tau_nullspace, law.nullspace_leak);
+  }
+  if (force_cap.force > 0.0 || force_cap.torque > 0.0) cap_force();
+  if (speed_cap.translation > 0.0 || speed_cap.rotation > 0.0) govern_speed();
+  // What the caps took off the joint-limit walls' task-space force, taken off their torque.
+  law.damping_force += law.joint_wall_force - joint_wall_before;
+  law.damping_force.head<3>() += law.wall_spring + law.wall_damper;
+  safety.wall_force = law.wall_spring + law.wall_damper;
 }
 
-// What presses on the environment at rest is the spring and the commanded wrench (the damping
-// vanishes with the motion): their sum is scaled down to the cap, keeping its direction and the
-// two terms' proportion.
+// Outside the box in force a wall spring pushes the end effector's origin back, and a damper acts
+// on its motion further out. The spring is part of the envelope (capped and governed with the
+// rest); the damper only ever takes energy out.
+void CartesianImpedanceController::walls() noexcept {
+  Law& law = *law_;
+  SafetyState& safety = state_.safety;
+  const Eigen::Vector3d& position = state_.pose.position;
+  const WorkspaceParameters& configured = parameters_.safety.workspace;
+  safety.workspace_penetration =
+      position - position.cwiseMax(configured.min).cwiseMin(configured.max);
+  law.wall_spring.setZero();
+  law.wall_damper.setZero();
+  const WorkspaceParameters& box = safety.workspace_in_force;
+  if (!(box.stiffness > 0.0)) return;
+  const Eigen::Vector3d penetration = position - position.cwiseMax(box.min).cwiseMin(box.max);
+  if (penetration.isZero(0.0)) return;
+  law.wall_spring = -box.stiffness * penetration;
+  for (int i = 0; i < 3; ++i) {
+    if (law.twist[i] * penetration[i] > 0.0) law.wall_damper[i] = -box.damping * law.twist[i];
+  }
+}
+
+// What presses on the environment at rest is the sum of every term the controller adds (the
+// damping vanishes with the motion): the drive (spring, commanded wrench, the walls' spring, the
+// joint-limit walls' force) and what does not scale with it, the nullspace torque's leak and the
+// declared payload's compensation. The drive is scaled as a whole, keeping its direction and its
+// terms' proportions, so that the sum stays under the cap whether the payload is carried (its
+// compensation holds the load's weight) or not (it presses); validate() keeps the payload's own
+// weight under the cap, so scaling the drive always can. Where the leak alone would break the
+// cap (near a singularity), the nullspace torque is scaled first.
 void CartesianImpedanceController::cap_force() noexcept {
+  Law& law = *law_;
+  SafetyState& safety = state_.safety;
   const MaxForceParameters& cap = parameters_.safety.max_force;
-  Vector6d& spring = law_->spring_force;
+  Vector6d& spring = law.spring_force;
   Vector6d& wrench = state_.wrench_base;
-  const auto cap_part = [&](int start, double largest, double& scale) {
+  const Vector6d payload = safety.payload_mass > 0.0 ? payload_holding_wrench() : Vector6d::Zero();
+  Vector6d drive = spring + wrench + law.joint_wall_force;
+  drive.head<3>() += law.wall_spring;
+  double nullspace_scale = 1.0;
+  const auto part_scale = [&](int start, double largest, double& scale) {
     if (!(largest > 0.0)) return;
-    const double norm = (spring.segment<3>(start) + wrench.segment<3>(start)).norm();
-    if (norm <= largest) return;
-    scale = largest / norm;
+    const Eigen::Vector3d leak = law.nullspace_leak.segment<3>(start);
+    const Eigen::Vector3d load = payload.segment<3>(start);
+    // The leak alone (with the payload either way) must fit first.
+    const double leak_scale = largest_fitting_both(leak, Eigen::Vector3d::Zero(), load, largest);
+    nullspace_scale = std::min(nullspace_scale, leak_scale);
+    scale = largest_fitting_both(drive.segment<3>(start), leak_scale * leak, load, largest);
+  };
+  part_scale(0, cap.force, safety.force_scale);
+  part_scale(3, cap.torque, safety.torque_scale);
+  if (nullspace_scale < 1.0) {
+    state_.tau_nullspace *= nullspace_scale;
+    law.nullspace_leak *= nullspace_scale;
+    safety.nullspace_scale = nullspace_scale;
+  }
+  for (const auto& [start, scale] : {std::pair{0, safety.force_scale}, {3, safety.torque_scale}}) {
+    if (scale == 1.0) continue;
     spring.segment<3>(start) *= scale;
     wrench.segment<3>(start) *= scale;
-  };
-  cap_part(0, cap.force, state_.safety.force_scale);
-  cap_part(3, cap.torque, state_.safety.torque_scale);
+    law.joint_wall_force.segment<3>(start) *= scale;
+  }
+  law.wall_spring *= safety.force_scale;
 }
 
-// Near the speed cap the spring and the commanded wrench stop pushing along the motion (from
-// kGovernorBand x cap, all of it at the cap), whatever the stiffness, the reference or the wrench;
-// the damping still acts. Beyond the cap (a push from outside, or the arm's own momentum) the
-// excess speed is braked with the law's own damping strength, never with stiffness.
+// Near the speed cap the sum stops pushing along the motion (from kGovernorBand x cap, all of it
+// at the cap), whatever term pushes: the spring, the commanded wrench, a wall, a joint-limit wall,
+// the leak or an uncarried payload's compensation; the damping still acts. The push is taken
+// from the spring and the wrench where they push (in proportion), and the rest is held by a
+// counter-force with the damping. Beyond the cap (a push from outside, or the arm's own momentum)
+// the excess speed is braked with the law's own damping strength, never with stiffness.
 void CartesianImpedanceController::govern_speed() noexcept {
   Law& law = *law_;
   SafetyState& safety = state_.safety;
   const MaxSpeedParameters& caps = parameters_.safety.max_speed;
   Vector6d& spring = law.spring_force;
   Vector6d& wrench = state_.wrench_base;
+  const Vector6d payload = safety.payload_mass > 0.0 ? payload_holding_wrench() : Vector6d::Zero();
   const auto govern = [&](int start, double cap, double& drive_scale) {
     if (!(cap > 0.0)) return;
     const Eigen::Vector3d velocity = law.twist.segment<3>(start);
@@ -236,15 +488,23 @@ void CartesianImpedanceController::govern_speed() noexcept {
     drive_scale = std::clamp((cap - speed) / ((1.0 - kGovernorBand) * cap), 0.0, 1.0);
     const double spring_push = spring.segment<3>(start).dot(direction);
     const double wrench_push = wrench.segment<3>(start).dot(direction);
-    const double push = spring_push + wrench_push;
+    double rest = law.joint_wall_force.segment<3>(start).dot(direction) +
+                  law.nullspace_leak.segment<3>(start).dot(direction);
+    if (start == 0) rest += law.wall_spring.dot(direction);
+    // With the payload carried its compensation holds the load; without, it pushes too.
+    const double push =
+        spring_push + wrench_push + rest + std::max(payload.segment<3>(start).dot(direction), 0.0);
     if (push > 0.0) {
-      // Taken from each term in proportion to how much it pushes along the motion.
+      const double removed = (1.0 - drive_scale) * push;
       const double spring_pushes = std::max(spring_push, 0.0);
       const double wrench_pushes = std::max(wrench_push, 0.0);
-      const double removed = (1.0 - drive_scale) * push;
-      const double spring_share = spring_pushes / (spring_pushes + wrench_pushes);
-      spring.segment<3>(start) -= (removed * spring_share) * direction;
-      wrench.segment<3>(start) -= (removed * (1.0 - spring_share)) * direction;
+      const double pushes = spring_pushes + wrench_pushes;
+      const double from_terms = std::min(removed, pushes);
+      if (from_terms > 0.0) {
+        spring.segment<3>(start) -= (from_terms * spring_pushes / pushes) * direction;
+        wrench.segment<3>(start) -= (from_terms * wrench_pushes / pushes) * direction;
+      }
+      law.damping_force.segment<3>(start) -= (removed - from_terms) * direction;
     }
     if (speed > cap) {
       const double strength = state_.damping.diagonal().segment<3>(start).mean();
@@ -254,25 +514,6 @@ void CartesianImpedanceController::govern_speed() noexcept {
   };
   govern(0, caps.translation, safety.translation_drive_scale);
   govern(3, caps.rotation, safety.rotation_drive_scale);
-}
-
-// Outside the box a wall spring pushes the end effector's origin back, and a damper acts on its
-// motion further out. Both join the damping in the torque shaping, so they are the last to give
-// way, and neither is capped by safety.max_force: a wall is not a press on the environment.
-void CartesianImpedanceController::push_back_from_walls() noexcept {
-  const WorkspaceParameters& box = parameters_.safety.workspace;
-  SafetyState& safety = state_.safety;
-  const Eigen::Vector3d& position = state_.pose.position;
-  safety.workspace_penetration = position - position.cwiseMax(box.min).cwiseMin(box.max);
-  if (!(box.stiffness > 0.0) || safety.workspace_penetration.isZero(0.0)) return;
-  Law& law = *law_;
-  Eigen::Vector3d force = -box.stiffness * safety.workspace_penetration;
-  for (int i = 0; i < 3; ++i) {
-    if (law.twist[i] * safety.workspace_penetration[i] > 0.0)
-      force[i] -= box.damping * law.twist[i];
-  }
-  safety.wall_force = force;
-  law.damping_force.head<3>() += force;
 }
 
 // The wrench that holds the payload up at the end effector's origin: m g upward and the torque of
@@ -286,10 +527,12 @@ Vector6d CartesianImpedanceController::payload_holding_wrench() const noexcept {
   return holding;
 }
 
-// At rest the controller's static wrench (spring plus the declared payload's compensation; the
-// commanded wrench is the user's, not a load) holds up whatever hangs at the flange: its upward
-// force is m g, and its torque r x (0, 0, m g) gives the centre of mass across gravity (along
-// gravity it has no lever; that component is reported as zero in the base frame).
+// At rest the controller's static wrench (spring, walls and the declared payload's compensation;
+// the commanded wrench is the user's, not a load) holds up whatever hangs at the flange: its
+// upward force is m g, and its torque r x (0, 0, m g) gives the centre of mass across gravity
+// (along gravity it has no lever; that component is reported as zero in the base frame). A
+// static wrench no hanging load can make (a press down, a sideways force, a twist about the
+// vertical) is a contact: the estimate is then not valid.
 void CartesianImpedanceController::estimate_payload(double dt) noexcept {
   Law& law = *law_;
   SafetyState& safety = state_.safety;
@@ -298,20 +541,38 @@ void CartesianImpedanceController::estimate_payload(double dt) noexcept {
   if (!still) {
     law.still_for = 0.0;
     safety.payload_estimate_valid = false;
+    safety.static_wrench_unexplained = false;
+    safety.payload_mismatch = false;
     return;
   }
-  const Vector6d holding = law.spring_force + payload_holding_wrench();
+  Vector6d holding = law.spring_force + payload_holding_wrench();
+  holding.head<3>() += law.wall_spring;
   const double weight = holding[2];
   Eigen::Vector3d center_base = Eigen::Vector3d::Zero();
   if (weight > 1e-6) center_base << -holding[4] / weight, holding[3] / weight, 0.0;
   const Eigen::Vector3d center = law.rotation.transpose() * center_base;
   // Averaged over the stillness, restarted when it begins.
   const double a = law.still_for == 0.0 ? 1.0 : std::min(1.0, dt / (0.2 * kPayloadSettleTime));
-  safety.payload_estimate_mass = (1.0 - a) * safety.payload_estimate_mass + a * weight / kGravity;
+  safety.payload_estimate_mass =
+      (1.0 - a) * safety.payload_estimate_mass + a * std::max(weight, 0.0) / kGravity;
   safety.payload_estimate_center_of_mass =
       (1.0 - a) * safety.payload_estimate_center_of_mass + a * center;
+  const double force_tolerance =
+      std::max(kUnexplainedForce, kUnexplainedFraction * std::abs(weight));
+  const double torque_tolerance =
+      std::max(kUnexplainedTorque, kUnexplainedFraction * holding.segment<2>(3).norm());
+  const bool unexplained = weight < -force_tolerance ||
+                           holding.head<2>().norm() > force_tolerance ||
+                           std::abs(holding[5]) > torque_tolerance;
   law.still_for += dt;
-  safety.payload_estimate_valid = law.still_for >= kPayloadSettleTime;
+  const bool settled = law.still_for >= kPayloadSettleTime;
+  safety.static_wrench_unexplained = settled && unexplained;
+  safety.payload_estimate_valid = settled && !unexplained;
+  const double declared = safety.payload_mass;
+  safety.payload_mismatch =
+      safety.payload_estimate_valid &&
+      std::abs(safety.payload_estimate_mass - declared) >
+          kPayloadMismatchMass + kPayloadMismatchFraction * declared;
 }
 
 }  // namespace cartesian_impedance

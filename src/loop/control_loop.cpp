@@ -144,7 +144,10 @@ void ControlLoop::start(const Eigen::Ref<const Eigen::VectorXd>& q,
   state_.time = 0.0;
   state_.q = joints;
   state_.dq = velocities;
+  state_.safety_changes = safety_changes_;
+  state_.updates_refused = updates_refused_;
   publish_state();
+  running_.store(true, std::memory_order_release);
 }
 
 namespace {
@@ -187,12 +190,67 @@ int ControlLoop::claim(std::vector<std::unique_ptr<SlotType>>& slots) const {
   return claimed;
 }
 
+void ControlLoop::allow_runtime_safety_changes(bool allow) {
+  if (running_.load(std::memory_order_acquire)) {
+    throw Error("allow_runtime_safety_changes() after start(): whether safety settings may change "
+                "while the robot runs is decided before it starts");
+  }
+  allow_safety_changes_ = allow;
+}
+
+void ControlLoop::check_safety_lock(const Command& command) const {
+  if (allow_safety_changes_ || !running_.load(std::memory_order_acquire)) return;
+  const Parameters* values = nullptr;
+  ParameterNames named;
+  if (const auto* whole = std::get_if<Parameters>(&command)) {
+    values = whole;
+    named.set();
+  } else if (const auto* update = std::get_if<ParameterUpdate>(&command)) {
+    values = &update->values;
+    named = update->names;
+  } else {
+    return;
+  }
+  const Parameters current = latest_parameters();
+  const ParameterNames locked = changed_parameters(current, *values) & named & safety_settings();
+  if (locked.none()) return;
+  const std::vector<ParameterInfo>& table = parameter_table();
+  std::string names;
+  for (std::size_t i = 0; i < table.size(); ++i) {
+    if (!locked[i]) continue;
+    const std::string unit = table[i].unit.empty() || table[i].unit == "-"
+                                 ? std::string()
+                                 : " " + std::string(table[i].unit);
+    names += std::string(names.empty() ? "" : ", ") + std::string(table[i].name) + " = " +
+             value_text(*values, table[i]) + unit + " (in force: " +
+             value_text(current, table[i]) + unit + ")";
+  }
+  throw Error("safety settings are locked while the robot runs, and this would change " + names +
+              "; only the program that owns the controller can allow run-time changes, before it "
+              "starts (ControlLoop::allow_runtime_safety_changes(), the nodes' setting "
+              "allow_runtime_safety_changes); nothing was changed");
+}
+
 ValidCommand ControlLoop::validate(const Command& command) const {
   // Parameters are checked as the controller will use them: the torque bound the URDF gives
   // filled in, or a given one above it refused.
   const auto* given = std::get_if<Parameters>(&command);
-  ValidCommand valid = validate_command(
-      given != nullptr ? Command(with_robot_limits(*given, model_)) : command, num_joints());
+  const auto* update = std::get_if<ParameterUpdate>(&command);
+  Command checked = command;
+  if (given != nullptr) {
+    checked = with_robot_limits(*given, model_);
+  } else if (update != nullptr) {
+    checked = ParameterUpdate{with_robot_limits(update->values, model_), update->names};
+  }
+  ValidCommand valid = validate_command(std::move(checked), num_joints());
+  if (const auto* valid_update = std::get_if<ParameterUpdate>(&valid.command())) {
+    // Merged into the parameters in force as the cycle will merge it (unless another command
+    // comes first: the cycle then checks again, and refuses it if it no longer fits).
+    Parameters merged = latest_parameters();
+    copy_parameters(valid_update->values, merged, valid_update->names);
+    checks::raise(consistency_fault(merged));
+  }
+  check_safety_lock(valid.command());
   // What only the loop knows: a nullspace target within the URDF's joint limits (outside them the
   // nullspace spring would fight the limit).
   std::visit(Overloaded{[this](const NullspaceTarget& target) {
@@ -215,13 +273,15 @@ ValidCommand ControlLoop::validate(const Command& command) const {
   // And whether the model can give what the dynamics options need.
   if (const auto* parameters = std::get_if<Parameters>(&valid.command())) {
     check_dynamics(model_, parameters->dynamics);
+  } else if (const auto* checked_update = std::get_if<ParameterUpdate>(&valid.command())) {
+    check_dynamics(model_, checked_update->values.dynamics);
   }
   return valid;
 }
 
 void ControlLoop::send(const Command& command) {
   ValidCommand valid = validate(command);
-  std::visit(Overloaded{[&](const Parameters&) {
+  const auto queue_parameters = [&](auto set) {
                           const int claimed = claim(parameter_sets_);
                           if (claimed < 0) {
                             throw QueueFull("all " + std::to_string(parameter_sets_.size()) +
@@ -231,12 +291,15 @@ void ControlLoop::send(const Command& command) {
                           slot.parameters = std::move(valid);
                           slot.state.store(Slot::queued, std::memory_order_release);
                           try {
-                            enqueue(ParameterSet{claimed});
+                            set.slot = claimed;
+                            enqueue(set);
                           } catch (...) {
                             slot.state.store(Slot::free, std::memory_order_release);
                             throw;
                           }
-                        },
+  };
+  std::visit(Overloaded{[&](const Parameters&) { queue_parameters(ParameterSet{}); },
+                        [&](const ParameterUpdate&) { queue_parameters(ParameterUpdateSet{}); },
                         [&](const auto& small) { enqueue(Message(small)); }},
              valid.command());
 }
@@ -310,9 +373,11 @@ void ControlLoop::apply_messages(std::size_t at_most) noexcept {
                      if (active_buffer_ >= 0) end_trajectory(TrajectoryState::cancelled, true);
                    },
                    [&](const ParameterSet& set) {
-                     ParameterSlot& slot = *parameter_sets_[static_cast<std::size_t>(set.slot)];
-                     controller_.apply(*slot.parameters);
-                     slot.state.store(Slot::free, std::memory_order_release);
+                     apply_parameter_set(set.slot);
+                     parameters_changed = true;
+                   },
+                   [&](const ParameterUpdateSet& set) {
+                     apply_parameter_set(set.slot);
                      parameters_changed = true;
                    },
                    [&](const ReferencePose& command) {
@@ -336,6 +401,17 @@ void ControlLoop::apply_messages(std::size_t at_most) noexcept {
     const Parameters& parameters = controller_.parameters();
     armature_ = per_joint(parameters.dynamics.armature, num_joints());
     parameters_outbox_.publish(parameters);
+  }
+}
+
+void ControlLoop::apply_parameter_set(int index) noexcept {
+  ParameterSlot& slot = *parameter_sets_[static_cast<std::size_t>(index)];
+  parameters_before_ = controller_.parameters();
+  if (!controller_.apply(*slot.parameters)) ++updates_refused_;
+  slot.state.store(Slot::free, std::memory_order_release);
+  if (controller_.started() &&
+      (changed_parameters(parameters_before_, controller_.parameters()) & safety_settings()).any()) {
+    ++safety_changes_;
   }
 }
 
@@ -496,6 +572,8 @@ const JointVector& ControlLoop::step(const JointVector& q, const JointVector& dq
     if (dt_plausible) state_.time += dt;
   }
   state_.commands_applied = commands_applied_;
+  state_.safety_changes = safety_changes_;
+  state_.updates_refused = updates_refused_;
   publish_state();
   return controller_.torque();
 }
@@ -512,6 +590,8 @@ void ControlLoop::publish_state() noexcept {
     out.cycle = state_.cycle;
     out.time = state_.time;
     out.commands_applied = state_.commands_applied;
+    out.safety_changes = state_.safety_changes;
+    out.updates_refused = state_.updates_refused;
   };
   published_ = outbox_.publish_with(fill);
   if (published_ == nullptr) {  // every other slot being read: this cycle's snapshot is dropped

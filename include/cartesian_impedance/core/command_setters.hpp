@@ -19,6 +19,9 @@ class CommandSetters {
   /// damping ratios, nullspace stiffness and damping, and wrench, which are then approached
   /// through their filters. Commands are re-saturated to the new limits.
   void set_parameters(const Parameters& parameters) { submit(parameters); }
+  /// Sets the parameters `update` names and keeps every other one (see ParameterUpdate; made by
+  /// ParameterUpdate::of() or decode_parameter_update()).
+  void update_parameters(const ParameterUpdate& update) { submit(update); }
   /// Reference pose T_base_ref. The quaternion must have unit norm (within 1e-3; it is then
   /// normalised).
   void set_reference_pose(const Pose& pose_base) { submit(ReferencePose{pose_base}); }

@@ -113,24 +113,44 @@ struct ActiveLimits {
 
 /// What the safety layer (parameters safety.*, payload.*) did in the last cycle. A scale is the
 /// fraction of a quantity that was kept (1: untouched).
+///
+/// The caps act on the sum of every Cartesian term the controller adds (the envelope): the
+/// spring, the commanded wrench, the workspace walls' spring, the task-space part of the
+/// joint-limit walls, what the nullspace torque leaks to the end effector, and the declared
+/// payload's compensation, taken both as carried (it then holds the load's weight) and as not
+/// carried (it then pushes up), since the controller cannot know which.
 struct SafetyState {
   /// safety.max_speed: the reference was held back (it moves toward the commanded pose no faster
-  /// than the cap), the spring and wrench were kept from accelerating the end effector near the
-  /// cap (the drive scales: the fraction of their push along the motion that was kept), and the
-  /// end effector was faster than a cap, so its excess speed was braked.
+  /// than the cap), the drive was kept from accelerating the end effector near the cap (the drive
+  /// scales: the fraction of the sum's push along the motion that was kept), and the end effector
+  /// was faster than a cap, so its excess speed was braked.
   bool reference_speed_limited = false;
   double translation_drive_scale = 1.0;
   double rotation_drive_scale = 1.0;
   bool braking = false;
-  /// safety.max_force: the fraction of spring + commanded wrench kept [0, 1].
+  /// safety.max_force: the fraction of the drive (spring, commanded wrench, walls) kept [0, 1] so
+  /// that the sum presses with at most the cap, the payload carried or not.
   double force_scale = 1.0;
   double torque_scale = 1.0;
+  /// The fraction of the nullspace torque kept [0, 1]: below 1 only where what it leaks to the
+  /// end effector (near a singularity, through the damped projector) alone exceeds a force cap.
+  double nullspace_scale = 1.0;
   /// safety.workspace: the reference was clipped into the box; the end effector's origin is
-  /// outside it by `workspace_penetration` [m] (base frame, zero inside), pushed back by
-  /// `wall_force` [N].
+  /// outside the box of the parameters by `workspace_penetration` [m] (base frame, zero inside),
+  /// pushed back by `wall_force` [N] (spring and damper, after the caps) from the box in force
+  /// (`workspace_in_force`).
   bool reference_clipped = false;
   Eigen::Vector3d workspace_penetration = Eigen::Vector3d::Zero();
   Eigen::Vector3d wall_force = Eigen::Vector3d::Zero();
+  /// The settings that store energy as they are in force: limits.pose_error and the workspace box
+  /// and wall stiffness follow their parameters as far as the energy tank pays for what a change
+  /// stores (at once where it releases energy; always at once with the tank off). A box that
+  /// would put the end effector outside it starts around the end effector and closes in as the
+  /// end effector moves in (the reference is clipped into the box of the parameters).
+  /// `settings_held`: one of them differs from its parameter, waiting for the tank.
+  PoseErrorLimits pose_error_in_force;
+  WorkspaceParameters workspace_in_force;
+  bool settings_held = false;
   /// While teaching (zero commanded Cartesian stiffness), a joint inside its
   /// joint_limit_avoidance.margin is held off its limit by a joint-space wall
   /// (RobotState::joint_wall_torque, added to tau_cartesian): true while one acts.
@@ -151,6 +171,15 @@ struct SafetyState {
   bool payload_estimate_valid = false;
   double payload_estimate_mass = 0.0;
   Eigen::Vector3d payload_estimate_center_of_mass = Eigen::Vector3d::Zero();
+  /// At rest, the static wrench is not one a hanging load can make (it presses down, pushes
+  /// sideways or twists about the vertical beyond what the joints' friction explains): a
+  /// contact. The estimate is then not valid (and its mass is never negative).
+  bool static_wrench_unexplained = false;
+  /// The estimate is valid and differs from the declared payload (payload.mass, filtered) by more
+  /// than kPayloadMismatchMass + kPayloadMismatchFraction of it: a load declared but not carried,
+  /// or carried but not declared. The compensation still follows the declaration (it is the
+  /// user's word; the caps bound what a wrong one can do), and the nodes warn.
+  bool payload_mismatch = false;
 };
 
 /// Snapshot written by every update().
@@ -212,6 +241,17 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   static constexpr double kPayloadSettleTime = 0.5;
   static constexpr double kStillSpeed = 0.005;
   static constexpr double kStillAngularSpeed = 0.02;
+  /// SafetyState::payload_mismatch: estimate and declaration differ by more than
+  /// kPayloadMismatchMass [kg] + kPayloadMismatchFraction x the declared mass (the joints'
+  /// friction holds part of a load: the shipped robots' estimates of 1 kg read 0.94-0.98 kg).
+  static constexpr double kPayloadMismatchMass = 0.25;
+  static constexpr double kPayloadMismatchFraction = 0.15;
+  /// The static wrench is unexplained (a contact) beyond a sideways force, a downward press or a
+  /// torque about the vertical of kUnexplainedForce [N] (kUnexplainedTorque [Nm]) or
+  /// kUnexplainedFraction of the load's weight (moment), whichever is larger.
+  static constexpr double kUnexplainedForce = 2.0;
+  static constexpr double kUnexplainedTorque = 0.2;
+  static constexpr double kUnexplainedFraction = 0.2;
   /// Standard gravity [m/s^2]; the payload's weight acts along the base frame's -z.
   static constexpr double kGravity = 9.81;
 
@@ -246,7 +286,9 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   void apply(const Command& command);
   /// Applies a validated command: noexcept and allocation-free, so a control loop can apply
   /// commands handed over from other threads inside its cycle. Returns false (and changes
-  /// nothing) if the command was validated for a different joint count.
+  /// nothing) if the command was validated for a different joint count, or if it is a
+  /// ParameterUpdate that the parameters in force no longer fit (consistency_fault() of the
+  /// merged set).
   bool apply(const ValidCommand& command) noexcept;
 
   /// Drives the reference directly, bypassing the pose and nullspace filters, for a caller that
@@ -316,6 +358,11 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   void apply_saturation(Targets& commanded, ActiveLimits& limits,
                         unsigned commanded_now) const noexcept;
   void commit(const Parameters& parameters, Targets commanded, unsigned commanded_now) noexcept;
+  // The Commanded quantities whose rows `names` includes, and those re-commanded from
+  // `parameters` (the diagonal stiffness, the damping ratios, ...).
+  static unsigned quantities_named(const ParameterNames& names) noexcept;
+  void recommand(const Parameters& parameters, unsigned quantities,
+                 Targets& commanded) const noexcept;
   void refresh_damping_mode() noexcept;
   void change_frames(Frame stiffness_frame, Frame wrench_frame) noexcept;
   // The cycle (controller.cpp).
@@ -327,9 +374,11 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   bool evaluate_law(const RobotState& robot, double dt, Fault& fault) noexcept;
   bool evaluate_halt(const RobotState& robot, Fault& fault) noexcept;
   void measure_pose(const RobotState& robot) noexcept;
+  void clip_pose_error() noexcept;
   bool compute_damping(const RobotState& robot, const JointMatrix& mass, Fault& fault) noexcept;
   void spring_damper(const RobotState& robot, double dt) noexcept;
   bool nullspace(const RobotState& robot, const JointMatrix& mass, Fault& fault) noexcept;
+  void fill_tank_from_nullspace(const RobotState& robot, double dt) noexcept;
   void commanded_wrench() noexcept;
   void cartesian_torques(const RobotState& robot) noexcept;
   void gravity(const RobotState& robot) noexcept;
@@ -337,13 +386,19 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   void limit_reference_speed(double dt) noexcept;
   void clip_reference_to_workspace() noexcept;
   void filter_payload() noexcept;
+  void charge_parameter_changes(const RobotState& robot) noexcept;
   void pay_stiffness_change() noexcept;
+  void pay_nullspace_stiffness_change(const RobotState& robot) noexcept;
+  void pay_pose_error_limit_change() noexcept;
+  void pay_workspace_change() noexcept;
+  double spring_energy(const Vector6d& error, const Matrix6d& stiffness,
+                       const PoseErrorLimits& clip) const noexcept;
   void fill_tank(double energy) noexcept;
   const JointMatrix& mass_with_payload(const RobotState& robot) noexcept;
-  void safety_layer() noexcept;
+  void safety_layer(const RobotState& robot) noexcept;
+  void walls() noexcept;
   void cap_force() noexcept;
   void govern_speed() noexcept;
-  void push_back_from_walls() noexcept;
   Vector6d payload_holding_wrench() const noexcept;
   void estimate_payload(double dt) noexcept;
   void limit_torque(double dt, const RobotState* law_robot = nullptr) noexcept;

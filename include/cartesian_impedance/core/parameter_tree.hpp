@@ -220,6 +220,14 @@ void assign_parameter(Parameters& parameters, std::string_view name, const Param
 Parameters decode_parameters(const ParameterValue& tree, const Parameters& base = Parameters{},
                              std::string_view source = {});
 
+/// The partial update `tree` describes (see ParameterUpdate): the rows it names, with the values of
+/// decode_parameters(tree, base, source), which also checks them. `base` should be the parameters
+/// in force, so that the update's rules (a limit's min <= max, ...) are checked against them; the
+/// update changes only the named rows wherever it is applied.
+/// @throws ParameterError as decode_parameters().
+ParameterUpdate decode_parameter_update(const ParameterValue& tree, const Parameters& base,
+                                        std::string_view source = {});
+
 /// How encode_parameters() names the parameters.
 enum class KeyLayout {
   nested,  ///< maps of groups, as in YAML: {stiffness: {translation: [...]}}

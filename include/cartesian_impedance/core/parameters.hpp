@@ -4,6 +4,9 @@
 /// values; `parameter_table()` describes each field (name, unit, valid range, description) and is
 /// what validation, the YAML loader, the bindings and the README table are built from.
 
+#include <bitset>
+#include <cstddef>
+#include <initializer_list>
 #include <string>
 #include <string_view>
 #include <variant>
@@ -220,6 +223,31 @@ struct Parameters {
   PayloadParameters payload;
 };
 
+/// Which rows of parameter_table() a ParameterUpdate names: bit i is row i (parameter_index()).
+inline constexpr std::size_t kMaxParameterRows = 128;
+using ParameterNames = std::bitset<kMaxParameterRows>;
+
+/// A partial update, as a command: it sets the rows it names and keeps every other parameter as
+/// it is in force when the update is applied, so that two senders that each change a few
+/// parameters never undo each other's changes, and a stiffness sent on a topic survives an update
+/// of filter.pose.time. The commanded stiffness, damping ratio, nullspace stiffness and damping
+/// ratio and wrench are re-commanded from the parameters only where the update names one of their
+/// rows. `values` is a whole valid set (what decode_parameter_update() and of() make: the
+/// parameters in force with the update applied); only its named rows are read when it is applied,
+/// and the set it is applied to must then still satisfy consistency_fault() (else it is refused).
+struct ParameterUpdate {
+  static constexpr const char* kName = "parameter_update";
+  Parameters values;
+  ParameterNames names;
+
+  /// The update of the rows called `names` (dotted, as in the table) to their values in `values`.
+  /// @throws Error for a name that is no row (a group names every row under it).
+  static ParameterUpdate of(const Parameters& values,
+                            std::initializer_list<std::string_view> names);
+  /// The names of the rows it sets, in table order.
+  std::vector<std::string_view> row_names() const;
+};
+
 /// Pointer to the storage of one parameter inside a Parameters object.
 using ParameterField = std::variant<double*, Eigen::Vector3d*, JointVector*, Frame*, bool*>;
 
@@ -259,8 +287,35 @@ bool is_parameter_group(std::string_view path);
 
 /// Throws Error (naming field, value and range) unless every value is finite and in range, every
 /// per-joint field has 1 or `num_joints` entries (any count up to kMaxJoints if num_joints is 0),
-/// and every limit has min <= max.
+/// and the rules that tie parameters together hold (consistency_fault()).
 void validate(const Parameters& parameters, int num_joints = 0);
+
+/// The first rule tying parameters together that `parameters` breaks, or no fault: every limit's
+/// min <= max, the workspace box's min <= max, the tank's initial level <= its capacity, and a
+/// declared payload that the force caps can hold whether or not it is carried (its weight
+/// payload.mass g at most safety.max_force.force, its moment payload.mass g |center_of_mass| at
+/// most safety.max_force.torque, where those caps are on). noexcept and allocation-free (the
+/// fault's texts are static), so the control cycle checks an update merged into the parameters in
+/// force with it; validate() raises it.
+Fault consistency_fault(const Parameters& parameters) noexcept;
+
+/// The position of `row` in parameter_table().
+std::size_t parameter_index(const ParameterInfo& row);
+
+/// Copies the rows in `names` from `from` into `to`. noexcept and allocation-free (joint-sized
+/// fields have a fixed capacity), for the control cycle.
+void copy_parameters(const Parameters& from, Parameters& to, const ParameterNames& names) noexcept;
+
+/// The rows whose values differ between `a` and `b` (exactly: a per-joint field of another length
+/// differs). noexcept and allocation-free.
+ParameterNames changed_parameters(const Parameters& a, const Parameters& b) noexcept;
+
+/// The safety settings: the rows under safety.*, limits.*, plausibility.* and payload.*, which a
+/// running ControlLoop refuses to change unless its owner allowed it before start
+/// (ControlLoop::allow_runtime_safety_changes()).
+const ParameterNames& safety_settings();
+/// True if `name` (a row or a group) is a safety setting or a group of them.
+bool is_safety_setting(std::string_view name);
 
 /// Text of a parameter's value: "0.2", "[500, 500, 500]", "base".
 std::string value_text(const Parameters& parameters, const ParameterInfo& info);

@@ -57,6 +57,14 @@ struct LoopState {
   std::uint64_t cycle = 0;             ///< steps since start(), including failed ones
   double time = 0.0;                   ///< [s] sum of the plausible dt since start()
   std::uint64_t commands_applied = 0;  ///< commands taken from the inbox since construction
+  /// Parameter commands applied after start() that changed a safety setting (safety_settings():
+  /// safety.*, limits.*, plausibility.*, payload.*), which only a loop whose owner allowed it
+  /// accepts (ControlLoop::allow_runtime_safety_changes()).
+  std::uint64_t safety_changes = 0;
+  /// ParameterUpdates the cycle refused because, merged into the parameters then in force, they
+  /// broke a rule tying parameters together (consistency_fault()): another update that came first
+  /// changed what they were checked against. Nothing of such an update was applied.
+  std::uint64_t updates_refused = 0;
 };
 
 /// Sizes fixed at construction.
@@ -82,6 +90,16 @@ class ControlLoop : public CommandSetters<ControlLoop> {
 
   const RobotModel& model() const noexcept;
   int num_joints() const noexcept;
+
+  /// Lets commands change safety settings (safety_settings(): safety.*, limits.*,
+  /// plausibility.*, payload.*) while the loop runs. By default they are locked from start() on:
+  /// set_parameters() or update_parameters() that would change one is refused with an Error that
+  /// names the setting and the lock, so that no other program (a second node on the network, a
+  /// learning script) can switch a cap off. Only the program that owns the loop decides, before
+  /// start(); every accepted change is counted in LoopState::safety_changes.
+  /// @throws Error after start().
+  void allow_runtime_safety_changes(bool allow = true);
+  bool runtime_safety_changes_allowed() const noexcept { return allow_safety_changes_; }
 
   // ---- the cycle: one thread -----------------------------------------------------------------
 
@@ -167,8 +185,11 @@ class ControlLoop : public CommandSetters<ControlLoop> {
   // What crosses the inbox into the cycle: each command as it is (validated by the sender), but
   // a parameter set, which is large, by the index of the slot it waits in; a trajectory by the
   // index of its buffer. Made from Command's own list, so a new command crosses with no edit here.
+  struct ParameterUpdateSet : ParameterSet {};
   template <typename T>
-  using InboxForm = std::conditional_t<std::is_same_v<T, Parameters>, ParameterSet, T>;
+  using InboxForm = std::conditional_t<
+      std::is_same_v<T, Parameters>, ParameterSet,
+      std::conditional_t<std::is_same_v<T, ParameterUpdate>, ParameterUpdateSet, T>>;
   template <typename Variant>
   struct InboxOf;
   template <typename... Commands>
@@ -182,9 +203,11 @@ class ControlLoop : public CommandSetters<ControlLoop> {
   static constexpr std::size_t kCommandsPerCycle = 8;
 
   void enqueue(const Message& message);
+  void check_safety_lock(const Command& command) const;
   template <typename SlotType>
   int claim(std::vector<std::unique_ptr<SlotType>>& slots) const;
   void apply_messages(std::size_t at_most) noexcept;
+  void apply_parameter_set(int slot) noexcept;
   ValidCommand validate(const Command& command) const;
   void apply_command(const Command& command) noexcept;
   checks::MeasurementBounds measurement_bounds() const noexcept;
@@ -219,6 +242,11 @@ class ControlLoop : public CommandSetters<ControlLoop> {
   JointVector lower_limits_, upper_limits_;
   JointVector armature_;  // dynamics.armature per joint, added to M(q)
   std::uint64_t commands_applied_ = 0;
+  std::uint64_t safety_changes_ = 0;
+  std::uint64_t updates_refused_ = 0;
+  bool allow_safety_changes_ = false;
+  std::atomic<bool> running_{false};  // start() succeeded (read by senders for the lock)
+  Parameters parameters_before_;      // the cycle's copy, to see what a parameter command changed
   bool was_holding_ = false;  // ActiveLimits::holding of the last step
 };
 
