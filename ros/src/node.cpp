@@ -46,6 +46,9 @@ CartesianImpedanceNode::CartesianImpedanceNode(const ros::NodeHandle& node,
   ci::LoopCapacity capacity;
   capacity.send_timeout = 0.1;
   loop_ = std::make_unique<ci::ControlLoop>(*model_, configuration_.parameters, capacity);
+  // Decided once, before anything can start the loop: only the node's own configuration may
+  // let safety settings change while the robot runs.
+  if (settings_.allow_runtime_safety_changes) loop_->allow_runtime_safety_changes(true);
   const int n = model_->num_joints();
 
   if (settings_.mode == Mode::sim) {
@@ -184,6 +187,12 @@ int CartesianImpedanceNode::run() {
   } else if (control_thread_->running() && ros::ok()) {
     create_command_interface();
     ROS_INFO("controller running; commands on %s/...", private_node_.getNamespace().c_str());
+    const std::string lock = ci::node::safety_lock_line(settings_);
+    if (settings_.allow_runtime_safety_changes) {
+      ROS_WARN("%s", lock.c_str());
+    } else {
+      ROS_INFO("%s", lock.c_str());
+    }
   }
 
   ros::waitForShutdown();

@@ -80,6 +80,49 @@ TEST(RosNodeSettings, StringSettingsHaveALengthLimit) {
   EXPECT_EQ(error_of(root), "accepted");
 }
 
+// The safety lock's switch: off unless set to true, and only a boolean sets it (a string "true"
+// or a 1 is refused rather than guessed: the switch lets parameter sets relax caps at run time).
+TEST(RosNodeSettings, RuntimeSafetyChangesAreOffUnlessSetToTrue) {
+  XmlRpcValue root = robot_settings();
+  EXPECT_FALSE(
+      cir::configuration_from_xmlrpc(root, kNamespace).settings.allow_runtime_safety_changes);
+  EXPECT_NE(ci::node::safety_lock_line(cir::configuration_from_xmlrpc(root, kNamespace).settings)
+                .find("are locked while the controller runs"),
+            std::string::npos);
+  root["allow_runtime_safety_changes"] = true;
+  const cir::NodeConfiguration unlocked = cir::configuration_from_xmlrpc(root, kNamespace);
+  EXPECT_TRUE(unlocked.settings.allow_runtime_safety_changes);
+  EXPECT_NE(ci::node::safety_lock_line(unlocked.settings)
+                .find("may change while the controller "
+                      "runs"),
+            std::string::npos);
+  root["allow_runtime_safety_changes"] = std::string("true");
+  EXPECT_EQ(error_of(root), "ROS parameter " + kNamespace +
+                                "/allow_runtime_safety_changes: allow_runtime_safety_changes = "
+                                "'true' is not true or false");
+  root["allow_runtime_safety_changes"] = 1;
+  EXPECT_NE(error_of(root).find("allow_runtime_safety_changes = 1 is not true or false"),
+            std::string::npos);
+}
+
+// The rule that ties control_rate to plausibility.dt, as the ROS 2 node also applies it to a
+// parameter set at run time: thrown without a location, which the caller adds.
+TEST(RosNodeSettings, TheControlPeriodRuleIsOneFunction) {
+  EXPECT_NO_THROW(ci::node::check_control_period(1000.0, {1e-5, 0.0015}));
+  try {
+    ci::node::check_control_period(1000.0, {1e-5, 0.001});
+    ADD_FAILURE() << "plausibility.dt.max = 1 ms accepted for a 1 ms period";
+  } catch (const ci::ParameterError& error) {
+    EXPECT_EQ(error.reason(), ci::ParameterError::Reason::invalid);
+    EXPECT_EQ(std::string(error.what()),
+              "control_rate = 1000 Hz does not fit plausibility.dt = [1e-05, 0.001] s: its period "
+              "of 0.001 s, late by half a period (0.0015 s), is above plausibility.dt.max = 0.001 "
+              "s, so cycles would fail closed as invalid_dt; raise control_rate to at least 1500 "
+              "Hz or plausibility.dt.max to at least 0.0015 s");
+  }
+  EXPECT_THROW(ci::node::check_control_period(1000.0, {0.0006, 0.02}), ci::ParameterError);
+}
+
 // Every setting is a row of ros/README.md's settings table that says what it accepts, as the
 // table of the settings does.
 TEST(RosNodeSettings, TheReadmeSaysWhatEachSettingAccepts) {

@@ -125,6 +125,9 @@ TEST(RosParameters, EveryRowOfTheTableIsRead) {
   }
   // Limits stay ordered (min <= max), and the default control period (1 ms) fits plausibility.dt.
   changed.plausibility.dt.min = 1e-4;  // not the default either
+  // The payload's moment must fit under the torque cap (consistency_fault()): 1000 kg at 0.1 m
+  // would need 981 Nm of the cap's 1000.
+  changed.payload.center_of_mass = Eigen::Vector3d(0.075, 0.05, 0.025);
   XmlRpcValue root = to_xmlrpc(YAML::Load(ci::parameters_to_yaml(changed)));
   for (const char* key : {"base_link", "tip_link", "mjcf_path"}) root[key] = std::string("x");
   const ci::Parameters read = cir::configuration_from_xmlrpc(root, kNamespace).parameters;

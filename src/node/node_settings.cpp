@@ -50,6 +50,9 @@ std::vector<NodeSettingInfo> make_table() {
       {"publish_tf", Kind::flag, "", 0, 0, 0, "", "publish the robot's transforms"},
       {"tf_prefix", Kind::name, "", 0, 0, kMaxNameLength, "",
        "put in front of every frame written"},
+      {"allow_runtime_safety_changes", Kind::flag, "", 0, 0, 0, "",
+       "let parameter sets change safety.*, limits.*, plausibility.* and payload.* while the "
+       "controller runs (default: locked)"},
   };
 }
 
@@ -110,6 +113,20 @@ class Reader {
     return name;
   }
 
+  // true or false; `fallback` if not given. A number or a string ("true") is refused rather
+  // than read as one: a switch of the safety lock must say what it means.
+  bool flag(std::string_view key, bool fallback) const {
+    const ParameterValue* value = setting(key);
+    if (value == nullptr) return fallback;
+    if (!value->is(ParameterValue::Kind::boolean)) {
+      throw ParameterError(
+          ParameterError::Reason::wrong_type,
+          with_location(value->location.empty() ? location_of_(key) : value->location,
+                        std::string(key) + " = " + value->describe() + " is not true or false"));
+    }
+    return value->as_boolean();
+  }
+
   std::string location(std::string_view key) const { return location_of_(key); }
 
  private:
@@ -117,43 +134,50 @@ class Reader {
   const KeyLocation& location_of_;
 };
 
+}  // namespace
+
 // The control thread's period is the dt of every cycle, give or take its jitter: a cycle that
 // starts late by part of a period has a longer dt, and the next one (on its absolute deadline) a
 // shorter one by as much. The period must stay a believable dt (plausibility.dt) with half a
 // period of that either way; a period near plausibility.dt.max would fail every other cycle
 // closed (invalid_dt), one beyond it every cycle, while the node reports itself running.
-void check_period_fits(const Reader& reader, double control_rate, const Range& plausible) {
+void check_control_period(double control_rate, const Range& plausible) {
   const double period = 1.0 / control_rate;
   const std::string rate_text = "control_rate = " + format_number(control_rate) + " Hz";
   const std::string range_text = "plausibility.dt = [" + format_number(plausible.min) + ", " +
                                  format_number(plausible.max) + "] s";
   if (1.5 * period > plausible.max) {
-    reader.fail("control_rate",
-                rate_text + " does not fit " + range_text + ": its period of " +
-                    format_number(period) + " s, late by half a period (" +
-                    format_number(1.5 * period) +
-                    " s), is above plausibility.dt.max = " + format_number(plausible.max) +
-                    " s, so cycles would fail closed as invalid_dt; raise control_rate to at "
-                    "least " +
-                    format_number(1.5 / plausible.max) + " Hz or plausibility.dt.max to at least " +
-                    format_number(1.5 * period) + " s",
-                ParameterError::Reason::invalid);
+    throw ParameterError(
+        ParameterError::Reason::invalid,
+        rate_text + " does not fit " + range_text + ": its period of " + format_number(period) +
+            " s, late by half a period (" + format_number(1.5 * period) +
+            " s), is above plausibility.dt.max = " + format_number(plausible.max) +
+            " s, so cycles would fail closed as invalid_dt; raise control_rate to at least " +
+            format_number(1.5 / plausible.max) + " Hz or plausibility.dt.max to at least " +
+            format_number(1.5 * period) + " s");
   }
   if (0.5 * period < plausible.min) {
-    reader.fail("control_rate",
-                rate_text + " does not fit " + range_text + ": its period of " +
-                    format_number(period) + " s, early by half a period (" +
-                    format_number(0.5 * period) +
-                    " s), is below plausibility.dt.min = " + format_number(plausible.min) +
-                    " s, so cycles would fail closed as invalid_dt; lower control_rate to at "
-                    "most " +
-                    format_number(0.5 / plausible.min) + " Hz or plausibility.dt.min to at most " +
-                    format_number(0.5 * period) + " s",
-                ParameterError::Reason::invalid);
+    throw ParameterError(
+        ParameterError::Reason::invalid,
+        rate_text + " does not fit " + range_text + ": its period of " + format_number(period) +
+            " s, early by half a period (" + format_number(0.5 * period) +
+            " s), is below plausibility.dt.min = " + format_number(plausible.min) +
+            " s, so cycles would fail closed as invalid_dt; lower control_rate to at most " +
+            format_number(0.5 / plausible.min) + " Hz or plausibility.dt.min to at most " +
+            format_number(0.5 * period) + " s");
   }
 }
 
-}  // namespace
+std::string safety_lock_line(const NodeSettings& settings) {
+  if (settings.allow_runtime_safety_changes) {
+    return "safety settings (safety.*, limits.*, plausibility.*, payload.*) may change while the "
+           "controller runs (allow_runtime_safety_changes: true): every accepted change is "
+           "logged as a warning";
+  }
+  return "safety settings (safety.*, limits.*, plausibility.*, payload.*) are locked while the "
+         "controller runs: parameter sets that would change one are refused (to allow them, "
+         "start the node with allow_runtime_safety_changes: true)";
+}
 
 ParameterInfo NodeSettingInfo::range() const {
   return ParameterInfo{name, unit, min, max, false, description, nullptr};
@@ -243,7 +267,11 @@ NodeConfiguration decode_node_configuration(const ParameterValue& tree,
                 "publish_rate = " + format_number(settings.publish_rate) +
                     " Hz is above control_rate = " + format_number(settings.control_rate) + " Hz");
   }
-  check_period_fits(reader, settings.control_rate, configuration.parameters.plausibility.dt);
+  try {
+    check_control_period(settings.control_rate, configuration.parameters.plausibility.dt);
+  } catch (const ParameterError& error) {
+    reader.fail("control_rate", error.what(), error.reason());
+  }
   settings.base_link = reader.name("base_link", "a link name");
   settings.tip_link = reader.name("tip_link", "a link name");
   if (settings.base_link.empty()) reader.fail("base_link", "is not set (the chain's root link)");
@@ -300,17 +328,10 @@ NodeConfiguration decode_node_configuration(const ParameterValue& tree,
     const NodeSettingInfo& row = node_setting_info("realtime_priority");
     settings.realtime_priority = decode_integer(*priority, row.range(), row.name);
   }
-  if (const ParameterValue* publish_tf = reader.setting("publish_tf")) {
-    if (!publish_tf->is(ParameterValue::Kind::boolean)) {
-      throw ParameterError(
-          ParameterError::Reason::wrong_type,
-          with_location(
-              publish_tf->location.empty() ? location_of("publish_tf") : publish_tf->location,
-              "publish_tf = " + publish_tf->describe() + " is not true or false"));
-    }
-    settings.publish_tf = publish_tf->as_boolean();
-  }
+  settings.publish_tf = reader.flag("publish_tf", settings.publish_tf);
   settings.tf_prefix = reader.name("tf_prefix", "a frame prefix");
+  settings.allow_runtime_safety_changes =
+      reader.flag("allow_runtime_safety_changes", settings.allow_runtime_safety_changes);
   return configuration;
 }
 

@@ -58,6 +58,11 @@ struct NodeSettings {
   /// ("left/" makes "left/panda_link0"), so that two robots share one tf tree. Incoming messages
   /// may name a frame with or without it.
   std::string tf_prefix;
+  /// Let parameter sets change safety settings (safety.*, limits.*, plausibility.*, payload.*)
+  /// while the controller runs (ControlLoop::allow_runtime_safety_changes()). Off, they are
+  /// locked once it runs: anyone on the network who can set a parameter could otherwise switch
+  /// a cap off. Only the configuration the node starts with decides.
+  bool allow_runtime_safety_changes = false;
 };
 
 struct NodeConfiguration {
@@ -125,14 +130,27 @@ using KeyLocation = std::function<std::string(std::string_view key)>;
 ///         period does not fit plausibility.dt with half a period of jitter either way (1.5
 ///         periods at most plausibility.dt.max, half a period at least plausibility.dt.min: else
 ///         cycles would fail closed as invalid_dt; the message names both settings, their values
-///         and what would fit), a start_q that is not a list of finite numbers (the message names
-///         the index and the value) or that is given in topics mode, an engine that is not
-///         "mujoco" or "dart", given in topics mode or "dart" with an mjcf_path. A sim mode
-///         without mjcf_path is valid: the URDF is simulated.
+///         and what would fit; check_control_period()), a start_q that is not a list of finite
+///         numbers (the message names the index and the value) or that is given in topics mode, an
+///         engine that is not "mujoco" or "dart", given in topics mode or "dart" with an mjcf_path.
+///         A sim mode without mjcf_path is valid: the URDF is simulated.
 NodeConfiguration decode_node_configuration(const ParameterValue& tree,
                                             const KeyLocation& location_of,
                                             const std::vector<std::string>& shell_keys,
                                             std::string_view source);
+
+/// The rule that ties the control period to the believable time step: the control thread's period
+/// 1 / control_rate, late or early by half a period (its jitter), must lie within
+/// plausibility.dt, else cycles would fail closed as invalid_dt while the node reports itself
+/// running. Checked when a node starts (decode_node_configuration()) and again for every
+/// parameter set that would change plausibility.dt while it runs, since control_rate is fixed.
+/// @throws ParameterError (Reason::invalid) naming control_rate, plausibility.dt, their values,
+///         which end the period breaks and the values that would fit.
+void check_control_period(double control_rate, const Range& plausible_dt);
+
+/// The line a node logs when its controller starts: whether safety settings are locked while it
+/// runs, and how to change that.
+std::string safety_lock_line(const NodeSettings& settings);
 
 /// Checks the settings that depend on the loaded chain: start_q has one value per joint, each
 /// within its joint's position limits in the URDF.
