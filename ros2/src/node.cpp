@@ -66,6 +66,9 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
   ci::LoopCapacity capacity;
   capacity.send_timeout = 0.1;
   loop_ = std::make_unique<ci::ControlLoop>(*model_, configuration_.common.parameters, capacity);
+  // Decided once, before anything can start the loop: only the node's own configuration may
+  // let safety settings change while the robot runs, not a parameter set from the network.
+  if (settings_.allow_runtime_safety_changes) loop_->allow_runtime_safety_changes(true);
   const int n = model_->num_joints();
 
   const auto out = [&](const std::string& name) {
@@ -270,6 +273,8 @@ int Node::run(const std::atomic<bool>& stop) {
     accepting_ = true;
     log(LogLevel::info,
         "controller running; commands on " + arguments_.fully_qualified_name() + "/...");
+    log(settings_.allow_runtime_safety_changes ? LogLevel::warn : LogLevel::info,
+        ci::node::safety_lock_line(settings_));
   }
   while (!stop && !failed) std::this_thread::sleep_for(std::chrono::milliseconds(20));
   stop_threads();

@@ -9,6 +9,8 @@
 #include <cartesian_impedance/core/parameter_tree.hpp>
 #include <cartesian_impedance/sim/engine.hpp>
 
+#include "log.hpp"
+
 namespace cartesian_impedance_ros2 {
 
 namespace ci = cartesian_impedance;
@@ -127,9 +129,10 @@ RosValue setting_value(const ci::node::NodeSettings& settings, const NodeSetting
     value.integer = settings.realtime_priority;
     return value;
   }
-  if (name == "publish_tf") {
+  if (name == "publish_tf" || name == "allow_runtime_safety_changes") {
     value.type = ros_type::kBool;
-    value.boolean = settings.publish_tf;
+    value.boolean =
+        name == "publish_tf" ? settings.publish_tf : settings.allow_runtime_safety_changes;
     return value;
   }
   // A new row of the settings table must be shown here too.
@@ -159,6 +162,20 @@ std::string with_unit(std::string_view text, std::string_view unit) {
 }
 
 const char kReadOnly[] = "; read-only: fixed when the node starts";
+// What the descriptor of a safety setting adds: rqt_reconfigure and `ros2 param describe` show
+// why it cannot be set and how that is changed.
+const char kLocked[] =
+    "; read-only while the controller runs: safety settings are locked (start the node with "
+    "allow_runtime_safety_changes: true to allow run-time changes)";
+const char kUnlocked[] =
+    "; a safety setting: allow_runtime_safety_changes is true, so it may change while the "
+    "controller runs, and each change is logged as a warning";
+
+// A row's value with its unit, as the loop's messages show it: "1 m/s", "[0, 0, 0] m", "true".
+std::string shown(const ci::Parameters& parameters, const ci::ParameterInfo& row) {
+  const bool unit = !row.unit.empty() && row.unit != "-";
+  return ci::value_text(parameters, row) + (unit ? " " + std::string(row.unit) : std::string());
+}
 
 }  // namespace
 
@@ -185,7 +202,11 @@ std::vector<NodeParameters::Extra> shell_settings(const Ros2Configuration& confi
 NodeParameters::NodeParameters(ci::ControlLoop& loop, const ci::node::NodeSettings& settings,
                                const std::vector<Extra>& extras, std::function<bool()> accepting,
                                std::string node_name)
-    : loop_(loop), accepting_(std::move(accepting)), node_name_(std::move(node_name)) {
+    : loop_(loop),
+      control_rate_(settings.control_rate),
+      safety_locked_(!loop.runtime_safety_changes_allowed()),
+      accepting_(std::move(accepting)),
+      node_name_(std::move(node_name)) {
   for (const ci::ParameterInfo& row : ci::parameter_table()) {
     Entry entry;
     entry.row = &row;
@@ -193,6 +214,11 @@ NodeParameters::NodeParameters(ci::ControlLoop& loop, const ci::node::NodeSettin
     d.name = std::string(row.name);
     d.type = ros_type_of(row);
     d.description = with_unit(row.description, row.unit);
+    if (ci::is_safety_setting(row.name)) {
+      // As rclcpp shows a parameter it refuses to set: read_only, so that GUIs grey it out.
+      d.read_only = safety_locked_;
+      d.description += safety_locked_ ? kLocked : kUnlocked;
+    }
     if (d.type == ros_type::kDouble || d.type == ros_type::kDoubleArray) {
       d.additional_constraints =
           "each value in " + row.range_text() +
@@ -309,6 +335,46 @@ std::vector<NamedValue> NodeParameters::all() const {
   return values;
 }
 
+std::optional<SetResult> NodeParameters::refuse_locked(const std::vector<NamedValue>& parameters,
+                                                       const ci::Parameters& in_force) const {
+  if (!safety_locked_) return std::nullopt;
+  std::string names;
+  std::string values;
+  for (const auto& [name, value] : parameters) {
+    const auto found = entries_.find(name);
+    if (found == entries_.end() || found->second.row == nullptr) continue;
+    const ci::ParameterInfo& row = *found->second.row;
+    if (!ci::is_safety_setting(row.name)) continue;
+    // The value asked for as the loop would show it; one that does not decode as the decoder
+    // describes it (it is refused either way: the lock is the first reason).
+    std::string asked;
+    try {
+      ci::Parameters probe = in_force;
+      ci::assign_parameter(probe, row.name, to_tree(value, name));
+      asked = shown(probe, row);
+    } catch (const std::exception&) {
+      asked = "a value of type " + std::to_string(int(value.type));
+      try {
+        asked = to_tree(value, name).describe();
+      } catch (const std::exception&) {  // not a ROS 2 type: the type code says it
+      }
+    }
+    names += (names.empty() ? "'" : ", '") + name + "'";
+    values += (values.empty() ? "" : ", ") + name + " = " + asked +
+              " (in force: " + shown(in_force, row) + ")";
+  }
+  if (names.empty()) return std::nullopt;
+  // Refused whatever the value, as rclcpp refuses a read-only parameter: the descriptor says
+  // read_only, and a set to the value in force would change nothing anyway.
+  return SetResult{false, "parameter " + names + " of " + node_name_ +
+                              " is read-only: safety settings are locked while the controller "
+                              "runs (" +
+                              values +
+                              "); only the node's configuration can allow run-time changes, "
+                              "before it starts (allow_runtime_safety_changes: true); nothing "
+                              "was changed"};
+}
+
 SetResult NodeParameters::set(const std::vector<NamedValue>& parameters,
                               std::vector<NamedValue>* changed) {
   if (parameters.empty()) return {true, ""};
@@ -331,36 +397,67 @@ SetResult NodeParameters::set(const std::vector<NamedValue>& parameters,
                        " is not running yet (it starts at the first joint states it can start "
                        "from); nothing was changed"};
   }
-  ci::Parameters updated;
+  const ci::Parameters in_force = loop_.latest_parameters();
+  if (std::optional<SetResult> refused = refuse_locked(parameters, in_force)) return *refused;
+  ci::ParameterUpdate update;
   try {
     // The one decoder, on the parameters in force: unknown names, types, shapes, ranges and the
-    // whole set's validation are its messages; the loop checks what depends on the robot.
-    updated = ci::decode_parameters(ParameterValue::map(std::move(members)),
-                                    loop_.latest_parameters(), "parameters of " + node_name_);
-    loop_.send(updated);
+    // whole set's validation are its messages. The update names only the rows given, so that
+    // whatever else changed since (a stiffness on a topic, another client's set) is kept; the
+    // loop checks what depends on the robot, and the lock again.
+    update = ci::decode_parameter_update(ParameterValue::map(std::move(members)), in_force,
+                                         "parameters of " + node_name_);
+    // control_rate is fixed while the node runs: a plausibility.dt its period does not fit
+    // would fail cycles closed as invalid_dt, so it is refused as it is at start.
+    static const ci::ParameterNames dt_rows =
+        ci::ParameterUpdate::of(ci::Parameters{}, {"plausibility.dt"}).names;
+    if ((update.names & dt_rows).any()) {
+      try {
+        ci::node::check_control_period(control_rate_, update.values.plausibility.dt);
+      } catch (const ci::Error& error) {
+        return {false, "parameters of " + node_name_ + ": " + error.what() +
+                           " (control_rate is fixed while the node runs); nothing was changed"};
+      }
+    }
+    loop_.update_parameters(update);
   } catch (const std::exception& error) {
     return {false, error.what()};
   }
   // Until the loop has applied it (a cycle or two), latest_parameters() shows the old values: a
-  // set right after this one would start from them and undo this one.
+  // get right after this set would show them.
   const auto applied = [&] {
     const ci::Parameters now = loop_.latest_parameters();
     return std::all_of(parameters.begin(), parameters.end(), [&](const NamedValue& p) {
       const auto found = entries_.find(p.first);
       if (found == entries_.end() || found->second.row == nullptr) return true;
       const ci::ParameterInfo& row = *found->second.row;
-      return ci::encode_parameter(now, row) == ci::encode_parameter(updated, row);
+      return ci::encode_parameter(now, row) == ci::encode_parameter(update.values, row);
     });
   };
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(1);
   while (!applied() && std::chrono::steady_clock::now() < deadline) {
     std::this_thread::sleep_for(std::chrono::microseconds(500));
   }
+  // A safety setting changed while the robot runs (only possible when the node's configuration
+  // allowed it): said loudly, so that the log shows who relaxed a cap and when.
+  for (const auto& [name, value] : parameters) {
+    const auto found = entries_.find(name);
+    if (found == entries_.end() || found->second.row == nullptr) continue;
+    const ci::ParameterInfo& row = *found->second.row;
+    if (!ci::is_safety_setting(row.name)) continue;
+    if (ci::encode_parameter(in_force, row) == ci::encode_parameter(update.values, row)) continue;
+    log(LogLevel::warn, "safety setting " + name +
+                            " changed while the controller runs: " + shown(in_force, row) + " -> " +
+                            shown(update.values, row) + " (parameter set on " + node_name_ +
+                            "; allow_runtime_safety_changes is true)");
+  }
   if (changed != nullptr) {
     changed->clear();
     for (const auto& p : parameters) {
       const auto found = entries_.find(p.first);
-      if (found != entries_.end()) changed->emplace_back(p.first, value_of(found->second, updated));
+      if (found != entries_.end()) {
+        changed->emplace_back(p.first, value_of(found->second, update.values));
+      }
     }
   }
   return {true, ""};

@@ -88,7 +88,9 @@ class NodeParameters {
   };
 
   /// `accepting` says whether the controller runs (sets are refused until it does: a start
-  /// resets what was queued before it). `node_name` (fully qualified) places messages.
+  /// resets what was queued before it). `node_name` (fully qualified) places messages. Whether
+  /// safety settings are locked is the loop's (ControlLoop::runtime_safety_changes_allowed()),
+  /// read here: allow them on the loop before.
   NodeParameters(cartesian_impedance::ControlLoop& loop,
                  const cartesian_impedance::node::NodeSettings& settings,
                  const std::vector<Extra>& extras, std::function<bool()> accepting,
@@ -106,12 +108,17 @@ class NodeParameters {
   std::optional<std::vector<RosDescriptor>> describe(const std::vector<std::string>& names) const;
   std::optional<std::vector<std::uint8_t>> types(const std::vector<std::string>& names) const;
 
-  /// Sets `parameters` together or not at all, through the library's decoder on the parameters
-  /// in force: a read-only or unknown name, a value of the wrong type, shape or range, a set that
-  /// fails validation or that the loop refuses gets successful = false and the message as
-  /// reason, and changes nothing. On success `changed` (if given) receives each parameter with
-  /// its value as get() shows it. Waits (up to 1 s) until the loop has applied the set, so that a
-  /// following set or get starts from it.
+  /// Sets `parameters` together or not at all, as a partial update (ParameterUpdate) decoded by
+  /// the library's decoder onto the parameters in force: only the rows named change, so a value
+  /// another channel commanded (a stiffness sent on a topic) is kept. A read-only or unknown
+  /// name, a safety setting while they are locked (ControlLoop::allow_runtime_safety_changes()
+  /// was not called: the descriptors say read_only), a value of the wrong type, shape or range, a
+  /// plausibility.dt the control period does not fit (node::check_control_period(), as at
+  /// start), a set that fails validation or that the loop refuses gets successful = false and
+  /// the message as reason, and changes nothing. Each accepted change of a safety setting is
+  /// logged as a warning (name, old value, new value). On success `changed` (if given) receives
+  /// each parameter with its value as get() shows it. Waits (up to 1 s) until the loop has
+  /// applied the set, so that a following set or get starts from it.
   SetResult set(const std::vector<NamedValue>& parameters, std::vector<NamedValue>* changed);
 
   /// Every parameter with its value, in name order (for the first parameter event).
@@ -125,7 +132,14 @@ class NodeParameters {
   };
   RosValue value_of(const Entry& entry, const cartesian_impedance::Parameters& parameters) const;
 
+  /// The refusal of a set that names a safety setting while they are locked; nullopt if it
+  /// names none. `in_force`: the parameters the values are shown against.
+  std::optional<SetResult> refuse_locked(const std::vector<NamedValue>& parameters,
+                                         const cartesian_impedance::Parameters& in_force) const;
+
   cartesian_impedance::ControlLoop& loop_;
+  double control_rate_;  // [Hz] fixed while the node runs: plausibility.dt must fit it
+  bool safety_locked_;   // safety settings refused while the controller runs
   std::function<bool()> accepting_;
   std::string node_name_;
   std::map<std::string, Entry> entries_;  // sorted, as rclcpp's

@@ -1,11 +1,14 @@
 // The node's parameters as the services show them, without DDS: rclcpp's list_parameters rules
 // (prefixes, depth, the prefixes of the result), one parameter per row of the library's table
-// and per node setting, types per ROS 2, and the sets refused before they reach the loop.
+// and per node setting, types per ROS 2, and the sets refused before they reach the loop; on a
+// running loop, sets as partial updates, the safety lock (issue 40) and the control period.
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <optional>
+#include <thread>
 
 #include <cartesian_impedance/core/parameter_tree.hpp>
 #include <cartesian_impedance/loop/control_loop.hpp>
@@ -171,6 +174,197 @@ TEST_F(NodeParametersTest, SetsRefusedBeforeTheLoopChangeNothing) {
   EXPECT_EQ(loop_.latest_state().commands_applied, 0u);
   EXPECT_EQ(ci::encode_parameters(loop_.latest_parameters()), ci::encode_parameters(before));
   EXPECT_TRUE(parameters_->set({}, nullptr).successful);  // nothing to set: as rclcpp
+}
+
+// ---- on a running loop: partial updates, the safety lock, the control period ------------------
+
+RosValue number(double v) {
+  RosValue value;
+  value.type = cartesian_impedance_ros2::ros_type::kDouble;
+  value.number = v;
+  return value;
+}
+
+RosValue flag(bool v) {
+  RosValue value;
+  value.type = cartesian_impedance_ros2::ros_type::kBool;
+  value.boolean = v;
+  return value;
+}
+
+// A loop with the shipped configuration's caps, stepped at about 1 kHz on a thread of its own
+// as the node's control thread steps it (a set waits until the loop has applied it).
+class RunningNodeParameters : public ::testing::Test {
+ protected:
+  void run(bool allow) {
+    model_.emplace(ci::RobotModel::from_urdf_file(
+        std::string(CARTESIAN_IMPEDANCE_SOURCE_DIR) + "/models/panda/panda.urdf", "panda_link0",
+        "panda_link8"));
+    ci::Parameters capped;
+    capped.safety.max_speed = {1.0, 2.5};
+    capped.safety.max_force = {100.0, 20.0};
+    capped.safety.workspace.stiffness = 2000.0;
+    loop_.emplace(*model_, capped);
+    if (allow) loop_->allow_runtime_safety_changes(true);
+    settings_.base_link = "panda_link0";
+    settings_.tip_link = "panda_link8";
+    settings_.control_rate = 1000.0;
+    settings_.allow_runtime_safety_changes = allow;
+    parameters_.emplace(
+        *loop_, settings_, std::vector<NodeParameters::Extra>{}, [] { return true; }, "/arm");
+    loop_->start(ready(), ci::JointVector::Zero(7));
+    stepping_ = std::thread([this] {
+      while (!stop_) {
+        loop_->step(ready(), ci::JointVector::Zero(7), 0.001);
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
+    });
+  }
+  ~RunningNodeParameters() override {
+    stop_ = true;
+    if (stepping_.joinable()) stepping_.join();
+  }
+  static ci::JointVector ready() {
+    return (ci::JointVector(7) << 0, -0.785, 0, -2.356, 0, 1.571, 0.785).finished();
+  }
+  // Waits for two more steps, so that latest_state() and latest_parameters() show what the
+  // commands sent before did.
+  void settle() {
+    const std::uint64_t cycle = loop_->latest_state().cycle;
+    while (loop_->latest_state().cycle < cycle + 2) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+  }
+
+  std::optional<ci::RobotModel> model_;
+  std::optional<ci::ControlLoop> loop_;
+  ci::node::NodeSettings settings_;
+  std::optional<NodeParameters> parameters_;
+  std::atomic<bool> stop_{false};
+  std::thread stepping_;
+};
+
+// Issue 40's measurement from a DDS peer: one set switched every cap off. Now, locked (the
+// default), every safety setting is read-only in its descriptor, and a set that names one is
+// refused whole, naming the setting, both values and the lock, whatever else it names.
+TEST_F(RunningNodeParameters, SafetySettingsAreReadOnlyAndRefusedWhileLocked) {
+  run(false);
+  for (const ci::ParameterInfo& row : ci::parameter_table()) {
+    const auto d = parameters_->describe({std::string(row.name)});
+    ASSERT_TRUE(d && d->size() == 1u);
+    EXPECT_EQ((*d)[0].read_only, ci::is_safety_setting(row.name)) << row.name;
+    if (ci::is_safety_setting(row.name)) {
+      EXPECT_NE((*d)[0].description.find("safety settings are locked"), std::string::npos)
+          << (*d)[0].description;
+      EXPECT_NE((*d)[0].description.find("allow_runtime_safety_changes: true"), std::string::npos)
+          << (*d)[0].description;
+    }
+  }
+  const auto setting = parameters_->get({"allow_runtime_safety_changes"});
+  ASSERT_TRUE(setting && setting->size() == 1u);
+  EXPECT_EQ((*setting)[0].type, cartesian_impedance_ros2::ros_type::kBool);
+  EXPECT_FALSE((*setting)[0].boolean);
+
+  const ci::Parameters before = loop_->latest_parameters();
+  const std::vector<std::pair<std::string, RosValue>> attempts = {
+      {"safety.max_speed.translation", number(0.0)},
+      {"safety.max_force.force", number(0.0)},
+      {"safety.workspace.stiffness", number(0.0)},
+      {"safety.energy_tank.enabled", flag(false)},
+      {"limits.joint_torque_rate", number(1e6)},
+      {"limits.stiffness.translation.max", number(1e5)},
+      {"plausibility.dt.max", number(0.5)},
+      {"payload.mass", number(2.0)},
+  };
+  for (const auto& [name, value] : attempts) {
+    const auto result =
+        parameters_->set({{"filter.pose.time", number(0.4)}, {name, value}}, nullptr);
+    EXPECT_FALSE(result.successful) << name;
+    EXPECT_NE(result.reason.find("'" + name + "' of /arm is read-only"), std::string::npos)
+        << result.reason;
+    EXPECT_NE(result.reason.find("safety settings are locked while the controller runs"),
+              std::string::npos)
+        << result.reason;
+    EXPECT_NE(result.reason.find(name + " = "), std::string::npos) << result.reason;
+    EXPECT_NE(result.reason.find("allow_runtime_safety_changes: true"), std::string::npos)
+        << result.reason;
+  }
+  const auto one = parameters_->set({{"safety.max_speed.translation", number(0.0)}}, nullptr);
+  EXPECT_NE(one.reason.find("safety.max_speed.translation = 0 m/s (in force: 1 m/s)"),
+            std::string::npos)
+      << one.reason;
+  // The value in force is refused too, as rclcpp refuses any set of a read-only parameter.
+  EXPECT_FALSE(
+      parameters_->set({{"safety.max_speed.translation", number(1.0)}}, nullptr).successful);
+  settle();
+  EXPECT_EQ(ci::encode_parameters(loop_->latest_parameters()), ci::encode_parameters(before));
+  EXPECT_EQ(loop_->latest_state().safety_changes, 0u);
+  // What is not a safety setting still changes.
+  EXPECT_TRUE(parameters_->set({{"filter.pose.time", number(0.4)}}, nullptr).successful);
+  settle();
+  EXPECT_EQ(loop_->latest_parameters().filter.pose.time, 0.4);
+}
+
+// Issue 41, item 1: a stiffness commanded on a topic was reverted by a parameter set of
+// something else (the set sent every parameter as read before the topic's command was applied).
+// A set is now a partial update: the full 6x6 stiffness commanded just before it is kept.
+TEST_F(RunningNodeParameters, ASetChangesOnlyWhatItNames) {
+  run(false);
+  int lost = 0;
+  for (int i = 0; i < 30; ++i) {
+    ci::Matrix6d full = ci::Vector6d::Constant(300.0 + i).asDiagonal();
+    full(0, 2) = full(2, 0) = 20.0;
+    loop_->set_stiffness_matrix(full);  // as the command thread sends a topic's stiffness
+    const auto result =
+        parameters_->set({{"filter.pose.time", number(i % 2 == 0 ? 0.3 : 0.4)}}, nullptr);
+    ASSERT_TRUE(result.successful) << result.reason;
+    settle();
+    if (loop_->latest_state().controller.commanded.stiffness != full) ++lost;
+  }
+  EXPECT_EQ(lost, 0) << "of 30 topic stiffnesses, lost to a set of filter.pose.time";
+}
+
+// Unlocked by the node's configuration: the descriptors are writable, a safety setting changes,
+// is counted by the loop and logged as a warning with both values; plausibility.dt must still
+// fit the control period (1 kHz: plausibility.dt.max at least 1.5 ms), as at start.
+TEST_F(RunningNodeParameters, UnlockedSafetyChangesAreLoggedAndThePeriodStillFits) {
+  run(true);
+  const auto d = parameters_->describe({"safety.max_speed.translation"});
+  ASSERT_TRUE(d && d->size() == 1u);
+  EXPECT_FALSE((*d)[0].read_only);
+  EXPECT_NE((*d)[0].description.find("logged as a warning"), std::string::npos);
+
+  ::testing::internal::CaptureStderr();
+  const auto result = parameters_->set({{"safety.max_speed.translation", number(0.25)}}, nullptr);
+  const std::string log = ::testing::internal::GetCapturedStderr();
+  ASSERT_TRUE(result.successful) << result.reason;
+  EXPECT_NE(log.find("[WARN]"), std::string::npos) << log;
+  EXPECT_NE(log.find("safety setting safety.max_speed.translation changed while the controller "
+                     "runs: 1 m/s -> 0.25 m/s"),
+            std::string::npos)
+      << log;
+  settle();
+  EXPECT_EQ(loop_->latest_parameters().safety.max_speed.translation, 0.25);
+  EXPECT_EQ(loop_->latest_state().safety_changes, 1u);
+
+  ::testing::internal::CaptureStderr();
+  const auto fast = parameters_->set({{"plausibility.dt.max", number(0.001)}}, nullptr);
+  EXPECT_TRUE(::testing::internal::GetCapturedStderr().empty());
+  EXPECT_FALSE(fast.successful);
+  EXPECT_NE(fast.reason.find("control_rate = 1000 Hz does not fit plausibility.dt = [1e-05, "
+                             "0.001] s"),
+            std::string::npos)
+      << fast.reason;
+  EXPECT_NE(fast.reason.find("plausibility.dt.max to at least 0.0015 s"), std::string::npos)
+      << fast.reason;
+  EXPECT_NE(fast.reason.find("control_rate is fixed while the node runs"), std::string::npos)
+      << fast.reason;
+  settle();
+  EXPECT_EQ(loop_->latest_parameters().plausibility.dt.max, 0.02);
+  EXPECT_TRUE(parameters_->set({{"plausibility.dt.max", number(0.002)}}, nullptr).successful);
+  settle();
+  EXPECT_EQ(loop_->latest_parameters().plausibility.dt.max, 0.002);
+  EXPECT_EQ(loop_->latest_state().safety_changes, 2u);
 }
 
 }  // namespace
