@@ -213,6 +213,13 @@ struct Parameter {
     p.numbers = std::move(v);
     return p;
   }
+  static Parameter boolean(std::string name, bool v) {
+    Parameter p;
+    p.name = std::move(name);
+    p.value.type = 1;
+    p.value.bool_value = v;
+    return p;
+  }
   static Parameter string_of(std::string name, std::string v) {
     Parameter p;
     p.name = std::move(name);
