@@ -709,6 +709,48 @@ def case_reconfigure_shows_topic_values(processes, args):
           "the per-joint nullspace stiffness changed")
 
 
+def case_safety_lock(processes, args):
+    """Safety settings are locked while the controller runs unless the node's configuration
+    allows changes (issue 40): the node says which when its controller runs (info when locked, a
+    warning when not), and the channels it has at run time - topics and dynamic_reconfigure, none
+    of which sets a safety setting - work either way and leave the safety settings as started."""
+    processes.launch("launch", "sim_panda.launch")
+    init_rospy()
+    import rospy
+    state = controller_state()
+    wait_until(lambda: "are locked while the controller runs" in processes.log("launch"), 3.0,
+               "the lock's log line")
+    line = [l for l in processes.log("launch").splitlines()
+            if "are locked while the controller runs" in l][0]
+    assert "[ INFO]" in line and "allow_runtime_safety_changes: true" in line, line
+    print("locked: %s" % line.strip())
+    safety = rospy.get_param("/%s/safety" % CONTROLLER)
+    client = reconfigure_client("stiffness_reconfigure")
+    client.update_configuration({"translation_x": 700.0, "update_stiffness": True})
+    state.wait(lambda m: m.commanded_cartesian_stiffness.force.x == 700.0, timeout=3.0,
+               what="the stiffness from dynamic_reconfigure while locked")
+    assert rospy.get_param("/%s/safety" % CONTROLLER) == safety
+
+    # A second arm whose launch allows run-time changes: a warning says so.
+    from cartesian_impedance_ros.msg import ControllerState
+    processes.launch("unlocked", "cartesian_impedance.launch",
+                     "config:=%s/config/panda.yaml" % REPO,
+                     "urdf:=%s/models/panda/panda.urdf" % REPO,
+                     "mjcf:=%s/models/panda/panda.xml" % REPO, "base_link:=panda_link0",
+                     "tip_link:=panda_link8", "controller_name:=unlocked", "publish_tf:=false",
+                     "allow_runtime_safety_changes:=true")
+    unlocked = Latest("/unlocked/controller_state", ControllerState)
+    unlocked.wait(lambda m: m.status == "ok", timeout=20.0, what="the unlocked controller to run")
+    wait_until(lambda: "may change while the controller runs" in processes.log("unlocked"), 3.0,
+               "the unlocked node's warning")
+    line = [l for l in processes.log("unlocked").splitlines()
+            if "may change while the controller runs" in l][0]
+    assert "[ WARN]" in line, line
+    print("unlocked: %s" % line.strip())
+    assert rospy.get_param("/unlocked/allow_runtime_safety_changes") is True
+    assert "are locked" not in processes.log("unlocked"), processes.log("unlocked")[-2000:]
+
+
 def case_clear_params(processes, args):
     """A misspelt key ends the node with the library's message (roslaunch then ends too, with
     the exit code ros/README.md gives); fixed, the next launch on the same master starts, since

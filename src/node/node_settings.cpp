@@ -175,7 +175,7 @@ std::string safety_lock_line(const NodeSettings& settings) {
            "logged as a warning";
   }
   return "safety settings (safety.*, limits.*, plausibility.*, payload.*) are locked while the "
-         "controller runs: parameter sets that would change one are refused (to allow them, "
+         "controller runs: commands that would change one are refused (to allow them, "
          "start the node with allow_runtime_safety_changes: true)";
 }
 
