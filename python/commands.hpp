@@ -7,11 +7,22 @@
 #include <optional>
 #include <string>
 
+#include "cartesian_impedance/core/controller.hpp"
 #include "cartesian_impedance/core/types.hpp"
+#include "cartesian_impedance/loop/control_loop.hpp"
 #include "conversions.hpp"
 #include "parameters.hpp"
 
 namespace cartesian_impedance::python {
+
+/// The parameters a partial update from a dict is decoded onto: those in force (the loop's as of
+/// its last step, from any thread).
+inline ci::Parameters parameters_in_force(const ci::CartesianImpedanceController& controller) {
+  return controller.parameters();
+}
+inline ci::Parameters parameters_in_force(const ci::ControlLoop& loop) {
+  return loop.latest_parameters();
+}
 
 // ---- Docstrings shared by several functions --------------------------------------------------
 
@@ -103,11 +114,38 @@ void def_commands(py::class_<Self>& binding, Target& (*target)(Self&), const std
       .def(
           "set_parameters",
           [target](Self& self, ParametersLike parameters) {
-            target(self).set_parameters(read_parameters(parameters));
+            Target& t = target(self);
+            // A dict names what it changes: only those rows, on top of whatever is in force
+            // (a stiffness set since, another sender's change). A Parameters object is a whole
+            // configuration and replaces it.
+            if (is_mapping(parameters)) {
+              return t.update_parameters(read_parameter_update(parameters, parameters_in_force(t)));
+            }
+            t.set_parameters(read_parameters(parameters));
           },
           py::arg("parameters"),
-          doc("a whole new configuration (Parameters or dict); the commanded stiffness, damping, "
-              "nullspace and wrench then follow it through their filters.")
+          doc("parameters. A dict (dotted names or nested) is a partial update: only the "
+              "parameters it names change, everything else stays as it is in force (the same "
+              "as update_parameters). A Parameters object (or None: the defaults) replaces the "
+              "whole configuration. The commanded stiffness, damping, nullspace and wrench "
+              "follow what is set through their filters." +
+              std::string(verb == "Queues"
+                              ? " While the loop runs, a change of a safety setting (safety.*, "
+                                "limits.*, plausibility.*, payload.*) raises Error unless the "
+                                "loop was made with allow_runtime_safety_changes=True."
+                              : ""))
+              .c_str())
+      .def(
+          "update_parameters",
+          [target](Self& self, Mapping values) {
+            Target& t = target(self);
+            t.update_parameters(read_parameter_update(values, parameters_in_force(t)));
+          },
+          py::arg("values"),
+          doc("the parameters a dict names (dotted names or nested), all or none; every other "
+              "parameter keeps the value in force when the update is applied. Raises TypeError "
+              "for a value of the wrong type, Error for an unknown name, a value out of range or "
+              "an update that breaks a rule tying parameters together.")
               .c_str())
       .def(
           "start_teaching",

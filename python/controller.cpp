@@ -275,6 +275,38 @@ void bind_states(py::module_& m) {
         return "ActiveLimits(" + (active.empty() ? std::string("none") : active) + ")";
       });
 
+  py::class_<ci::PoseErrorLimits>(m, "PoseErrorLimits",
+                                  "Pose-error clip in force (limits.pose_error.*).")
+      .def_readonly("translation", &ci::PoseErrorLimits::translation,
+                    "Largest norm of the translation error [m].")
+      .def_readonly("rotation", &ci::PoseErrorLimits::rotation,
+                    "Largest norm of the rotation error [rad].")
+      .def("__repr__", [](const ci::PoseErrorLimits& l) {
+        return "PoseErrorLimits(translation=" + ci::format_number(l.translation) +
+               " m, rotation=" + ci::format_number(l.rotation) + " rad)";
+      });
+
+  py::class_<ci::WorkspaceParameters>(m, "Workspace",
+                                      "Workspace box and walls in force (safety.workspace.*).")
+      .def_property_readonly(
+          "min", [](const ci::WorkspaceParameters& w) { return vector_array(w.min); },
+          "Lower corner (3,) [m], base frame.")
+      .def_property_readonly(
+          "max", [](const ci::WorkspaceParameters& w) { return vector_array(w.max); },
+          "Upper corner (3,) [m], base frame.")
+      .def_readonly("stiffness", &ci::WorkspaceParameters::stiffness, "Wall spring [N/m].")
+      .def_readonly("damping", &ci::WorkspaceParameters::damping,
+                    "Wall damper, on motion out of the box [N s/m].")
+      .def("__repr__", [](const ci::WorkspaceParameters& w) {
+        const auto corner = [](const Eigen::Vector3d& v) {
+          return "[" + ci::format_number(v.x()) + ", " + ci::format_number(v.y()) + ", " +
+                 ci::format_number(v.z()) + "]";
+        };
+        return "Workspace(min=" + corner(w.min) + " m, max=" + corner(w.max) +
+               " m, stiffness=" + ci::format_number(w.stiffness) +
+               " N/m, damping=" + ci::format_number(w.damping) + " N s/m)";
+      });
+
   py::class_<ci::SafetyState>(
       m, "SafetyState",
       "What the safety layer (parameters safety.*, payload.*) did in the last cycle. A scale is "
@@ -297,6 +329,9 @@ void bind_states(py::module_& m) {
       .def_readonly("torque_scale", &ci::SafetyState::torque_scale,
                     "safety.max_force.torque: fraction of the spring + commanded torque kept "
                     "[0, 1].")
+      .def_readonly("nullspace_scale", &ci::SafetyState::nullspace_scale,
+                    "Fraction of the nullspace torque kept [0, 1]: below 1 only where what it "
+                    "leaks to the end effector (near a singularity) alone exceeds a force cap.")
       .def_readonly("reference_clipped", &ci::SafetyState::reference_clipped,
                     "safety.workspace: the reference was clipped into the box.")
       .def_property_readonly(
@@ -307,6 +342,19 @@ void bind_states(py::module_& m) {
       .def_property_readonly(
           "wall_force", [](const ci::SafetyState& s) { return vector_array(s.wall_force); },
           "Force of the workspace walls on the end effector (3,) [N], base frame.")
+      .def_readonly("pose_error_in_force", &ci::SafetyState::pose_error_in_force,
+                    "limits.pose_error as in force (PoseErrorLimits): it follows its parameter "
+                    "as far as the energy tank pays for what a change stores.")
+      .def_readonly("workspace_in_force", &ci::SafetyState::workspace_in_force,
+                    "safety.workspace as in force (Workspace): the box and walls follow their "
+                    "parameters as far as the tank pays; a box that would put the end effector "
+                    "outside starts around it and closes in as it moves in.")
+      .def_readonly("settings_held", &ci::SafetyState::settings_held,
+                    "pose_error_in_force or workspace_in_force differs from its parameter, "
+                    "waiting for the energy tank.")
+      .def_readonly("joint_limit_wall", &ci::SafetyState::joint_limit_wall,
+                    "While teaching, a joint inside joint_limit_avoidance.margin is held off its "
+                    "limit by a joint-space wall.")
       .def_readonly("tank_level", &ci::SafetyState::tank_level,
                     "safety.energy_tank: the tank's level [J].")
       .def_readonly("tank_draw", &ci::SafetyState::tank_draw,
@@ -330,6 +378,14 @@ void bind_states(py::module_& m) {
           "payload_estimate_center_of_mass",
           [](const ci::SafetyState& s) { return vector_array(s.payload_estimate_center_of_mass); },
           "Its centre of mass across gravity (3,) [m], end-effector frame.")
+      .def_readonly("static_wrench_unexplained", &ci::SafetyState::static_wrench_unexplained,
+                    "At rest, the static wrench is not one a hanging load can make (it presses "
+                    "down, pushes sideways or twists about the vertical): a contact; the "
+                    "estimate is then not valid.")
+      .def_readonly("payload_mismatch", &ci::SafetyState::payload_mismatch,
+                    "The valid estimate differs from the declared payload (payload.mass, "
+                    "filtered) by more than the tolerance: a load declared but not carried, or "
+                    "carried but not declared. The compensation still follows the declaration.")
       .def("__repr__", [](const ci::SafetyState& s) {
         return "SafetyState(drive_scale=" + ci::format_number(s.translation_drive_scale) + "/" +
                ci::format_number(s.rotation_drive_scale) +
@@ -439,6 +495,13 @@ void bind_states(py::module_& m) {
       .def_readonly("cycle", &ci::LoopState::cycle, "steps since start()")
       .def_readonly("time", &ci::LoopState::time, "[s] sum of dt since start()")
       .def_readonly("commands_applied", &ci::LoopState::commands_applied)
+      .def_readonly("safety_changes", &ci::LoopState::safety_changes,
+                    "Parameter commands applied after start() that changed a safety setting "
+                    "(only a loop made with allow_runtime_safety_changes=True accepts them).")
+      .def_readonly("updates_refused", &ci::LoopState::updates_refused,
+                    "Partial updates the cycle refused: merged into the parameters then in force "
+                    "(another update came first) they broke a rule tying parameters together. "
+                    "Nothing of such an update was applied.")
       .def("__repr__", [](const ci::LoopState& s) {
         return "LoopState(cycle=" + std::to_string(s.cycle) +
                ", time=" + ci::format_number(s.time) +

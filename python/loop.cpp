@@ -299,18 +299,39 @@ void bind_control_loop(py::module_& m) {
   def_commands<Loop, ci::ControlLoop>(
       control_loop, [](Loop& self) -> ci::ControlLoop& { return self.loop; }, "Queues");
   control_loop
-      .def(py::init([](py::object model, ParametersLike parameters, int commands, int points) {
+      .def(py::init([](py::object model, ParametersLike parameters, int commands, int points,
+                       bool allow_safety_changes) {
              if (!py::isinstance<Model>(model)) {
                throw py::type_error("model must be a RobotModel, got " + type_name(model));
              }
-             return std::make_unique<Loop>(std::move(model), read_parameters(parameters),
-                                           ci::LoopCapacity{commands, points});
+             auto loop = std::make_unique<Loop>(std::move(model), read_parameters(parameters),
+                                                ci::LoopCapacity{commands, points});
+             // Decided here, before anything can start the loop (the C++ call throws after).
+             if (allow_safety_changes) loop->loop.allow_runtime_safety_changes(true);
+             return loop;
            }),
            py::arg("model"), py::arg("parameters") = py::none(),
            py::arg("command_capacity") = default_capacity.commands,
-           py::arg("max_trajectory_points") = default_capacity.trajectory_points,
+           py::arg("max_trajectory_points") = default_capacity.trajectory_points, py::kw_only(),
+           py::arg("allow_runtime_safety_changes") = false,
            "model: RobotModel; parameters: Parameters, dict or None (defaults). Raises Error if "
-           "the parameters are invalid for the model's joint count.")
+           "the parameters are invalid for the model's joint count.\n\n"
+           "allow_runtime_safety_changes: let set_parameters / update_parameters change safety "
+           "settings (safety.*, limits.*, plausibility.*, payload.*) after start(). By default "
+           "they are locked once the loop runs: a change of one raises Error naming the "
+           "setting, the value in force and the lock, so that no other code (a learning script, "
+           "a remote client) can switch a cap off; configure them before start().")
+      .def(
+          "allow_runtime_safety_changes",
+          [](Loop& self, bool allow) { self.loop.allow_runtime_safety_changes(allow); },
+          py::arg("allow") = true,
+          "Lets (or, with False, no longer lets) commands change safety settings after start(); "
+          "as the constructor's keyword. Raises Error after start(): the owner decides before "
+          "the loop runs.")
+      .def_property_readonly(
+          "runtime_safety_changes_allowed",
+          [](const Loop& self) { return self.loop.runtime_safety_changes_allowed(); },
+          "True if safety settings may change after start() (allow_runtime_safety_changes).")
       .def_property_readonly(
           "model", [](const Loop& self) { return self.model_object; }, "The RobotModel.")
       .def_property_readonly("num_joints", [](const Loop& self) { return self.loop.num_joints(); })

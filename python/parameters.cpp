@@ -226,6 +226,16 @@ ci::Parameters read_parameters(py::handle object) {
   throw py::type_error("parameters must be a Parameters, a dict or None, got " + type_name(object));
 }
 
+ci::ParameterUpdate read_parameter_update(py::handle mapping, const ci::Parameters& base) {
+  if (!is_mapping(mapping)) {
+    throw py::type_error(
+        "parameters to update must be given as a dict (dotted names or nested "
+        "dicts), got " +
+        type_name(mapping));
+  }
+  return decoding([&] { return ci::decode_parameter_update(to_value(mapping, ""), base); });
+}
+
 void bind_parameters(py::module_& m) {
   // ---- Parameters ----
   py::class_<ci::Parameters>(

@@ -67,7 +67,7 @@ class CartesianImpedanceController:
     def set_nullspace_target(self, q_desired: numpy.typing.ArrayLike) -> None:
         """Sets the nullspace target configuration (n,) [rad]."""
     def set_parameters(self, parameters: Parameters | dict | None) -> None:
-        """Sets a whole new configuration (Parameters or dict); the commanded stiffness, damping, nullspace and wrench then follow it through their filters."""
+        """Sets parameters. A dict (dotted names or nested) is a partial update: only the parameters it names change, everything else stays as it is in force (the same as update_parameters). A Parameters object (or None: the defaults) replaces the whole configuration. The commanded stiffness, damping, nullspace and wrench follow what is set through their filters."""
     def set_reference_pose(self, pose: Pose | tuple[numpy.typing.ArrayLike, numpy.typing.ArrayLike] | numpy.typing.ArrayLike) -> None:
         """Sets the reference pose T_base_ref. A pose is a Pose, a pair (position (3,) [m], quaternion (4,) in the order x, y, z, w) or a 4x4 homogeneous transform, expressed in the base frame. The quaternion must have unit norm within 1e-3."""
     def set_stiffness(self, stiffness: numpy.typing.ArrayLike, frame: str | Frame | None = ...) -> None:
@@ -88,6 +88,8 @@ class CartesianImpedanceController:
         """Commanded joint torque of the last update() (n,) [Nm]."""
     def update(self, robot: RobotState, dt: float) -> Status:
         """One control cycle with the elapsed dt [s]. Never raises for bad values: returns a Status and ramps the torque toward zero instead."""
+    def update_parameters(self, values: dict) -> None:
+        """Sets the parameters a dict names (dotted names or nested), all or none; every other parameter keeps the value in force when the update is applied. Raises TypeError for a value of the wrong type, Error for an unknown name, a value out of range or an update that breaks a rule tying parameters together."""
 
 
 class ControlLoop:
@@ -95,11 +97,16 @@ class ControlLoop:
 
     One thread runs start()/step(); any thread may send commands (the set_* methods, execute_trajectory, cancel_trajectory) and read latest_state(). Commands are validated when sent (Error on bad input) and applied at the next step.
     """
-    def __init__(self, model: object, parameters: Parameters | dict | None = ..., command_capacity: int = ..., max_trajectory_points: int = ...) -> None:
-        """model: RobotModel; parameters: Parameters, dict or None (defaults). Raises Error if the parameters are invalid for the model's joint count."""
+    def __init__(self, model: object, parameters: Parameters | dict | None = ..., command_capacity: int = ..., max_trajectory_points: int = ..., *, allow_runtime_safety_changes: bool = ...) -> None:
+        """model: RobotModel; parameters: Parameters, dict or None (defaults). Raises Error if the parameters are invalid for the model's joint count.
+
+        allow_runtime_safety_changes: let set_parameters / update_parameters change safety settings (safety.*, limits.*, plausibility.*, payload.*) after start(). By default they are locked once the loop runs: a change of one raises Error naming the setting, the value in force and the lock, so that no other code (a learning script, a remote client) can switch a cap off; configure them before start().
+        """
     def __repr__(self) -> str: ...
     def _benchmark_steps(self, q: numpy.typing.ArrayLike, dq: numpy.typing.ArrayLike, dt: float, count: int) -> tuple:
         """Internal (python/benchmarks): `count` steps in C++ with the same q, dq, dt; returns (wall seconds, CPU seconds, checksum)."""
+    def allow_runtime_safety_changes(self, allow: bool = ...) -> None:
+        """Lets (or, with False, no longer lets) commands change safety settings after start(); as the constructor's keyword. Raises Error after start(): the owner decides before the loop runs."""
     def cancel_trajectory(self) -> None:
         """Stops a running trajectory; the arm holds where it is."""
     def execute_trajectory(self, times: numpy.typing.ArrayLike, positions: numpy.typing.ArrayLike, velocities: numpy.typing.ArrayLike = ..., joint_names: Optional[List[str]] = ...) -> int:
@@ -113,6 +120,9 @@ class ControlLoop:
         """The RobotModel."""
     @property
     def num_joints(self) -> int: ...
+    @property
+    def runtime_safety_changes_allowed(self) -> bool:
+        """True if safety settings may change after start() (allow_runtime_safety_changes)."""
     def set_damping_ratio(self, damping_ratio: numpy.typing.ArrayLike) -> None:
         """Queues the damping ratio per axis of the stiffness frame (6,) [-]."""
     def set_nullspace_damping_ratio(self, damping_ratio: float) -> None:
@@ -122,7 +132,7 @@ class ControlLoop:
     def set_nullspace_target(self, q_desired: numpy.typing.ArrayLike) -> None:
         """Queues the nullspace target configuration (n,) [rad]. Ends a running trajectory."""
     def set_parameters(self, parameters: Parameters | dict | None) -> None:
-        """Queues a whole new configuration (Parameters or dict); the commanded stiffness, damping, nullspace and wrench then follow it through their filters."""
+        """Queues parameters. A dict (dotted names or nested) is a partial update: only the parameters it names change, everything else stays as it is in force (the same as update_parameters). A Parameters object (or None: the defaults) replaces the whole configuration. The commanded stiffness, damping, nullspace and wrench follow what is set through their filters. While the loop runs, a change of a safety setting (safety.*, limits.*, plausibility.*, payload.*) raises Error unless the loop was made with allow_runtime_safety_changes=True."""
     def set_reference_pose(self, pose: Pose | tuple[numpy.typing.ArrayLike, numpy.typing.ArrayLike] | numpy.typing.ArrayLike) -> None:
         """Queues the reference pose T_base_ref. A pose is a Pose, a pair (position (3,) [m], quaternion (4,) in the order x, y, z, w) or a 4x4 homogeneous transform, expressed in the base frame. The quaternion must have unit norm within 1e-3. Ends a running trajectory."""
     def set_stiffness(self, stiffness: numpy.typing.ArrayLike, frame: str | Frame | None = ...) -> None:
@@ -144,6 +154,8 @@ class ControlLoop:
     @property
     def torque(self) -> numpy.typing.NDArray[numpy.float64]:
         """Torque of the last step (n,) [Nm]."""
+    def update_parameters(self, values: dict) -> None:
+        """Queues the parameters a dict names (dotted names or nested), all or none; every other parameter keeps the value in force when the update is applied. Raises TypeError for a value of the wrong type, Error for an unknown name, a value out of range or an update that breaks a rule tying parameters together."""
 
 
 class ControllerState:
@@ -345,10 +357,16 @@ class LoopState:
     def q(self) -> numpy.typing.NDArray[numpy.float64]:
         """Measured joint positions (n,) [rad]."""
     @property
+    def safety_changes(self) -> int:
+        """Parameter commands applied after start() that changed a safety setting (only a loop made with allow_runtime_safety_changes=True accepts them)."""
+    @property
     def time(self) -> float:
         """[s] sum of dt since start()"""
     @property
     def trajectory(self) -> TrajectoryProgress: ...
+    @property
+    def updates_refused(self) -> int:
+        """Partial updates the cycle refused: merged into the parameters then in force (another update came first) they broke a rule tying parameters together. Nothing of such an update was applied."""
 
 
 class Parameters:
@@ -472,6 +490,17 @@ class Pose:
         """The 3x3 rotation matrix R_base_frame (the quaternion normalised)."""
 
 
+class PoseErrorLimits:
+    """Pose-error clip in force (limits.pose_error.*)."""
+    def __repr__(self) -> str: ...
+    @property
+    def rotation(self) -> float:
+        """Largest norm of the rotation error [rad]."""
+    @property
+    def translation(self) -> float:
+        """Largest norm of the translation error [m]."""
+
+
 class QueueFull(RuntimeError):
     """A valid command that could not be queued because the control loop's inbox was full (is the loop stepping?). Transient: the same command may succeed later. Derives from RuntimeError, not from Error."""
 
@@ -574,6 +603,12 @@ class SafetyState:
     def force_scale(self) -> float:
         """safety.max_force.force: fraction of the spring + commanded force kept [0, 1]."""
     @property
+    def joint_limit_wall(self) -> bool:
+        """While teaching, a joint inside joint_limit_avoidance.margin is held off its limit by a joint-space wall."""
+    @property
+    def nullspace_scale(self) -> float:
+        """Fraction of the nullspace torque kept [0, 1]: below 1 only where what it leaks to the end effector (near a singularity) alone exceeds a force cap."""
+    @property
     def payload_center_of_mass(self) -> numpy.typing.NDArray[numpy.float64]:
         """Its centre of mass (payload.center_of_mass, filtered) (3,) [m], end-effector frame."""
     @property
@@ -589,6 +624,12 @@ class SafetyState:
     def payload_mass(self) -> float:
         """The payload being compensated (payload.mass, filtered) [kg]."""
     @property
+    def payload_mismatch(self) -> bool:
+        """The valid estimate differs from the declared payload (payload.mass, filtered) by more than the tolerance: a load declared but not carried, or carried but not declared. The compensation still follows the declaration."""
+    @property
+    def pose_error_in_force(self) -> PoseErrorLimits:
+        """limits.pose_error as in force (PoseErrorLimits): it follows its parameter as far as the energy tank pays for what a change stores."""
+    @property
     def reference_clipped(self) -> bool:
         """safety.workspace: the reference was clipped into the box."""
     @property
@@ -597,6 +638,12 @@ class SafetyState:
     @property
     def rotation_drive_scale(self) -> float:
         """safety.max_speed.rotation: the same along the angular velocity [0, 1]."""
+    @property
+    def settings_held(self) -> bool:
+        """pose_error_in_force or workspace_in_force differs from its parameter, waiting for the energy tank."""
+    @property
+    def static_wrench_unexplained(self) -> bool:
+        """At rest, the static wrench is not one a hanging load can make (it presses down, pushes sideways or twists about the vertical): a contact; the estimate is then not valid."""
     @property
     def stiffness_change_scale(self) -> float:
         """Fraction of this cycle's stiffness change that was applied [0, 1] (below 1: the tank could not pay for all of it, the change waits)."""
@@ -615,6 +662,9 @@ class SafetyState:
     @property
     def wall_force(self) -> numpy.typing.NDArray[numpy.float64]:
         """Force of the workspace walls on the end effector (3,) [N], base frame."""
+    @property
+    def workspace_in_force(self) -> Workspace:
+        """safety.workspace as in force (Workspace): the box and walls follow their parameters as far as the tank pays; a box that would put the end effector outside starts around it and closes in as it moves in."""
     @property
     def workspace_penetration(self) -> numpy.typing.NDArray[numpy.float64]:
         """How far the end effector's origin is outside the box (3,) [m], base frame (zero inside)."""
@@ -750,6 +800,23 @@ class TrajectoryState:
     def name(self) -> str: ...
     @property
     def value(self) -> int: ...
+
+
+class Workspace:
+    """Workspace box and walls in force (safety.workspace.*)."""
+    def __repr__(self) -> str: ...
+    @property
+    def damping(self) -> float:
+        """Wall damper, on motion out of the box [N s/m]."""
+    @property
+    def max(self) -> numpy.typing.NDArray[numpy.float64]:
+        """Upper corner (3,) [m], base frame."""
+    @property
+    def min(self) -> numpy.typing.NDArray[numpy.float64]:
+        """Lower corner (3,) [m], base frame."""
+    @property
+    def stiffness(self) -> float:
+        """Wall spring [N/m]."""
 
 
 def data_dir() -> pathlib.Path:

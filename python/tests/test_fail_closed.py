@@ -13,10 +13,9 @@ from conftest import PANDA_XML, requires_sim
 RATE = 1000.0  # [Nm/s], the default limits.joint_torque_rate
 
 
-@pytest.fixture
-def pulling(panda, ready):
+def pulling_loop(panda, ready, **options):
     """A loop pulling toward a reference 5 cm away, so that the joints carry torque."""
-    loop = ci.ControlLoop(panda)
+    loop = ci.ControlLoop(panda, **options)
     loop.start(ready, np.zeros(7))
     pose = loop.state.controller.pose
     loop.set_reference_pose((pose.position + [0.05, 0, -0.03], pose.orientation))
@@ -24,6 +23,11 @@ def pulling(panda, ready):
         loop.step(ready, np.zeros(7), 0.001)
     assert np.abs(loop.state.controller.tau).max() > 1.0
     return loop
+
+
+@pytest.fixture
+def pulling(panda, ready):
+    return pulling_loop(panda, ready)
 
 
 def expect_ramped_toward_zero(before, after, dt=0.001):
@@ -67,7 +71,9 @@ def test_the_fault_names_the_bound_it_broke(pulling, ready):
     assert str(fault) == "dt = 1000000000 is above plausibility.dt.max = 0.02"
 
 
-def test_a_lowered_torque_limit_ramps_down_within_the_rate(pulling, ready):
+def test_a_lowered_torque_limit_ramps_down_within_the_rate(panda, ready):
+    # limits.* are safety settings, locked once a loop runs unless its owner allowed changes.
+    pulling = pulling_loop(panda, ready, allow_runtime_safety_changes=True)
     before = pulling.state.controller.tau.copy()
     parameters = pulling.latest_parameters()
     parameters["limits.joint_torque"] = 0.5

@@ -12,9 +12,11 @@ import cartesian_impedance as ci
 from conftest import PANDA_YAML
 
 
-# Rows that bound another row from above (safety.energy_tank.initial <= .capacity): lowering
-# them below the other's default would be refused, so their other value lies above the default.
-UPPER_BOUNDS = {"safety.energy_tank.capacity"}
+# Rows that bound another row from above (safety.energy_tank.initial <= .capacity; a declared
+# payload's weight and moment <= safety.max_force.force and .torque, where those caps are on): a
+# value just above their default would be below the other's value, so theirs lies halfway to the
+# top of the range.
+UPPER_BOUNDS = {"safety.energy_tank.capacity", "safety.max_force.force", "safety.max_force.torque"}
 
 
 def other_value(row):

@@ -30,10 +30,23 @@ SAFETY_FIELDS = {
     "payload_estimate_valid": "",
     "payload_estimate_mass": "[kg]",
     "payload_estimate_center_of_mass": "[m]",
+    "nullspace_scale": "[0, 1]",
+    "settings_held": "",
+    "joint_limit_wall": "",
+    "static_wrench_unexplained": "",
+    "payload_mismatch": "",
+    # The settings in force, as objects whose fields carry the units.
+    "pose_error_in_force": "PoseErrorLimits",
+    "workspace_in_force": "Workspace",
 }
 VECTORS = {"workspace_penetration", "wall_force", "payload_center_of_mass",
            "payload_estimate_center_of_mass"}
-FLAGS = {"reference_speed_limited", "braking", "reference_clipped", "payload_estimate_valid"}
+FLAGS = {"reference_speed_limited", "braking", "reference_clipped", "payload_estimate_valid",
+         "settings_held", "joint_limit_wall", "static_wrench_unexplained", "payload_mismatch"}
+# Their fields and units.
+IN_FORCE_FIELDS = {ci.PoseErrorLimits: {"translation": "[m]", "rotation": "[rad]"},
+                   ci.Workspace: {"min": "[m]", "max": "[m]", "stiffness": "[N/m]",
+                                  "damping": "[N s/m]"}}
 
 
 def rotation(axis, angle):
@@ -51,6 +64,10 @@ def test_safety_state_has_every_field_documented_with_its_unit():
         assert unit in doc, f"{name}: {doc!r} does not name {unit}"
     assert "safety" in ci.ControllerState.safety.__doc__
     assert ci.SafetyState.__doc__
+    for cls, fields in IN_FORCE_FIELDS.items():
+        assert {name for name in dir(cls) if not name.startswith("_")} == set(fields)
+        for name, unit in fields.items():
+            assert unit in getattr(cls, name).__doc__, f"{cls.__name__}.{name}"
 
 
 def test_a_loop_at_rest_reports_nothing_capped_and_a_full_tank(panda, ready):
@@ -67,6 +84,11 @@ def test_a_loop_at_rest_reports_nothing_capped_and_a_full_tank(panda, ready):
             assert value is False, name
     assert safety.translation_drive_scale == safety.rotation_drive_scale == 1.0
     assert safety.force_scale == safety.torque_scale == safety.stiffness_change_scale == 1.0
+    assert safety.nullspace_scale == 1.0
+    # The settings in force are the parameters (nothing waits for the tank).
+    defaults = ci.Parameters()
+    assert safety.pose_error_in_force.translation == defaults["limits.pose_error.translation"]
+    np.testing.assert_array_equal(safety.workspace_in_force.max, defaults["safety.workspace.max"])
     assert safety.tank_level == ci.Parameters()["safety.energy_tank.initial"]
     assert safety.tank_draw == 0.0 and safety.payload_mass == 0.0
     assert "tank_level=0.005 J" in repr(safety)
@@ -122,11 +144,26 @@ def test_every_part_of_the_safety_layer_reports_when_it_acts(panda, ready):
             penetration = flange - np.clip(flange, lower, upper)
             np.testing.assert_allclose(safety.workspace_penetration, penetration, atol=1e-15)
             assert np.linalg.norm(penetration) > 0.02  # outside by at least 2 cm
+            # The walls push from the box in force: the flange started outside the box, so the
+            # box in force started around it and closes in only as the energy tank pays for
+            # what that stores (the raise below keeps the tank empty), waiting meanwhile.
+            box = safety.workspace_in_force
+            assert box.stiffness == wall_stiffness and box.damping == wall_damping
+            assert safety.settings_held
+            assert np.all(box.min <= lower + 1e-12) and np.all(box.max >= upper - 1e-12)
+            outside = flange - np.clip(flange, box.min, box.max)
+            assert np.linalg.norm(outside) > 0.0
             velocity = (panda.compute(q).jacobian @ dq)[:3]
-            outward = velocity * penetration > 0
-            expected = -wall_stiffness * penetration - wall_damping * velocity * outward
-            np.testing.assert_allclose(safety.wall_force, expected, rtol=1e-9, atol=1e-12)
+            outward = velocity * outside > 0
             assert outward.any()  # the damper acts too
+            # The damper on the outward motion, exactly; the spring is part of what the caps
+            # scale and govern (max_force, max_speed), so it pushes inward, at most K x depth.
+            damper = -wall_damping * velocity * outward
+            spring = safety.wall_force - damper
+            assert np.all(spring * outside <= 1e-12)
+            assert np.linalg.norm(spring) <= (safety.force_scale * wall_stiffness *
+                                              np.linalg.norm(outside) + 1e-9)
+            assert np.linalg.norm(spring) > 0.0
             # Far above the speed caps: all of the push along the motion removed, braking.
             assert safety.translation_drive_scale == 0.0 and safety.rotation_drive_scale == 0.0
             assert safety.braking and safety.reference_speed_limited
