@@ -245,7 +245,11 @@ TEST(Ros2Node, StiffnessAndConfigTopicsSetTheController) {
   ASSERT_TRUE(client.wait(2.0, [&](const State& s) {
     return s.commanded_stiffness == k2 && std::abs(s.nullspace_config[0] - q_d[0]) < 1e-3;
   }));
-  EXPECT_NEAR(client.settle(0.0).nullspace_stiffness[6], 20.0, 0.5);
+  // Filtered toward 20 Nm/rad; the energy tank pays for the raise as it does for the Cartesian
+  // stiffness (the 500 -> 700 N/m raise drains it too), so it may arrive after the target.
+  EXPECT_TRUE(client.wait(2.0, [&](const State& s) {
+    return std::abs(s.nullspace_stiffness[6] - 20.0) < 0.5;
+  })) << client.settle(0.0).nullspace_stiffness[6];
 }
 
 TEST(Ros2Node, JointTrajectoryRunsAndAnEmptyOneCancels) {
