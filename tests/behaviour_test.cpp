@@ -559,7 +559,16 @@ void check_safety(scenarios::Rig& rig, double speed, SafetyFigures& figures, lon
       }
     }
   }
-  const ci::Vector6d pressed = cartesian - others + state.wrench_base;
+  // And what the nullspace torque leaks to the end effector through the damped projector, which
+  // the cap holds with the rest (SafetyState): (J J^T + lambda^2 I)^-1 J tau_nullspace, with the
+  // lambda the controller's projector uses (at least 1e-3 where it builds the system itself).
+  const ci::Parameters& in_force = rig.loop().controller().parameters();
+  const double lambda = in_force.nullspace.pseudo_inverse_damping;
+  const bool own_system = in_force.dynamics.dynamically_consistent_nullspace;
+  ci::Matrix6d gram = jacobian * jacobian.transpose();
+  gram.diagonal().array() += own_system ? std::max(lambda * lambda, 1e-6) : lambda * lambda;
+  const ci::Vector6d leak = gram.ldlt().solve(jacobian * state.tau_nullspace);
+  const ci::Vector6d pressed = cartesian - others + state.wrench_base + leak;
   if (caps.max_force.force > 0.0) {
     const double excess = pressed.head<3>().norm() - caps.max_force.force;
     figures.worst_force_excess = std::max(figures.worst_force_excess, excess);

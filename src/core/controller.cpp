@@ -63,6 +63,8 @@ const char* to_string(TorqueShaping shaping) noexcept {
       return "spring";
     case TorqueShaping::wrench:
       return "wrench";
+    case TorqueShaping::payload:
+      return "payload";
     case TorqueShaping::damping:
       return "damping";
     case TorqueShaping::gravity:

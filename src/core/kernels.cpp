@@ -375,49 +375,62 @@ Matrix6d matrix_sqrt(const Matrix6d& spd, TrackingMatrixSqrt& tracker) noexcept 
   return tracker.axes() * tracker.root_in_axes() * tracker.axes().transpose();
 }
 
-namespace {
-
 // A = J M^-1 J^T through M = L D L^T (right-looking, lower triangle only, as Eigen's LLT reads
 // it; no square roots): A = (L^-1 J^T)^T D^-1 (L^-1 J^T). False if M is not positive definite.
-bool inverse_task_inertia(const Jacobian& jacobian, const JointMatrix& mass, Matrix6d& a) noexcept {
+bool TaskInertia::compute(const Jacobian& jacobian, const JointMatrix& mass) noexcept {
+  valid_ = false;
   const Eigen::Index n = jacobian.cols();
-  JointMatrix factor = mass;
-  JointVector inverse_pivot(n);
+  factor_ = mass;
+  inverse_pivot_.resize(n);
   for (Eigen::Index j = 0; j < n; ++j) {
-    const double pivot = factor(j, j);
+    const double pivot = factor_(j, j);
     if (!(pivot > 0.0)) return false;
-    inverse_pivot[j] = 1.0 / pivot;
+    inverse_pivot_[j] = 1.0 / pivot;
     for (Eigen::Index k = j + 1; k < n; ++k) {
-      const double unscaled = factor(k, j);
+      const double unscaled = factor_(k, j);
       // Columns k > j are updated column by column; row j of the upper triangle (unused by the
       // factorisation) keeps D(j) L(k, j) for the update.
-      factor(j, k) = unscaled;
-      factor(k, j) = unscaled * inverse_pivot[j];
+      factor_(j, k) = unscaled;
+      factor_(k, j) = unscaled * inverse_pivot_[j];
     }
     for (Eigen::Index k = j + 1; k < n; ++k) {
-      const double unscaled = factor(j, k);
-      for (Eigen::Index i = k; i < n; ++i) factor(i, k) -= factor(i, j) * unscaled;
+      const double unscaled = factor_(j, k);
+      for (Eigen::Index i = k; i < n; ++i) factor_(i, k) -= factor_(i, j) * unscaled;
     }
   }
-  // Column i of `reduced` is row i of L^-1 J^T: forward substitution with fixed-size columns.
-  Jacobian reduced(6, n), weighted(6, n);
+  // Column i of `reduced_` is row i of L^-1 J^T: forward substitution with fixed-size columns.
+  reduced_.resize(6, n);
+  Jacobian weighted(6, n);
   for (Eigen::Index i = 0; i < n; ++i) {
     Vector6d column = jacobian.col(i);
-    for (Eigen::Index k = 0; k < i; ++k) column -= factor(i, k) * reduced.col(k);
-    reduced.col(i) = column;
-    weighted.col(i) = column * inverse_pivot[i];
+    for (Eigen::Index k = 0; k < i; ++k) column -= factor_(i, k) * reduced_.col(k);
+    reduced_.col(i) = column;
+    weighted.col(i) = column * inverse_pivot_[i];
   }
-  outer_sum(reduced, weighted, a);
+  outer_sum(reduced_, weighted, inverse_);  // only its upper triangle is summed in order
+  inverse_.triangularView<Eigen::StrictlyLower>() = inverse_.transpose();
+  valid_ = true;
   return true;
 }
 
-}  // namespace
+void TaskInertia::acceleration(const JointVector& tau, Vector6d& out) const noexcept {
+  // J M^-1 tau = (L^-1 J^T)^T D^-1 (L^-1 tau): one forward substitution with L.
+  const Eigen::Index n = reduced_.cols();
+  out.setZero();
+  JointVector y(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    double value = tau[i];
+    for (Eigen::Index k = 0; k < i; ++k) value -= factor_(i, k) * y[k];
+    y[i] = value;
+    out += reduced_.col(i) * (value * inverse_pivot_[i]);
+  }
+}
 
 bool InertiaShapedDamping::compute(const Jacobian& jacobian, const JointMatrix& mass, double lambda,
                                    const Eigen::Matrix3d* frame_rotation, const Matrix6d& stiffness,
                                    const Vector6d& damping_ratio, Matrix6d& damping) noexcept {
-  Matrix6d a;  // J M^-1 J^T; only the upper triangle is read below
-  if (!inverse_task_inertia(jacobian, mass, a)) return false;
+  if (!inertia_.compute(jacobian, mass)) return false;
+  Matrix6d a = inertia_.inverse();  // J M^-1 J^T; only the upper triangle is read below
   a.diagonal().array() += lambda * lambda;
   if (frame_rotation != nullptr) {
     // R6^T A R6 block by block (R6 = blockdiag(R, R) is half zeros); only the upper triangle of

@@ -62,6 +62,28 @@ class TrackingMatrixSqrt {
 /// called with slowly changing matrices.
 Matrix6d matrix_sqrt(const Matrix6d& spd, TrackingMatrixSqrt& tracker) noexcept;
 
+/// The end effector's inverse task-space inertia A = J M^-1 J^T (base frame) through one
+/// L D L^T of M, kept so that the acceleration any joint torque gives the end effector,
+/// J M^-1 tau, costs one forward substitution. noexcept, allocation-free.
+class TaskInertia {
+ public:
+  /// False (and not valid()) if M is not positive definite.
+  bool compute(const Jacobian& jacobian, const JointMatrix& mass) noexcept;
+  bool valid() const noexcept { return valid_; }
+  void invalidate() noexcept { valid_ = false; }
+  /// A = J M^-1 J^T, symmetric [1/kg, ...]: a wrench F accelerates the end effector by A F.
+  const Matrix6d& inverse() const noexcept { return inverse_; }
+  /// J M^-1 tau: what the joint torque `tau` alone does to the end effector's twist, per second.
+  void acceleration(const JointVector& tau, Vector6d& out) const noexcept;
+
+ private:
+  JointMatrix factor_;        // L below the diagonal, D(j) L(k, j) above it
+  JointVector inverse_pivot_;  // D^-1
+  Jacobian reduced_;           // L^-1 J^T, transposed
+  Matrix6d inverse_ = Matrix6d::Zero();
+  bool valid_ = false;
+};
+
 /// The inertia-shaped damping of math.hpp, D = L (2 Z^1/2 sqrt(L^-1 K L^-T) Z^1/2) L^T with
 /// Lambda = L L^T = (J M^-1 J^T + lambda^2 I)^-1 (turned
 /// into the stiffness frame, Lambda_f = R6^T Lambda R6 with R6 = blockdiag(R, R), when
@@ -77,9 +99,12 @@ class InertiaShapedDamping {
   bool compute(const Jacobian& jacobian, const JointMatrix& mass, double lambda,
                const Eigen::Matrix3d* frame_rotation, const Matrix6d& stiffness,
                const Vector6d& damping_ratio, Matrix6d& damping) noexcept;
+  /// The task inertia of the last compute(), valid() if it got that far.
+  TaskInertia& inertia() noexcept { return inertia_; }
 
  private:
   TrackingMatrixSqrt tracker_;
+  TaskInertia inertia_;
 };
 
 /// v = J x for a 6 x n Jacobian: a sum of fixed-size columns, which at these sizes is several

@@ -43,10 +43,12 @@ CartesianImpedanceController::Law::Law(int num_joints)
       tau_spring(JointVector::Zero(num_joints)),
       tau_damping(JointVector::Zero(num_joints)),
       tau_kept(JointVector::Zero(num_joints)),
+      tau_payload(JointVector::Zero(num_joints)),
       nullspace_q_before(JointVector::Zero(num_joints)),
       nullspace_stiffness_before(JointVector::Zero(num_joints)),
       nullspace_damping_torque(JointVector::Zero(num_joints)),
-      nullspace_damping_projected(JointVector::Zero(num_joints)) {
+      nullspace_damping_projected(JointVector::Zero(num_joints)),
+      governor_joint(JointVector::Zero(num_joints)) {
   forget_damping();
 }
 
@@ -61,7 +63,7 @@ bool CartesianImpedanceController::evaluate_law(const RobotState& robot, double 
   if (!nullspace(robot, mass, fault)) return false;
   fill_tank_from_nullspace(robot, dt);
   commanded_wrench();
-  safety_layer(robot);
+  safety_layer(robot, mass, dt);
   cartesian_torques(robot);
   gravity(robot);
   estimate_payload(dt);
@@ -131,6 +133,7 @@ bool CartesianImpedanceController::compute_damping(const RobotState& robot, cons
   Law& law = *law_;
   const Targets& filtered = state_.filtered;
   law.damping_diagonal = stiffness_diagonal_;
+  law.inertia_damping.inertia().invalidate();  // computed anew by the inertia-shaped damping
   if (scheduled_) {
     law.damping_frame = scheduled_damping_;
     law.damping_diagonal = stiffness_diagonal_ && scheduled_damping_diagonal_;
@@ -293,11 +296,12 @@ void CartesianImpedanceController::gravity(const RobotState& robot) noexcept {
     state_.tau_gravity.setZero();
   }
   const SafetyState& safety = state_.safety;
+  JointVector& tau_payload = law_->tau_payload;
   if (safety.payload_mass > 0.0) {
-    const Vector6d holding = payload_holding_wrench();
-    JointVector& tau_payload = law_->tau_kept;  // free until the torque shaping
-    jacobian_transpose_times(robot.jacobian, holding, tau_payload);
+    jacobian_transpose_times(robot.jacobian, payload_holding_wrench(), tau_payload);
     state_.tau_gravity += tau_payload;
+  } else {
+    tau_payload.setZero(num_joints_);
   }
 }
 
@@ -350,7 +354,8 @@ void CartesianImpedanceController::limit_torque(double dt, const RobotState* law
 // clipped spring feeds a limit cycle. Instead the terms give way whole, in task space, in the
 // order of what the arm can best do without: the nullspace torque first (it never moves the end
 // effector), then the spring (scaled, it still pulls straight toward the reference, with less
-// force: a softer spring while the error is large), then the commanded wrench; the damping last,
+// force: a softer spring while the error is large), then the commanded wrench, then a declared
+// payload's compensation (which pushes the arm if the load is not there); the damping last,
 // since it is what takes energy out of the motion; gravity is never scaled, only clipped. Each
 // scale is the largest that fits, a continuous function of the state, so the torque stays
 // continuous where the shaping starts and where it hands from one term to the next.
@@ -379,10 +384,14 @@ void CartesianImpedanceController::shape_torque(const RobotState& robot,
   if (give_way(law.tau_spring, TorqueShaping::spring)) return;
   kept -= state_.tau_wrench;
   if (give_way(state_.tau_wrench, TorqueShaping::wrench)) return;
-  law.tau_damping = kept - state_.tau_gravity;
-  kept = state_.tau_gravity;
+  // A declared payload's compensation before the damping: if it is not carried it pushes the arm,
+  // and what brakes that is the damping.
+  kept -= law.tau_payload;
+  if (give_way(law.tau_payload, TorqueShaping::payload)) return;
+  law.tau_damping = kept - (state_.tau_gravity - law.tau_payload);
+  kept = state_.tau_gravity - law.tau_payload;
   if (give_way(law.tau_damping, TorqueShaping::damping)) return;
-  tau = state_.tau_gravity;
+  tau = kept;
   limits.torque_shaping = TorqueShaping::gravity;
   limits.torque_shaping_scale = 0.0;
 }

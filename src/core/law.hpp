@@ -27,6 +27,7 @@ struct CartesianImpedanceController::Law {
   // shaping (limit_torque) splits the cycle's torque into when it does not fit.
   Vector6d spring_force = Vector6d::Zero();
   JointVector tau_spring, tau_damping, tau_kept;
+  JointVector tau_payload;  // the declared payload's compensation (part of tau_gravity)
   // The rest of the Cartesian force (damping, and the safety layer's walls and brake), base frame,
   // and the end effector's twist J dq of the cycle.
   Vector6d damping_force = Vector6d::Zero();
@@ -47,8 +48,11 @@ struct CartesianImpedanceController::Law {
   Eigen::Vector3d wall_spring = Eigen::Vector3d::Zero();
   Eigen::Vector3d wall_damper = Eigen::Vector3d::Zero();
   Vector6d joint_wall_force = Vector6d::Zero();
+  Vector6d joint_wall_force_before = Vector6d::Zero();  // before the caps
   Vector6d nullspace_leak = Vector6d::Zero();
   bool joint_walls = false;
+  // Scratch space of the speed governor (a joint torque).
+  JointVector governor_joint;
   // The filtered reference before this cycle's filter step: the speed cap limits the step.
   Pose reference_before;
   // M(q) with the payload's inertia (payload.mass > 0 and a dynamic option on), and the

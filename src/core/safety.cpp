@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "law.hpp"
 
@@ -25,6 +26,13 @@ double spring_energy_weight(double length, double clip) noexcept {
 // extra damping near the cap) a few times the law's own damping, so the discrete loop stays far
 // from its stability limit.
 constexpr double kGovernorBand = 0.8;
+
+// Beyond the cap the excess speed is braked out with this time constant [s] (with M(q)), also
+// against what the arm's own motion does to the end effector (the centripetal and Coriolis
+// terms the law does not model, which a fast-turning wrist puts on the flange's translation:
+// measured 0.5 m/s^2, which a brake with the law's damping strength let carry the flange 10 %
+// past the cap). A fifth of the excess per cycle at 1 kHz: far from the discrete loop's limit.
+constexpr double kBrakeTime = 0.005;
 
 // Iterations for the largest affordable part of a change whose stored energy is not linear in it
 // (a clip, a box): enough for the Illinois method to find it to round-off on any change in range.
@@ -50,10 +58,10 @@ double largest_fitting_both(const Eigen::Vector3d& d, const Eigen::Vector3d& off
   return std::min(largest_fitting(d, offset, cap), largest_fitting(d, offset + payload, cap));
 }
 
-// The wall's stored energy 1/2 k |p - box(p)|^2 for a box and stiffness.
-double wall_energy(const Eigen::Vector3d& position, const Eigen::Vector3d& min,
-                   const Eigen::Vector3d& max, double stiffness) noexcept {
-  return 0.5 * stiffness * (position - position.cwiseMax(min).cwiseMin(max)).squaredNorm();
+// The walls' stored energy per axis, 1/2 k (p_i - box(p)_i)^2, for a box and stiffness.
+Eigen::Vector3d wall_energy(const Eigen::Vector3d& position, const Eigen::Vector3d& min,
+                            const Eigen::Vector3d& max, double stiffness) noexcept {
+  return 0.5 * stiffness * (position - position.cwiseMax(min).cwiseMin(max)).cwiseAbs2();
 }
 
 // The largest s in [0, 1] whose cost(s) fits into `level` >= 0, given cost(0) = 0 and
@@ -311,16 +319,19 @@ void CartesianImpedanceController::pay_workspace_change() noexcept {
   }
   const WorkspaceParameters from = in_force;
   const Eigen::Vector3d& position = state_.pose.position;
-  const double before = wall_energy(position, from.min, from.max, from.stiffness);
-  const auto cost = [&](double s) {
+  const Eigen::Vector3d before = wall_energy(position, from.min, from.max, from.stiffness);
+  const auto change = [&](double s) -> Eigen::Vector3d {
     return wall_energy(position, from.min + s * (target.min - from.min),
                        from.max + s * (target.max - from.max),
                        from.stiffness + s * (target.stiffness - from.stiffness)) -
            before;
   };
-  const double whole = cost(1.0);
-  const double s = whole <= safety.tank_level ? 1.0 : largest_affordable(safety.tank_level, cost);
-  const double paid = s == 1.0 ? whole : cost(s);
+  // What a wall's move stores is paid for on its own: energy that another wall releases (a box
+  // moved sideways past the flange) goes to the tank but does not pay for it, which would throw
+  // the flange across at once with the energy moved from one wall to the other.
+  const auto cost = [&](double s) { return change(s).cwiseMax(0.0).sum(); };
+  const double s = cost(1.0) <= safety.tank_level ? 1.0 : largest_affordable(safety.tank_level, cost);
+  const double paid = change(s).sum();
   if (s == 1.0) {
     in_force.min = target.min;
     in_force.max = target.max;
@@ -365,7 +376,8 @@ const JointMatrix& CartesianImpedanceController::mass_with_payload(
 
 // The envelope: the walls first, then the caps on the sum of every Cartesian term (walls
 // included), then the walls join the damping (the last to give way in the torque shaping).
-void CartesianImpedanceController::safety_layer(const RobotState& robot) noexcept {
+void CartesianImpedanceController::safety_layer(const RobotState& robot, const JointMatrix& mass,
+                                                double dt) noexcept {
   SafetyState& safety = state_.safety;
   safety.translation_drive_scale = 1.0;
   safety.rotation_drive_scale = 1.0;
@@ -386,7 +398,7 @@ void CartesianImpedanceController::safety_layer(const RobotState& robot) noexcep
     law.projector.task_force(robot.jacobian, parameters_.nullspace.pseudo_inverse_damping,
                              robot.joint_wall_torque, law.joint_wall_force);
   }
-  const Vector6d joint_wall_before = law.joint_wall_force;
+  law.joint_wall_force_before = law.joint_wall_force;
   // What the nullspace torque leaks to the end effector: it joins the sum where a cap acts on it.
   law.nullspace_leak.setZero();
   if (capped) {
@@ -394,16 +406,16 @@ void CartesianImpedanceController::safety_layer(const RobotState& robot) noexcep
                              state_.tau_nullspace, law.nullspace_leak);
   }
   if (force_cap.force > 0.0 || force_cap.torque > 0.0) cap_force();
-  if (speed_cap.translation > 0.0 || speed_cap.rotation > 0.0) govern_speed();
+  if (speed_cap.translation > 0.0 || speed_cap.rotation > 0.0) govern_speed(robot, mass, dt);
   // What the caps took off the joint-limit walls' task-space force, taken off their torque.
-  law.damping_force += law.joint_wall_force - joint_wall_before;
+  law.damping_force += law.joint_wall_force - law.joint_wall_force_before;
   law.damping_force.head<3>() += law.wall_spring + law.wall_damper;
   safety.wall_force = law.wall_spring + law.wall_damper;
 }
 
 // Outside the box in force a wall spring pushes the end effector's origin back, and a damper acts
-// on its motion further out. The spring is part of the envelope (capped and governed with the
-// rest); the damper only ever takes energy out.
+// on its motion further out. Both are part of the envelope: capped with the rest, and the spring
+// governed with the drive (the damper only ever takes energy out).
 void CartesianImpedanceController::walls() noexcept {
   Law& law = *law_;
   SafetyState& safety = state_.safety;
@@ -438,8 +450,10 @@ void CartesianImpedanceController::cap_force() noexcept {
   Vector6d& spring = law.spring_force;
   Vector6d& wrench = state_.wrench_base;
   const Vector6d payload = safety.payload_mass > 0.0 ? payload_holding_wrench() : Vector6d::Zero();
+  // The walls' damper joins the sum: met at speed, a stiff wall's damper alone asked for more
+  // than the joints had (measured: 185 N at 0.37 m/s), and the jolt spun the wrist past its cap.
   Vector6d drive = spring + wrench + law.joint_wall_force;
-  drive.head<3>() += law.wall_spring;
+  drive.head<3>() += law.wall_spring + law.wall_damper;
   double nullspace_scale = 1.0;
   const auto part_scale = [&](int start, double largest, double& scale) {
     if (!(largest > 0.0)) return;
@@ -464,56 +478,141 @@ void CartesianImpedanceController::cap_force() noexcept {
     law.joint_wall_force.segment<3>(start) *= scale;
   }
   law.wall_spring *= safety.force_scale;
+  law.wall_damper *= safety.force_scale;
 }
 
 // Near the speed cap the sum stops pushing along the motion (from kGovernorBand x cap, all of it
 // at the cap), whatever term pushes: the spring, the commanded wrench, a wall, a joint-limit wall,
-// the leak or an uncarried payload's compensation; the damping still acts. The push is taken
-// from the spring and the wrench where they push (in proportion), and the rest is held by a
-// counter-force with the damping. Beyond the cap (a push from outside, or the arm's own momentum)
-// the excess speed is braked with the law's own damping strength, never with stiffness.
-void CartesianImpedanceController::govern_speed() noexcept {
+// the nullspace torque or an uncarried payload's compensation. A push is measured by what it does
+// to the motion, through the arm's inertia: the force along the motion that would accelerate the
+// end effector along it as much, e^T J M^-1 tau / e^T A e with A = J M^-1 J^T and e the direction
+// of the motion as a twist. So a torque about the flange that speeds up its translation through
+// the arm's inertia counts, and so does a full damping matrix that turns rotation into
+// translation (measured before, with the force along the motion alone: 13 % past the cap). The
+// sum with the damping may not carry the end effector past the cap within the cycle either,
+// v + dt e^T A e push <= cap: a strong drive on a light arm would otherwise cross the band in one
+// cycle. The push is taken from the spring and the wrench where they push (in proportion), and
+// the rest is held by a counter-force along the motion with the damping. Beyond the cap (a push
+// from outside, or the arm's own momentum) the excess speed is braked out within kBrakeTime,
+// never with stiffness. Without M(q) (unit-mass damping and no control loop) a push is its force
+// along the motion, and the brake has the law's own damping strength.
+void CartesianImpedanceController::govern_speed(const RobotState& robot, const JointMatrix& mass,
+                                                double dt) noexcept {
   Law& law = *law_;
   SafetyState& safety = state_.safety;
   const MaxSpeedParameters& caps = parameters_.safety.max_speed;
   Vector6d& spring = law.spring_force;
   Vector6d& wrench = state_.wrench_base;
   const Vector6d payload = safety.payload_mass > 0.0 ? payload_holding_wrench() : Vector6d::Zero();
-  const auto govern = [&](int start, double cap, double& drive_scale) {
-    if (!(cap > 0.0)) return;
+  TaskInertia& inertia = law.inertia_damping.inertia();
+  if (!inertia.valid() && mass.rows() == num_joints_) inertia.compute(robot.jacobian, mass);
+  // What the joint torques besides J^T F do to the end effector: the nullspace torque and the
+  // joint-limit walls (their task-space force's change by the caps is among the forces below).
+  Vector6d joint_acceleration = Vector6d::Zero();
+  if (inertia.valid()) {
+    JointVector& torque = law.governor_joint;
+    torque = state_.tau_nullspace;
+    if (law.joint_walls) torque += robot.joint_wall_torque;
+    inertia.acceleration(torque, joint_acceleration);
+  }
+  Vector6d forces = law.joint_wall_force - law.joint_wall_force_before;
+  forces.head<3>() += law.wall_spring;
+  // Per half (translation, rotation): the direction of the motion, the force g with which g . F
+  // is a force's push, the pushes that do not change (joint torques, payload), and the net push
+  // the governor leaves.
+  struct Axis {
+    bool active = false;
+    Eigen::Vector3d direction = Eigen::Vector3d::Zero();
+    Vector6d g = Vector6d::Zero();
+    double fixed_push = 0.0;
+    double target = 0.0;
+  };
+  Axis axes[2];
+  const auto net_push = [&](const Axis& axis) {
+    return (spring + wrench + forces + law.damping_force).dot(axis.g) + axis.fixed_push;
+  };
+  for (int half = 0; half < 2; ++half) {
+    const int start = 3 * half;
+    const double cap = half == 0 ? caps.translation : caps.rotation;
+    double& drive_scale = half == 0 ? safety.translation_drive_scale : safety.rotation_drive_scale;
+    if (!(cap > 0.0)) continue;
     const Eigen::Vector3d velocity = law.twist.segment<3>(start);
     const double speed = velocity.norm();
-    if (speed <= kGovernorBand * cap) return;
-    const Eigen::Vector3d direction = velocity / speed;
-    drive_scale = std::clamp((cap - speed) / ((1.0 - kGovernorBand) * cap), 0.0, 1.0);
-    const double spring_push = spring.segment<3>(start).dot(direction);
-    const double wrench_push = wrench.segment<3>(start).dot(direction);
-    double rest = law.joint_wall_force.segment<3>(start).dot(direction) +
-                  law.nullspace_leak.segment<3>(start).dot(direction);
-    if (start == 0) rest += law.wall_spring.dot(direction);
+    if (!(speed > 0.0)) continue;
+    Axis& axis = axes[half];
+    axis.direction = velocity / speed;
+    Vector6d along = Vector6d::Zero();
+    along.segment<3>(start) = axis.direction;
+    double response = 0.0;  // e^T A e; 0 without M
+    axis.g = along;
+    if (inertia.valid()) {
+      axis.g.noalias() = inertia.inverse() * along;
+      response = along.dot(axis.g);
+      axis.g /= response;
+      axis.fixed_push = along.dot(joint_acceleration) / response;
+    } else {
+      axis.fixed_push = (law.nullspace_leak + law.joint_wall_force_before).dot(axis.g);
+    }
     // With the payload carried its compensation holds the load; without, it pushes too.
-    const double push =
-        spring_push + wrench_push + rest + std::max(payload.segment<3>(start).dot(direction), 0.0);
-    if (push > 0.0) {
-      const double removed = (1.0 - drive_scale) * push;
-      const double spring_pushes = std::max(spring_push, 0.0);
-      const double wrench_pushes = std::max(wrench_push, 0.0);
+    axis.fixed_push += std::max(payload.dot(axis.g), 0.0);
+    const double drive_push =
+        (spring + wrench + forces).dot(axis.g) + axis.fixed_push;
+    const double net = net_push(axis);
+    const double predicted = speed + dt * response * net;
+    // The torque-rate limit lets a push fall only so fast, rate = min_i rate_i / |(J^T e)_i| along
+    // e: until it is gone the end effector keeps speeding up, by 1/2 push^2 e^T A e / rate. The
+    // governor acts on the speed it will have reached then (measured before: a wall's 50 N push,
+    // rate-limited on its way out, carried the flange 10 % past the cap).
+    double reached = speed;
+    if (response > 0.0 && net > 0.0) {
+      jacobian_transpose_times(robot.jacobian, along, law.governor_joint);
+      double rate = std::numeric_limits<double>::infinity();
+      for (int i = 0; i < num_joints_; ++i) {
+        const double lever = std::abs(law.governor_joint[i]);
+        if (lever > 0.0) rate = std::min(rate, joint_torque_rate_limit_[i] / lever);
+      }
+      reached += 0.5 * net * net * response / rate;
+    }
+    if (std::max(reached, predicted) <= kGovernorBand * cap) continue;
+    drive_scale = std::clamp((cap - reached) / ((1.0 - kGovernorBand) * cap), 0.0, 1.0);
+    axis.target = net - (1.0 - drive_scale) * std::max(drive_push, 0.0);
+    if (response > 0.0) {
+      // Below the cap the net push may bring the speed up to it within the cycle; above it, it
+      // must take the excess out within kBrakeTime.
+      const double allowed = speed <= cap ? (cap - speed) / (dt * response)
+                                          : -std::min(dt / kBrakeTime, 1.0) * (speed - cap) /
+                                                (dt * response);
+      axis.target = std::min(axis.target, allowed);
+    } else if (speed > cap) {
+      // Without M(q): a brake with the law's own damping strength.
+      axis.target -= state_.damping.diagonal().segment<3>(start).mean() * (speed - cap);
+    }
+    axis.active = true;
+    safety.braking = safety.braking || speed > cap;
+  }
+  // A force that holds back one half pushes the other through the arm's inertia (a torque at the
+  // flange speeds up its translation): a few rounds, each taking out what is left, bring both to
+  // their targets.
+  for (int round = 0; round < 3; ++round) {
+    for (int half = 0; half < 2; ++half) {
+      const Axis& axis = axes[half];
+      if (!axis.active) continue;
+      const double removed = net_push(axis) - axis.target;
+      if (!(removed > 1e-12 * (1.0 + std::abs(axis.target)))) continue;
+      const int start = 3 * half;
+      // A force along the motion changes the push by itself (g . e = 1); taken from the spring
+      // and the wrench where they push, in proportion, the rest held by a counter-force.
+      const double spring_pushes = std::max(spring.dot(axis.g), 0.0);
+      const double wrench_pushes = std::max(wrench.dot(axis.g), 0.0);
       const double pushes = spring_pushes + wrench_pushes;
       const double from_terms = std::min(removed, pushes);
       if (from_terms > 0.0) {
-        spring.segment<3>(start) -= (from_terms * spring_pushes / pushes) * direction;
-        wrench.segment<3>(start) -= (from_terms * wrench_pushes / pushes) * direction;
+        spring.segment<3>(start) -= (from_terms * spring_pushes / pushes) * axis.direction;
+        wrench.segment<3>(start) -= (from_terms * wrench_pushes / pushes) * axis.direction;
       }
-      law.damping_force.segment<3>(start) -= (removed - from_terms) * direction;
+      law.damping_force.segment<3>(start) -= (removed - from_terms) * axis.direction;
     }
-    if (speed > cap) {
-      const double strength = state_.damping.diagonal().segment<3>(start).mean();
-      law.damping_force.segment<3>(start) -= (strength * (speed - cap)) * direction;
-      safety.braking = true;
-    }
-  };
-  govern(0, caps.translation, safety.translation_drive_scale);
-  govern(3, caps.rotation, safety.rotation_drive_scale);
+  }
 }
 
 // The wrench that holds the payload up at the end effector's origin: m g upward and the torque of

@@ -520,9 +520,12 @@ const JointVector& ControlLoop::step(const JointVector& q, const JointVector& dq
   apply_messages(kCommandsPerCycle);
   const Parameters& parameters = controller_.parameters();
   const DynamicsParameters& dynamics = parameters.dynamics;
-  // Only the terms the options use: the model computes nothing else (never Coriolis).
-  const bool need_mass =
-      dynamics.inertia_shaped_damping || dynamics.dynamically_consistent_nullspace;
+  // Only the terms the options use: the model computes nothing else (never Coriolis). The speed
+  // caps' governor measures a push by the acceleration it causes, through M(q).
+  const MaxSpeedParameters& speed_cap = parameters.safety.max_speed;
+  const bool need_mass = dynamics.inertia_shaped_damping ||
+                         dynamics.dynamically_consistent_nullspace ||
+                         speed_cap.translation > 0.0 || speed_cap.rotation > 0.0;
   const bool need_gravity = dynamics.gravity_compensation;
   const ModelTerms terms = (need_mass ? ModelTerms::mass : ModelTerms::none) |
                            (need_gravity ? ModelTerms::gravity : ModelTerms::none);

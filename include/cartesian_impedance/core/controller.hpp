@@ -69,8 +69,8 @@ struct Targets {
 
 /// Which term of the law gave way when the torque it asked for exceeded a joint's bound
 /// (ControllerState::joint_torque_limit). The command is shaped in task space, in this order of
-/// giving way: the nullspace torque, then the Cartesian spring, then the commanded wrench, then
-/// the damping; gravity is only ever clipped. The term named was scaled by
+/// giving way: the nullspace torque, then the Cartesian spring, then the commanded wrench, then a
+/// declared payload's compensation, then the damping; gravity is only ever clipped. The term named was scaled by
 /// ActiveLimits::torque_shaping_scale (keeping its direction); the terms before it were dropped,
 /// those after it kept whole.
 enum class TorqueShaping {
@@ -78,11 +78,12 @@ enum class TorqueShaping {
   nullspace,  ///< the nullspace torque scaled
   spring,     ///< the nullspace dropped, the spring -K e scaled
   wrench,     ///< the nullspace and spring dropped, the commanded wrench scaled
+  payload,    ///< the wrench dropped too, the payload's compensation (payload.*) scaled
   damping,    ///< only damping and gravity left, the damping scaled
   gravity,    ///< not even gravity fits: it is clipped per joint
 };
 
-/// "none", "nullspace", "spring", "wrench", "damping", "gravity".
+/// "none", "nullspace", "spring", "wrench", "payload", "damping", "gravity".
 const char* to_string(TorqueShaping shaping) noexcept;
 
 /// Which limits shaped the commands and the last cycle. A command saturation flag says whether
@@ -395,10 +396,10 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
                        const PoseErrorLimits& clip) const noexcept;
   void fill_tank(double energy) noexcept;
   const JointMatrix& mass_with_payload(const RobotState& robot) noexcept;
-  void safety_layer(const RobotState& robot) noexcept;
+  void safety_layer(const RobotState& robot, const JointMatrix& mass, double dt) noexcept;
   void walls() noexcept;
   void cap_force() noexcept;
-  void govern_speed() noexcept;
+  void govern_speed(const RobotState& robot, const JointMatrix& mass, double dt) noexcept;
   Vector6d payload_holding_wrench() const noexcept;
   void estimate_payload(double dt) noexcept;
   void limit_torque(double dt, const RobotState* law_robot = nullptr) noexcept;
