@@ -63,7 +63,7 @@ bool same(const std::vector<Value>& a, const std::vector<Value>& b) {
   return true;
 }
 
-TEST(SafetyLock, ADdsPeerCannotSwitchTheCapsOffWhileTheyAreLocked) {
+TEST(Ros2SafetyLock, ADdsPeerCannotSwitchTheCapsOffWhileTheyAreLocked) {
   test::use_private_domain();
   NodeProcess node({"--ros-args", "--params-file", sim_params()});
   Peer peer(0x5eed000000000010ull);
@@ -144,7 +144,7 @@ TEST(SafetyLock, ADdsPeerCannotSwitchTheCapsOffWhileTheyAreLocked) {
   EXPECT_EQ(node.log().find("changed while the controller runs"), std::string::npos) << node.log();
 }
 
-TEST(SafetyLock, UnlockedByTheNodesConfigurationEachChangeIsLoggedAsAWarning) {
+TEST(Ros2SafetyLock, UnlockedByTheNodesConfigurationEachChangeIsLoggedAsAWarning) {
   test::use_private_domain();
   NodeProcess node(
       {"--ros-args", "--params-file", sim_params(), "-p", "allow_runtime_safety_changes:=true"});
@@ -217,7 +217,7 @@ TEST(SafetyLock, UnlockedByTheNodesConfigurationEachChangeIsLoggedAsAWarning) {
 // Issue 41, item 1: a stiffness sent on set_cartesian_stiffness, then a set of an unrelated
 // parameter (filter.pose.time) at once: the set used to send every parameter as read before the
 // topic's stiffness was applied, reverting it. 30 times, alternating the filter time.
-TEST(SafetyLock, ATopicStiffnessIsNotRevertedByAnUnrelatedSet) {
+TEST(Ros2SafetyLock, ATopicStiffnessIsNotRevertedByAnUnrelatedSet) {
   test::use_private_domain();
   NodeProcess node({"--ros-args", "--params-file", sim_params()});
   Peer peer(0x5eed000000000012ull);
