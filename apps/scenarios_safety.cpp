@@ -407,18 +407,25 @@ void speed_cap(const RobotSetup& robot, Outcome& outcome, const MomentCallback& 
   const Eigen::Vector3d velocity = (hand.flange().position - before) / 0.02;
   const ControllerState& state = hand.loop().state().controller;
   const Matrix6d damping = state.damping_base();
-  const double brake_strength = state.damping.diagonal().head<3>().mean();
   const double speed = velocity.norm();
-  // What the law predicts from the twist it measured this cycle (J dq).
+  // What the law predicts from the twist it measured this cycle (J dq): along the motion, the
+  // damping's force or the brake's, which takes the excess speed out within kBrakeTime from the
+  // mass the end effector has along its motion, m = 1 / (e^T J M^-1 J^T e), whichever is larger.
   const Eigen::Vector3d twist = (jacobian_now(hand) * hand.sim().dq()).head<3>();
-  const Eigen::Vector3d predicted =
-      -damping.topLeftCorner<3, 3>() * twist -
-      brake_strength * std::max(twist.norm() - push_cap, 0.0) * twist.normalized();
+  const Eigen::Vector3d along = twist.normalized();
+  const double free_mass = free_mass_along(hand, along);
+  const double brake_strength = free_mass / CartesianImpedanceController::kBrakeTime;
+  const double damping_force = along.dot(damping.topLeftCorner<3, 3>() * twist);
+  const double held = CartesianImpedanceController::kSpeedCapAim * push_cap;
+  const double predicted =
+      std::max(damping_force, brake_strength * std::max(twist.norm() - held, 0.0));
   const Eigen::Vector3d opposing = cartesian_force(hand);
   notify(moment, "pushed faster than the cap", hand,
          {format("teaching (no spring); a %.3g N push against %.3g N s/m of damping would reach "
-                 "%.2f m/s; above the %.2g m/s cap the brake adds %.3g N s/m: %.2f m/s",
-                 push, floor, push / floor, push_cap, brake_strength, speed)});
+                 "%.2f m/s; above the %.2g m/s cap the brake takes (v - c) m / %.3g s, %.3g N s/m: "
+                 "%.2f m/s",
+                 push, floor, push / floor, push_cap, CartesianImpedanceController::kBrakeTime,
+                 brake_strength, speed)});
   hand.release();
   const Eigen::Vector3d released = hand.flange().position;
   hand.run(1.0);
@@ -472,20 +479,23 @@ void speed_cap(const RobotSetup& robot, Outcome& outcome, const MomentCallback& 
               format("bound: 1.1 x the cap; without it the damping alone would let it reach "
                      "F / d = %.2g m/s",
                      wrench / floor)));
-  // Steady under the push: F = d v + D_b (v - c) (d the damping along the motion, D_b the
-  // brake's); the joints' friction and the simulated joints' own damping only take from F.
-  // 5 % for the arm's inertia, which changes along the way.
-  const double steady = (push + brake_strength * push_cap) / (floor + brake_strength);
+  // Steady under the push: F = max(d v, D_b (v - a c)) (d the damping along the motion, D_b the
+  // brake's, m / kBrakeTime, a = kSpeedCapAim), so v = min(F / d, a c + F / D_b); the joints'
+  // friction and the simulated joints' own damping only take from F. 5 % for the arm's inertia,
+  // which changes along the way.
+  const double steady = std::min(push / floor, held + push / brake_strength);
   outcome.results.push_back(at_most(
       kName, format("%.3g N push while teaching: speed, cap %.2g m/s", push, push_cap),
       1.05 * steady, speed, "m/s",
-      format("bound: (F + D_b c) / (d + D_b) + 5 %%, damping and the brake's damping beyond the "
-             "cap (without the brake: F / d = %.2g m/s)",
-             push / floor)));
+      format("bound: min(F / d, a c + F / D_b) + 5 %%, the damping or the brake beyond a = %.2g "
+             "of the cap, "
+             "whichever is stronger (without the brake: F / d = %.2g m/s)",
+             CartesianImpedanceController::kSpeedCapAim, push / floor)));
   outcome.results.push_back(
-      compare(kName, "force opposing that push / -(D v + D_b (|v| - c))", 1.0,
-              opposing.dot(u) / predicted.dot(u), "", 0.01,
-              "the braking force depends on the speed alone: a spring would add K x the travel"));
+      compare(kName, "force opposing that push / max(D v, m (|v| - a c) / kBrakeTime)", 1.0,
+              -opposing.dot(along) / predicted, "", 0.05,
+              "the braking force depends on the speed alone (a spring would add K x the travel); "
+              "5 % for the nullspace damping's push along the motion, which the brake holds too"));
   outcome.results.push_back(at_most(kName, "spring-back after that push (none: no stiffness)", 1.0,
                                     1e3 * spring_back, "mm"));
 }
@@ -578,7 +588,9 @@ void workspace(const RobotSetup& robot, Outcome& outcome, const MomentCallback& 
       entry_force_rate = kForever;
       for (int i = 0; i < lever.size(); ++i) {
         if (std::abs(lever[i]) > 1e-9)
-          entry_force_rate = std::min(entry_force_rate, rates[i] / std::abs(lever[i]));
+          entry_force_rate =
+              std::min(entry_force_rate, CartesianImpedanceController::kWallRateShare * rates[i] /
+                                             std::abs(lever[i]));
       }
     }
     deepest = std::max(deepest, now);
@@ -627,9 +639,10 @@ void workspace(const RobotSetup& robot, Outcome& outcome, const MomentCallback& 
   const double stiffness = parameters.stiffness.translation[axis];
   // Beyond the face the flange moves outward, so the wall's spring and damper both act:
   // m x'' = F - F_wall - d x', from x = 0 at the speed it crossed with, where F_wall goes toward
-  // K_wall x + D_wall x' no faster than the joints' torque-rate limits let a force along the push
-  // change (the damper's force starts as a step of D_wall v at the face: 45 N on the Panda, which
-  // the rate limit spreads over some 20 ms). The deepest point of that motion, with m the most
+  // K_wall x + D_wall x' no faster than the share of the joints' torque-rate limits the controller
+  // gives a wall (kWallRateShare) lets a force along the push change (the damper's force starts as
+  // a step of D_wall v at the face: 45 N on the Panda, which the rate limit spreads over some
+  // 20 ms). The deepest point of that motion, with m the most
   // mass the flange can carry there (mass_along) and without the simulated joints' own damping
   // and friction, which only shorten it; plus what friction can hold against the wall.
   double x = 0.0, v = entry_speed, predicted = 0.0, wall_force = 0.0;

@@ -156,10 +156,11 @@ TEST(WallEnvelope, TheSpeedGovernorTakesTheWallsPush) {
   robot.pose.position.x() = 0.3;
   controller.start(robot);
   robot.pose.position.x() = 0.37;  // 2 cm outside, the wall pushes -40 N
-  robot.dq = six(-0.1, 0, 0, 0, 0, 0);  // moving back in at the cap
+  const double held = ci::CartesianImpedanceController::kSpeedCapAim * 0.1;
+  robot.dq = six(-held, 0, 0, 0, 0, 0);  // moving back in at the speed the governor holds
   ASSERT_EQ(controller.update(robot, kDt), ci::Status::ok);
   EXPECT_NEAR(controller.torque()[0], 0.0, 1e-9) << "at the cap nothing pushes along the motion";
-  robot.dq = six(-0.09, 0, 0, 0, 0, 0);  // halfway through the band: half the push
+  robot.dq = six(-0.9 * held, 0, 0, 0, 0, 0);  // halfway through the band: half the push
   ASSERT_EQ(controller.update(robot, kDt), ci::Status::ok);
   EXPECT_NEAR(controller.torque()[0], -20.0, 1e-9);
   robot.dq = six(0.05, 0, 0, 0, 0, 0);  // moving out: the wall's push against the motion stays

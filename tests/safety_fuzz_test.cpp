@@ -414,6 +414,13 @@ double stored_energy(scenarios::Rig& rig) {
   const ci::WorkspaceParameters& box = safety.workspace_in_force;
   const Eigen::Vector3d& p = controller.pose.position;
   const double wall = 0.5 * box.stiffness * (p - p.cwiseMax(box.min).cwiseMin(box.max)).squaredNorm();
+  if (std::getenv("ENERGY_DEBUG") != nullptr) {
+    std::cout << "E kin " << kinetic << " spring "
+              << clipped(error.head<3>().norm(), safety.pose_error_in_force.translation, k[0]) << " rot "
+              << clipped(error.tail<3>().norm(), safety.pose_error_in_force.rotation, k[3]) << " wall " << wall
+              << " tank " << safety.tank_level << " k " << k.transpose() << " box " << box.min.transpose() << " / "
+              << box.max.transpose() << " ks " << box.stiffness << " p " << p.transpose() << " held " << safety.settings_held << "\n";
+  }
   return kinetic + clipped(error.head<3>().norm(), safety.pose_error_in_force.translation, k[0]) +
          clipped(error.tail<3>().norm(), safety.pose_error_in_force.rotation, k[3]) + wall +
          safety.tank_level;
@@ -472,15 +479,19 @@ void schedule_composition(const scenarios::RobotSetup& robot, std::uint32_t seed
               v.limits.pose_error = {log_uniform(rng, 0.01, 1.0), log_uniform(rng, 0.01, 1.0)};
             });
             break;
-          case 2:  // faces may pass the flange, never the reference (that would move it)
+          case 2:  // faces may pass the flange, never the reference (that would move it: a
+                   // reference command, which the tank does not pay for)
             update(rig, log, time, {"safety.workspace"}, [&](ci::Parameters& v) {
+              const Eigen::Vector3d& filtered = loop.state().controller.filtered.pose.position;
               for (int i = 0; i < 3; ++i) {
                 const double low = std::min(now.position[i], reference.position[i]);
                 const double high = std::max(now.position[i], reference.position[i]);
+                const double inner_low = std::min(reference.position[i], filtered[i]) - 0.001;
+                const double inner_high = std::max(reference.position[i], filtered[i]) + 0.001;
                 v.safety.workspace.min[i] =
-                    std::min(low + uniform(rng, -0.05, 0.08), reference.position[i]);
+                    std::min(low + uniform(rng, -0.05, 0.08), inner_low);
                 v.safety.workspace.max[i] =
-                    std::max(high - uniform(rng, -0.05, 0.08), reference.position[i]);
+                    std::max(high - uniform(rng, -0.05, 0.08), inner_high);
               }
               v.safety.workspace.stiffness = log_uniform(rng, 100.0, 1e5);
               v.safety.workspace.damping = uniform(rng, 0.0, 300.0);

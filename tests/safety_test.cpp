@@ -111,8 +111,8 @@ TEST(SpeedCap, TheReferenceMovesNoFasterThanTheCap) {
   EXPECT_NEAR(controller.state().filtered.pose.position.x(), far.position.x(), 1e-15);
 }
 
-// Near the cap the spring stops pushing along the motion (linearly from 0.8 x cap, none at it);
-// the push across the motion stays.
+// Near the cap the spring stops pushing along the motion (linearly from 0.8 x the speed the
+// governor holds, kSpeedCapAim x the cap, none there); the push across the motion stays.
 TEST(SpeedCap, TheSpringStopsPushingAlongTheMotionAtTheCap) {
   ci::Parameters p = bare();
   p.stiffness.translation.setConstant(1000.0);
@@ -125,8 +125,10 @@ TEST(SpeedCap, TheSpringStopsPushingAlongTheMotionAtTheCap) {
   controller.set_reference_pose(reference);
   // The reference itself moves at the cap: 22 mm take 112 cycles.
   for (int k = 0; k < 200; ++k) ASSERT_EQ(controller.update(robot, kDt), ci::Status::ok);
-  for (const auto& [speed, kept] :
-       {std::pair{0.1, 1.0}, std::pair{0.16, 1.0}, std::pair{0.18, 0.5}, std::pair{0.2, 0.0}}) {
+  const double held = ci::CartesianImpedanceController::kSpeedCapAim * 0.2;
+  for (const auto& [fraction, kept] :
+       {std::pair{0.5, 1.0}, std::pair{0.8, 1.0}, std::pair{0.9, 0.5}, std::pair{1.0, 0.0}}) {
+    const double speed = fraction * held;
     robot.dq = six(speed, 0, 0, 0, 0, 0);
     ASSERT_EQ(controller.update(robot, kDt), ci::Status::ok);
     EXPECT_NEAR(controller.torque()[0], 10.0 * kept, 1e-9) << speed;
@@ -148,13 +150,14 @@ TEST(SpeedCap, TheCommandedWrenchStopsPushingAlongTheMotionAtTheCap) {
   ci::RobotState robot = cartesian_robot();
   controller.start(robot);
   controller.set_wrench(six(30, 0, 0, 0, 0, 0));
-  robot.dq = six(0.2, 0, 0, 0, 0, 0);
+  robot.dq = six(ci::CartesianImpedanceController::kSpeedCapAim * 0.2, 0, 0, 0, 0, 0);
   ASSERT_EQ(controller.update(robot, kDt), ci::Status::ok);
   EXPECT_NEAR(controller.torque()[0], 0.0, 1e-9);
 }
 
 // Pushed beyond the cap from outside, the arm is braked with the law's damping strength on the
-// excess speed; the spring (here zero: teaching) adds nothing.
+// speed beyond what the governor holds (kSpeedCapAim x the cap; without M(q), as here); the
+// spring (here zero: teaching) adds nothing.
 TEST(SpeedCap, ExcessSpeedIsBrakedWithDampingNotStiffness) {
   ci::Parameters p = bare();
   p.stiffness.translation.setZero();
@@ -167,10 +170,12 @@ TEST(SpeedCap, ExcessSpeedIsBrakedWithDampingNotStiffness) {
   robot.dq = six(0.0, 0.3, 0.4, 0, 0, 1.5);  // 0.5 m/s, 1.5 rad/s
   ASSERT_EQ(controller.update(robot, kDt), ci::Status::ok);
   EXPECT_TRUE(controller.state().safety.braking);
+  const double aim = ci::CartesianImpedanceController::kSpeedCapAim;
   const Eigen::Vector3d direction(0.0, 0.6, 0.8);
-  const Eigen::Vector3d force = -40.0 * Eigen::Vector3d(0.0, 0.3, 0.4) - 40.0 * 0.3 * direction;
+  const Eigen::Vector3d force =
+      -40.0 * Eigen::Vector3d(0.0, 0.3, 0.4) - 40.0 * (0.5 - aim * 0.2) * direction;
   EXPECT_LE((controller.torque().head<3>() - force).norm(), 1e-9);
-  EXPECT_NEAR(controller.torque()[5], -2.0 * 1.5 - 2.0 * 0.5, 1e-9);
+  EXPECT_NEAR(controller.torque()[5], -2.0 * 1.5 - 2.0 * (1.5 - aim * 1.0), 1e-9);
   // Below the cap only the damping acts.
   robot.dq = six(0.0, 0.1, 0.0, 0, 0, 0);
   ASSERT_EQ(controller.update(robot, kDt), ci::Status::ok);

@@ -61,7 +61,7 @@ bool CartesianImpedanceController::evaluate_law(const RobotState& robot, double 
   if (!compute_damping(robot, mass, fault)) return false;
   spring_damper(robot, dt);
   if (!nullspace(robot, mass, fault)) return false;
-  fill_tank_from_nullspace(robot, dt);
+  measure_nullspace_dissipation(robot, dt);
   commanded_wrench();
   safety_layer(robot, mass, dt);
   cartesian_torques(robot);
@@ -98,6 +98,9 @@ bool CartesianImpedanceController::evaluate_halt(const RobotState& robot, Fault&
   law_->projector.project(robot.jacobian, parameters_.nullspace.pseudo_inverse_damping, law_->tau_0,
                           state_.tau_nullspace);
   state_.tau_wrench.setZero();
+  law_->wall_force_sent.setZero();
+  law_->wall_spring_sent.setZero();
+  law_->wall_damper_sent.setZero();
   gravity(robot);
   state_.tau = state_.tau_cartesian + state_.tau_nullspace + state_.tau_gravity;
   if (state_.tau.allFinite()) return true;
@@ -211,7 +214,7 @@ void CartesianImpedanceController::spring_damper(const RobotState& robot, double
     rotate_six(rotation, spring_frame, law.spring_force);
     rotate_six(rotation, damping_frame, law.damping_force);
   }
-  fill_tank(-damping_frame.dot(velocity_frame) * dt);
+  law.dissipated_cartesian = -damping_frame.dot(velocity_frame) * dt;
 }
 
 // tau_cartesian = J^T (spring + damping, walls and brake), after the safety layer, plus the
@@ -264,17 +267,19 @@ bool CartesianImpedanceController::nullspace(const RobotState& robot, const Join
 }
 
 // What the projected nullspace damping dissipates, (dq - dq_d)^T N D_ns (dq - dq_d) dt, fills the
-// tank too, so that a raise of the nullspace stiffness paid from it is paid back by the motion it
-// causes. Only while the tank is not full (then nothing can be added): the extra projection
-// reuses the cycle's factorisation.
-void CartesianImpedanceController::fill_tank_from_nullspace(const RobotState& robot,
+// tank too (fill_tank()), so that a raise of the nullspace stiffness paid from it is paid back by
+// the motion it causes. Only while the tank is not full (then nothing can be added): the extra
+// projection reuses the cycle's factorisation.
+void CartesianImpedanceController::measure_nullspace_dissipation(const RobotState& robot,
                                                             double dt) noexcept {
   const EnergyTankParameters& tank = parameters_.safety.energy_tank;
-  if (!tank.enabled || scheduled_ || !(state_.safety.tank_level < tank.capacity)) return;
   Law& law = *law_;
+  law.dissipated_nullspace = 0.0;
+  if (!tank.enabled || scheduled_ || !(state_.safety.tank_level < tank.capacity)) return;
   law.projector.project_again(robot.jacobian, law.nullspace_damping_torque,
                               law.nullspace_damping_projected);
-  fill_tank(-(robot.dq - state_.filtered.nullspace_dq).dot(law.nullspace_damping_projected) * dt);
+  law.dissipated_nullspace =
+      -(robot.dq - state_.filtered.nullspace_dq).dot(law.nullspace_damping_projected) * dt;
 }
 
 // F in the base frame, rotated there when it is given in the end effector's; tau_wrench = J^T F
@@ -347,6 +352,7 @@ void CartesianImpedanceController::limit_torque(double dt, const RobotState* law
   limits.torque_rate_limited = limit_rate(tau_previous_, law_->max_step, state_.tau);
   saturate_torque(bound, state_.tau);
   tau_previous_ = state_.tau;
+  if (law_robot != nullptr) fill_tank(clamped);
 }
 
 // Clipping each joint's torque on its own turns the Cartesian force into one of another direction:

@@ -40,6 +40,10 @@ struct CartesianImpedanceController::Law {
   // The nullspace damping torque, before and after the projection: what it dissipates fills the
   // tank (computed while the tank is not full).
   JointVector nullspace_damping_torque, nullspace_damping_projected;
+  // What the Cartesian and the nullspace damping dissipate this cycle [J], for the tank once the
+  // torque is known (fill_tank()).
+  double dissipated_cartesian = 0.0;
+  double dissipated_nullspace = 0.0;
   // The pose error before clipping, base frame.
   Vector6d unclipped_error = Vector6d::Zero();
   // The safety envelope's terms, base frame: the workspace walls' spring and damper, the force
@@ -47,6 +51,14 @@ struct CartesianImpedanceController::Law {
   // what the nullspace torque leaks there.
   Eigen::Vector3d wall_spring = Eigen::Vector3d::Zero();
   Eigen::Vector3d wall_damper = Eigen::Vector3d::Zero();
+  // The walls' passivity observer: the force they sent last cycle, where the end effector was then,
+  // and the energy they hold (paid in by the tank or by the arm pushing in, less what they gave
+  // back) [J].
+  Eigen::Vector3d wall_force_sent = Eigen::Vector3d::Zero();
+  Eigen::Vector3d wall_spring_sent = Eigen::Vector3d::Zero();
+  Eigen::Vector3d wall_damper_sent = Eigen::Vector3d::Zero();
+  Eigen::Vector3d wall_position = Eigen::Vector3d::Zero();
+  double wall_energy = 0.0;
   Vector6d joint_wall_force = Vector6d::Zero();
   Vector6d joint_wall_force_before = Vector6d::Zero();  // before the caps
   Vector6d nullspace_leak = Vector6d::Zero();

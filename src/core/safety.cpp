@@ -22,17 +22,11 @@ double spring_energy_weight(double length, double clip) noexcept {
 }
 
 // The speed cap's governor starts taking the push along the motion away at this fraction of the
-// cap and has taken all of it at the cap. The band keeps the loop gain (push / band width, an
+// speed it holds (kSpeedCapAim x the cap) and has taken all of it there. The band keeps the loop gain (push / band width, an
 // extra damping near the cap) a few times the law's own damping, so the discrete loop stays far
 // from its stability limit.
 constexpr double kGovernorBand = 0.8;
 
-// Beyond the cap the excess speed is braked out with this time constant [s] (with M(q)), also
-// against what the arm's own motion does to the end effector (the centripetal and Coriolis
-// terms the law does not model, which a fast-turning wrist puts on the flange's translation:
-// measured 0.5 m/s^2, which a brake with the law's damping strength let carry the flange 10 %
-// past the cap). A fifth of the excess per cycle at 1 kHz: far from the discrete loop's limit.
-constexpr double kBrakeTime = 0.005;
 
 // Iterations for the largest affordable part of a change whose stored energy is not linear in it
 // (a clip, a box): enough for the Illinois method to find it to round-off on any change in range.
@@ -134,10 +128,14 @@ void CartesianImpedanceController::limit_reference_speed(double dt) noexcept {
   }
 }
 
-void CartesianImpedanceController::clip_reference_to_workspace() noexcept {
+// The commanded reference, and with `filtered` the filtered one too (at once: without a speed
+// cap nothing else brings it in).
+void CartesianImpedanceController::clip_reference_to_workspace(bool filtered) noexcept {
   const WorkspaceParameters& box = parameters_.safety.workspace;
-  bool clipped = false;
+  bool& clipped = state_.safety.reference_clipped;
+  if (!filtered) clipped = false;
   for (Targets* targets : {&state_.commanded, &state_.filtered}) {
+    if (targets == &state_.filtered && !filtered) continue;
     Eigen::Vector3d& position = targets->pose.position;
     const Eigen::Vector3d inside = position.cwiseMax(box.min).cwiseMin(box.max);
     if (inside != position) {
@@ -145,7 +143,6 @@ void CartesianImpedanceController::clip_reference_to_workspace() noexcept {
       clipped = true;
     }
   }
-  state_.safety.reference_clipped = clipped;
 }
 
 void CartesianImpedanceController::filter_payload() noexcept {
@@ -344,13 +341,44 @@ void CartesianImpedanceController::pay_workspace_change() noexcept {
   safety.tank_draw += paid;
   safety.tank_level = std::clamp(safety.tank_level - paid, 0.0,
                                  parameters_.safety.energy_tank.capacity);
+  law_->wall_energy = std::max(law_->wall_energy + paid, 0.0);
 }
 
-void CartesianImpedanceController::fill_tank(double energy) noexcept {
+// What the damping dissipated this cycle fills the tank, as far as the torque sent carried the
+// damping: a term the torque shaping scaled counts scaled, and a cycle whose torque was clamped
+// or rate-limited counts nothing (its damping was not what the law computed; counting it would
+// let the tank pay out energy the arm never lost: measured 0.3 mJ per cycle against a stiff wall
+// on a weak arm).
+void CartesianImpedanceController::fill_tank(bool clamped) noexcept {
+  Law& law = *law_;
   const EnergyTankParameters& tank = parameters_.safety.energy_tank;
+  const double cartesian = std::max(law.dissipated_cartesian, 0.0);
+  const double nullspace = std::max(law.dissipated_nullspace, 0.0);
+  law.dissipated_cartesian = law.dissipated_nullspace = 0.0;
   if (!tank.enabled || scheduled_) return;
+  const ActiveLimits& limits = state_.limits;
+  if (clamped || limits.torque_rate_limited) return;
+  double energy = 0.0;
+  switch (limits.torque_shaping) {
+    case TorqueShaping::none:
+      energy = cartesian + nullspace;
+      break;
+    case TorqueShaping::nullspace:
+      energy = cartesian + limits.torque_shaping_scale * nullspace;
+      break;
+    case TorqueShaping::spring:
+    case TorqueShaping::wrench:
+    case TorqueShaping::payload:
+      energy = cartesian;
+      break;
+    case TorqueShaping::damping:
+      energy = limits.torque_shaping_scale * cartesian;
+      break;
+    case TorqueShaping::gravity:
+      break;
+  }
   SafetyState& safety = state_.safety;
-  safety.tank_level = std::min(safety.tank_level + std::max(energy, 0.0), tank.capacity);
+  safety.tank_level = std::min(safety.tank_level + energy, tank.capacity);
 }
 
 // M(q) + Jc^T m Jc, Jc = J_v - [r]x J_w the velocity map of the payload's centre of mass (a point
@@ -388,7 +416,7 @@ void CartesianImpedanceController::safety_layer(const RobotState& robot, const J
   Law& law = *law_;
   law.joint_walls = robot.joint_wall_torque.size() == num_joints_ &&
                     !robot.joint_wall_torque.isZero(0.0);
-  walls();
+  walls(robot, dt);
   const MaxForceParameters& force_cap = parameters_.safety.max_force;
   const MaxSpeedParameters& speed_cap = parameters_.safety.max_speed;
   const bool capped = force_cap.force > 0.0 || force_cap.torque > 0.0 ||
@@ -411,28 +439,90 @@ void CartesianImpedanceController::safety_layer(const RobotState& robot, const J
   law.damping_force += law.joint_wall_force - law.joint_wall_force_before;
   law.damping_force.head<3>() += law.wall_spring + law.wall_damper;
   safety.wall_force = law.wall_spring + law.wall_damper;
+  law.wall_force_sent = safety.wall_force;
+  law.wall_spring_sent = law.wall_spring;
+  law.wall_damper_sent = law.wall_damper;
+}
+
+// A stiff wall sampled at the control rate gives back more than it stored: its force, computed
+// where the end effector is at the start of a cycle, is held for the whole cycle while the end
+// effector moves out of it (measured: a 63,000 N/m wall returned twice what it held when the end
+// effector left it by its depth within one cycle). The walls' passivity observer counts the
+// energy they hold - what the tank paid into them, what the arm did pushing into them, less the
+// work their force did over each cycle - and the spring gives back at most that within the next
+// cycle: Ryu and Hannaford's passivity controller, for the walls.
+// With the energy tank off the walls are plain springs, as everything else is then.
+void CartesianImpedanceController::keep_walls_passive(double dt) noexcept {
+  if (!parameters_.safety.energy_tank.enabled || scheduled_) return;
+  Law& law = *law_;
+  const double giving = law.wall_spring.dot(law.twist.head<3>()) * dt;  // to the arm, this cycle
+  if (giving > law.wall_energy) {
+    law.wall_spring *= std::max(law.wall_energy, 0.0) / giving;
+  }
+}
+
+// A stiff wall met at speed asks for its force faster than the joints' torque-rate limit lets it
+// come (100,000 N/m at 0.1 m/s: 10 kN/s, where the Panda's joints give about 2 kN/s at the
+// flange); clipped joint by joint, the force it gets points elsewhere and spins the wrist (measured:
+// 1.2 x the rotation cap). The walls' force changes by at most what the rate limit gives along
+// the change, min_i rate_i / |(J^T u)_i|: a wall met at speed is entered a little deeper,
+// and pushes straight. kWallRateShare of the rate goes to the walls; the rest stays for the terms
+// that hold the motion back while the wall builds up (the governor's, the damping).
+void CartesianImpedanceController::follow_the_rate_limit(const RobotState& robot,
+                                                         double dt) noexcept {
+  Law& law = *law_;
+  const Eigen::Vector3d change = law.wall_spring + law.wall_damper - law.wall_force_sent;
+  const double size = change.norm();
+  if (!(size > 0.0)) return;
+  Vector6d direction = Vector6d::Zero();
+  direction.head<3>() = change / size;
+  jacobian_transpose_times(robot.jacobian, direction, law.governor_joint);
+  double largest = std::numeric_limits<double>::infinity();
+  for (int i = 0; i < num_joints_; ++i) {
+    const double lever = std::abs(law.governor_joint[i]);
+    if (lever > 0.0) {
+      largest = std::min(largest, kWallRateShare * joint_torque_rate_limit_[i] * dt / lever);
+    }
+  }
+  if (size <= largest) return;
+  const double kept = largest / size;
+  law.wall_spring = law.wall_spring_sent + kept * (law.wall_spring - law.wall_spring_sent);
+  law.wall_damper = law.wall_damper_sent + kept * (law.wall_damper - law.wall_damper_sent);
 }
 
 // Outside the box in force a wall spring pushes the end effector's origin back, and a damper acts
 // on its motion further out. Both are part of the envelope: capped with the rest, and the spring
 // governed with the drive (the damper only ever takes energy out).
-void CartesianImpedanceController::walls() noexcept {
+void CartesianImpedanceController::walls(const RobotState& robot, double dt) noexcept {
   Law& law = *law_;
   SafetyState& safety = state_.safety;
   const Eigen::Vector3d& position = state_.pose.position;
+  // The work the walls' force did on the arm since the last cycle.
+  law.wall_energy -= law.wall_force_sent.dot(position - law.wall_position);
+  law.wall_position = position;
   const WorkspaceParameters& configured = parameters_.safety.workspace;
   safety.workspace_penetration =
       position - position.cwiseMax(configured.min).cwiseMin(configured.max);
   law.wall_spring.setZero();
   law.wall_damper.setZero();
   const WorkspaceParameters& box = safety.workspace_in_force;
-  if (!(box.stiffness > 0.0)) return;
+  if (!(box.stiffness > 0.0)) {
+    law.wall_energy = 0.0;
+    follow_the_rate_limit(robot, dt);
+    return;
+  }
   const Eigen::Vector3d penetration = position - position.cwiseMax(box.min).cwiseMin(box.max);
-  if (penetration.isZero(0.0)) return;
+  if (penetration.isZero(0.0)) {
+    law.wall_energy = 0.0;  // what a wall held and did not give back was dissipated
+    follow_the_rate_limit(robot, dt);
+    return;
+  }
   law.wall_spring = -box.stiffness * penetration;
   for (int i = 0; i < 3; ++i) {
     if (law.twist[i] * penetration[i] > 0.0) law.wall_damper[i] = -box.damping * law.twist[i];
   }
+  keep_walls_passive(dt);
+  follow_the_rate_limit(robot, dt);
 }
 
 // What presses on the environment at rest is the sum of every term the controller adds (the
@@ -533,7 +623,7 @@ void CartesianImpedanceController::govern_speed(const RobotState& robot, const J
   };
   for (int half = 0; half < 2; ++half) {
     const int start = 3 * half;
-    const double cap = half == 0 ? caps.translation : caps.rotation;
+    const double cap = kSpeedCapAim * (half == 0 ? caps.translation : caps.rotation);
     double& drive_scale = half == 0 ? safety.translation_drive_scale : safety.rotation_drive_scale;
     if (!(cap > 0.0)) continue;
     const Eigen::Vector3d velocity = law.twist.segment<3>(start);
@@ -560,28 +650,32 @@ void CartesianImpedanceController::govern_speed(const RobotState& robot, const J
     const double net = net_push(axis);
     const double predicted = speed + dt * response * net;
     // The torque-rate limit lets a push fall only so fast, rate = min_i rate_i / |(J^T e)_i| along
-    // e: until it is gone the end effector keeps speeding up, by 1/2 push^2 e^T A e / rate. The
-    // governor acts on the speed it will have reached then (measured before: a wall's 50 N push,
-    // rate-limited on its way out, carried the flange 10 % past the cap).
-    double reached = speed;
-    if (response > 0.0 && net > 0.0) {
+    // e: until it is gone the end effector keeps speeding up, by 1/2 push^2 e^T A e / rate. So
+    // the push may be at most sqrt(2 rate (cap - v) / e^T A e), from which the rate limit can
+    // still take it out before the cap (measured before: a wall's 50 N push, rate-limited on its
+    // way out, carried the flange 10 % past the cap).
+    double rate = std::numeric_limits<double>::infinity();
+    if (response > 0.0) {
       jacobian_transpose_times(robot.jacobian, along, law.governor_joint);
-      double rate = std::numeric_limits<double>::infinity();
       for (int i = 0; i < num_joints_; ++i) {
         const double lever = std::abs(law.governor_joint[i]);
         if (lever > 0.0) rate = std::min(rate, joint_torque_rate_limit_[i] / lever);
       }
-      reached += 0.5 * net * net * response / rate;
     }
+    const double reached =
+        response > 0.0 && net > 0.0 ? speed + 0.5 * net * net * response / rate : speed;
     if (std::max(reached, predicted) <= kGovernorBand * cap) continue;
-    drive_scale = std::clamp((cap - reached) / ((1.0 - kGovernorBand) * cap), 0.0, 1.0);
+    drive_scale = std::clamp((cap - speed) / ((1.0 - kGovernorBand) * cap), 0.0, 1.0);
     axis.target = net - (1.0 - drive_scale) * std::max(drive_push, 0.0);
     if (response > 0.0) {
-      // Below the cap the net push may bring the speed up to it within the cycle; above it, it
-      // must take the excess out within kBrakeTime.
-      const double allowed = speed <= cap ? (cap - speed) / (dt * response)
-                                          : -std::min(dt / kBrakeTime, 1.0) * (speed - cap) /
-                                                (dt * response);
+      // Below the cap the net push may bring the speed up to it within the cycle, and no faster
+      // than the rate limit can take it out again; above it, it must take the excess out within
+      // kBrakeTime.
+      const double room = cap - speed;
+      const double allowed =
+          room >= 0.0
+              ? std::min(room / (dt * response), std::sqrt(2.0 * rate * room / response))
+              : std::min(dt / kBrakeTime, 1.0) * room / (dt * response);
       axis.target = std::min(axis.target, allowed);
     } else if (speed > cap) {
       // Without M(q): a brake with the law's own damping strength.
