@@ -535,8 +535,12 @@ Outcome wrench_on_table(const RobotSetup& robot, const MomentCallback& moment) {
   // At rest J^T (F_commanded + F_contact) = tau_friction: the joints' Coulomb friction may hold
   // up to its band along z (it stopped the arm where the table did), plus 5 % for the contact
   // solver's step-to-step ripple. DART's hard contact stops the arm at once, so there the band
-  // shows (UR5e: 0.72 N of its 0.8 N band); MuJoCo's soft contact lets it settle.
-  const double band = friction_band(rig).force_along.z();
+  // shows (UR5e: 0.72 N of its 0.8 N band); MuJoCo's soft contact lets it settle. The band where
+  // the arm rests on the table; an arm that is not on it (a broken controller's, wherever it
+  // went) is held to the band above the table, not to one of a configuration that may be near
+  // a singularity, where the band grows without bound.
+  const bool on_the_table = average > 0.0;
+  const double band = on_the_table ? friction_band(rig).force_along.z() : probe_band;
   return {{compare("wrench", format("contact force under a commanded %.3g N", force), force,
                    average, "N", 0.05 * force + band, load_note(10.0, force, "N"))},
           rig.samples()};

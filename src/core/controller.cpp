@@ -279,6 +279,8 @@ void CartesianImpedanceController::start(const RobotState& robot,
   law_->wall_spring_sent.setZero();
   law_->wall_damper_sent.setZero();
   law_->wall_energy = 0.0;
+  law_->expecting = false;
+  law_->disturbance.setZero();
   refresh_damping_mode();
   state_.pose = pose;
   state_.tau = tau_previous;
@@ -532,6 +534,8 @@ Status CartesianImpedanceController::fail_closed(Status status, const Fault& fau
   state_.tau_nullspace.setZero();
   state_.tau_wrench.setZero();
   // The walls' observer counts no work while they do not act; they start again from nothing.
+  // Nor does the governor's disturbance observer.
+  law_->expecting = false;
   law_->wall_force_sent.setZero();
   law_->wall_spring_sent.setZero();
   law_->wall_damper_sent.setZero();
@@ -647,10 +651,11 @@ Status CartesianImpedanceController::cycle(const RobotState& robot, double dt,
   clip_reference_to_workspace(false);
   filter_targets();
   limit_reference_speed(dt);
-  clip_reference_to_workspace(!(parameters_.safety.max_speed.translation > 0.0));
+  if (!(parameters_.safety.max_speed.translation > 0.0)) clip_reference_to_workspace(true);
   Fault fault;
   if (!evaluate_law(robot, dt, fault)) return fail_closed(Status::numerical_error, fault, dt);
   limit_torque(dt, &robot);
+  expect_acceleration(robot);
   state_.status = Status::ok;
   state_.fault = Fault{};
   return state_.status;

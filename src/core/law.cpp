@@ -101,6 +101,7 @@ bool CartesianImpedanceController::evaluate_halt(const RobotState& robot, Fault&
   law_->wall_force_sent.setZero();
   law_->wall_spring_sent.setZero();
   law_->wall_damper_sent.setZero();
+  law_->expecting = false;
   gravity(robot);
   state_.tau = state_.tau_cartesian + state_.tau_nullspace + state_.tau_gravity;
   if (state_.tau.allFinite()) return true;

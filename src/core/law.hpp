@@ -65,6 +65,14 @@ struct CartesianImpedanceController::Law {
   bool joint_walls = false;
   // Scratch space of the speed governor (a joint torque).
   JointVector governor_joint;
+  // The speed governor's disturbance observer: the end effector's twist and the acceleration the
+  // torque sent should have given it (J M^-1 tau), both of the last cycle, and the low-passed
+  // difference to the acceleration measured since: what the law does not model (the centripetal
+  // and Coriolis terms, the rate limit's and the shaping's changes to the torque, a push).
+  Vector6d twist_before = Vector6d::Zero();
+  Vector6d expected_acceleration = Vector6d::Zero();
+  Vector6d disturbance = Vector6d::Zero();
+  bool expecting = false;
   // The filtered reference before this cycle's filter step: the speed cap limits the step.
   Pose reference_before;
   // M(q) with the payload's inertia (payload.mass > 0 and a dynamic option on), and the

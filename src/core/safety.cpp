@@ -27,6 +27,10 @@ double spring_energy_weight(double length, double clip) noexcept {
 // from its stability limit.
 constexpr double kGovernorBand = 0.8;
 
+// The governor's disturbance observer averages over this time [s]: a few cycles at 1 kHz, well
+// inside the brake's kBrakeTime.
+constexpr double kDisturbanceTime = 0.003;
+
 
 // Iterations for the largest affordable part of a change whose stored energy is not linear in it
 // (a clip, a box): enough for the Illinois method to find it to round-off on any change in range.
@@ -571,6 +575,21 @@ void CartesianImpedanceController::cap_force() noexcept {
   law.wall_damper *= safety.force_scale;
 }
 
+// What the torque sent this cycle should do to the end effector, J M^-1 (tau - g), for the
+// governor's disturbance observer (gravity is held by the firmware or by the law's g(q)).
+void CartesianImpedanceController::expect_acceleration(const RobotState& robot) noexcept {
+  Law& law = *law_;
+  const MaxSpeedParameters& caps = parameters_.safety.max_speed;
+  TaskInertia& inertia = law.inertia_damping.inertia();
+  law.expecting = (caps.translation > 0.0 || caps.rotation > 0.0) && inertia.valid();
+  if (!law.expecting) return;
+  JointVector& torque = law.governor_joint;
+  torque = state_.tau;
+  if (parameters_.dynamics.gravity_compensation) torque -= robot.gravity;
+  inertia.acceleration(torque, law.expected_acceleration);
+  law.twist_before = law.twist;
+}
+
 // Near the speed cap the sum stops pushing along the motion (from kGovernorBand x cap, all of it
 // at the cap), whatever term pushes: the spring, the commanded wrench, a wall, a joint-limit wall,
 // the nullspace torque or an uncarried payload's compensation. A push is measured by what it does
@@ -596,6 +615,15 @@ void CartesianImpedanceController::govern_speed(const RobotState& robot, const J
   const Vector6d payload = safety.payload_mass > 0.0 ? payload_holding_wrench() : Vector6d::Zero();
   TaskInertia& inertia = law.inertia_damping.inertia();
   if (!inertia.valid() && mass.rows() == num_joints_) inertia.compute(robot.jacobian, mass);
+  // What accelerated the end effector since the last cycle beyond what the torque sent should
+  // have: low-passed over kDisturbanceTime, so that measurement noise does not drive it.
+  if (law.expecting) {
+    const Vector6d measured = (law.twist - law.twist_before) / dt;
+    const double a = std::min(dt / kDisturbanceTime, 1.0);
+    law.disturbance = (1.0 - a) * law.disturbance + a * (measured - law.expected_acceleration);
+  } else {
+    law.disturbance.setZero();
+  }
   // What the joint torques besides J^T F do to the end effector: the nullspace torque and the
   // joint-limit walls (their task-space force's change by the caps is among the forces below).
   Vector6d joint_acceleration = Vector6d::Zero();
@@ -605,8 +633,13 @@ void CartesianImpedanceController::govern_speed(const RobotState& robot, const J
     if (law.joint_walls) torque += robot.joint_wall_torque;
     inertia.acceleration(torque, joint_acceleration);
   }
+  // The walls' damper too: it takes energy out along the wall, but a large one turns into a
+  // push on the other half through the arm's inertia (measured: a 99 N wall damper spun the wrist
+  // past its cap while the governor, which did not count it, believed it was braking).
   Vector6d forces = law.joint_wall_force - law.joint_wall_force_before;
   forces.head<3>() += law.wall_spring;
+  Vector6d wall_damper = Vector6d::Zero();
+  wall_damper.head<3>() = law.wall_damper;
   // Per half (translation, rotation): the direction of the motion, the force g with which g . F
   // is a force's push, the pushes that do not change (joint torques, payload), and the net push
   // the governor leaves.
@@ -619,7 +652,8 @@ void CartesianImpedanceController::govern_speed(const RobotState& robot, const J
   };
   Axis axes[2];
   const auto net_push = [&](const Axis& axis) {
-    return (spring + wrench + forces + law.damping_force).dot(axis.g) + axis.fixed_push;
+    return (spring + wrench + forces + wall_damper + law.damping_force).dot(axis.g) +
+           axis.fixed_push;
   };
   for (int half = 0; half < 2; ++half) {
     const int start = 3 * half;
@@ -648,7 +682,10 @@ void CartesianImpedanceController::govern_speed(const RobotState& robot, const J
     const double drive_push =
         (spring + wrench + forces).dot(axis.g) + axis.fixed_push;
     const double net = net_push(axis);
-    const double predicted = speed + dt * response * net;
+    // A disturbance along the motion counts as a push the governor has to hold too (never one
+    // against it: the governor does not lean on what it cannot see).
+    const double disturbed = std::max(along.dot(law.disturbance), 0.0);
+    const double predicted = speed + dt * (response * net + disturbed);
     // The torque-rate limit lets a push fall only so fast, rate = min_i rate_i / |(J^T e)_i| along
     // e: until it is gone the end effector keeps speeding up, by 1/2 push^2 e^T A e / rate. So
     // the push may be at most sqrt(2 rate (cap - v) / e^T A e), from which the rate limit can
@@ -676,7 +713,7 @@ void CartesianImpedanceController::govern_speed(const RobotState& robot, const J
           room >= 0.0
               ? std::min(room / (dt * response), std::sqrt(2.0 * rate * room / response))
               : std::min(dt / kBrakeTime, 1.0) * room / (dt * response);
-      axis.target = std::min(axis.target, allowed);
+      axis.target = std::min(axis.target, allowed - disturbed / response);
     } else if (speed > cap) {
       // Without M(q): a brake with the law's own damping strength.
       axis.target -= state_.damping.diagonal().segment<3>(start).mean() * (speed - cap);

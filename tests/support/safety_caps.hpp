@@ -110,7 +110,8 @@ struct Acted {
     wall |= s.workspace_penetration.norm() > 0.0 && s.wall_force.norm() > 0.0;
     tank_short |= s.stiffness_change_scale < 1.0 && s.tank_draw > 0.0;
     payload |= s.payload_mass > 0.0;
-    payload_estimate |= s.payload_estimate_valid;
+    // Settled, the estimate ran to its end: valid, or found a contact.
+    payload_estimate |= s.payload_estimate_valid || s.static_wrench_unexplained;
   }
 
   /// The names of the parts that never acted ("" if all did); the payload estimate only if

@@ -420,6 +420,7 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   void keep_walls_passive(double dt) noexcept;
   void cap_force() noexcept;
   void govern_speed(const RobotState& robot, const JointMatrix& mass, double dt) noexcept;
+  void expect_acceleration(const RobotState& robot) noexcept;
   Vector6d payload_holding_wrench() const noexcept;
   void estimate_payload(double dt) noexcept;
   void limit_torque(double dt, const RobotState* law_robot = nullptr) noexcept;
