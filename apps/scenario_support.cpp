@@ -308,18 +308,6 @@ double mass_along(Rig& rig, const Eigen::Vector3d& direction) {
   return direction.dot(inertia.topLeftCorner<3, 3>() * direction);
 }
 
-double free_mass_along(Rig& rig, const Eigen::Vector3d& direction) {
-  ModelWorkspace workspace(rig.model());
-  Kinematics kinematics = workspace.make_kinematics();
-  workspace.compute(rig.sim().q(), rig.sim().dq(), kinematics, true);
-  JointMatrix mass = kinematics.mass;
-  mass.diagonal() += rig.sim().armature();
-  const Eigen::MatrixXd& jacobian = kinematics.jacobian;
-  const Eigen::Vector3d unit = direction.normalized();
-  const Eigen::VectorXd lever = jacobian.topRows<3>().transpose() * unit;
-  return 1.0 / lever.dot(mass.ldlt().solve(lever));
-}
-
 // The joint positions that reach the pose `target` from q by a few Gauss-Newton steps (J^+ e)
 // with every joint `margin` inside its limits on the way, if they do.
 std::optional<JointVector> reach(const RobotModel& model, JointVector q, const Pose& target,

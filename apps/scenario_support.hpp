@@ -141,10 +141,6 @@ void run_measured(Rig& rig, double seconds, const std::function<void(double spee
 /// rotors' inertia. Holding fewer directions meets less mass.
 double mass_along(Rig& rig, const Eigen::Vector3d& direction);
 
-/// The mass [kg] a force along `direction` (base frame) at the flange accelerates along it with
-/// every other direction free: 1 / (e^T J M^-1 J^T e), M with the simulated rotors' inertia. What
-/// the speed cap's brake works against (CartesianImpedanceController::kBrakeTime).
-double free_mass_along(Rig& rig, const Eigen::Vector3d& direction);
 
 /// The joint positions [rad or m] that reach the flange pose `target` (base frame) from `q` by
 /// a few Gauss-Newton steps (J^+ e), every joint `margin` [rad or m] inside its limits on the

@@ -65,7 +65,6 @@ const std::vector<std::string> kSpeedChecks = {
     "trajectory: peak speed, cap",
     "no spring: peak speed, cap",
     "push while teaching: speed, cap",
-    "force opposing that push",
 };
 const std::vector<std::string> kForceChecks = {
     "table, reference jumps: peak force, caps",

@@ -21,7 +21,7 @@ namespace scenarios = cartesian_impedance::scenarios;
 namespace {
 
 constexpr double kDt = 0.001;
-constexpr double kSpeedMargin = 1.1;  // the speed cap's promise: at most 10 % above it
+constexpr double kSpeedMargin = 1.1;   // the speed cap's promise: at most 10 % above it
 constexpr double kForceMargin = 1.05;  // settled force: the joints' friction holds a few percent
 
 scenarios::RobotSetup panda() {
@@ -67,10 +67,10 @@ double penetration(const Eigen::Vector3d& position, const ci::WorkspaceParameter
 
 struct BoxCase {
   const char* name;
-  double outside;          // [m] how far past the box the flange is
-  double wall_stiffness;   // [N/m]
-  double speed_cap;        // [m/s]
-  bool at_start;           // the configuration's box, not a run-time move
+  double outside;         // [m] how far past the box the flange is
+  double wall_stiffness;  // [N/m]
+  double speed_cap;       // [m/s]
+  bool at_start;          // the configuration's box, not a run-time move
 };
 
 class BoxPastTheFlange : public ::testing::TestWithParam<BoxCase> {};
@@ -102,14 +102,14 @@ TEST_P(BoxPastTheFlange, TheFlangeComesInNoFasterThanTheCap) {
   ::testing::Test::RecordProperty("peak_speed", std::to_string(peak));
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Panda, BoxPastTheFlange,
-    ::testing::Values(BoxCase{"moved_15cm", 0.15, 2000.0, 0.25, false},
-                      BoxCase{"moved_30cm", 0.30, 2000.0, 0.25, false},
-                      BoxCase{"moved_15cm_wall_1e5", 0.15, 1e5, 0.25, false},
-                      BoxCase{"moved_15cm_panda_yaml_cap", 0.15, 2000.0, 1.0, false},
-                      BoxCase{"configured_15cm", 0.15, 2000.0, 0.25, true}),
-    [](const auto& info) { return std::string(info.param.name); });
+INSTANTIATE_TEST_SUITE_P(Panda, BoxPastTheFlange,
+                         ::testing::Values(BoxCase{"moved_15cm", 0.15, 2000.0, 0.25, false},
+                                           BoxCase{"moved_30cm", 0.30, 2000.0, 0.25, false},
+                                           BoxCase{"moved_15cm_wall_1e5", 0.15, 1e5, 0.25, false},
+                                           BoxCase{"moved_15cm_panda_yaml_cap", 0.15, 2000.0, 1.0,
+                                                   false},
+                                           BoxCase{"configured_15cm", 0.15, 2000.0, 0.25, true}),
+                         [](const auto& info) { return std::string(info.param.name); });
 
 // ---- 2. A declared payload that is not carried -----------------------------------------------
 
@@ -145,7 +145,8 @@ TEST(PayloadNotCarried, PressesACeilingWithAtMostTheCap) {
   loop.set_wrench((ci::Vector6d() << 0, 0, 30, 0, 0, 0).finished());
   runner.run_for(3.0);
   double settled = 0.0;
-  runner.run_for(0.5, [&](std::int64_t) { settled += sim.contact_wrench("bar").head<3>().norm() / 500.0; });
+  runner.run_for(
+      0.5, [&](std::int64_t) { settled += sim.contact_wrench("bar").head<3>().norm() / 500.0; });
   EXPECT_GT(settled, 20.0) << "the bar presses the ceiling";
   EXPECT_LE(settled, kForceMargin * 40.0);
   ::testing::Test::RecordProperty("settled_force", std::to_string(settled));
@@ -217,8 +218,8 @@ double stored_energy(scenarios::Rig& rig) {
   ci::Kinematics kinematics = workspace.make_kinematics();
   workspace.compute(state.q, state.dq, kinematics, ci::ModelTerms::mass);
   ci::JointMatrix mass = kinematics.mass;
-  mass.diagonal() += ci::per_joint(loop.controller().parameters().dynamics.armature,
-                                   rig.model().num_joints());
+  mass.diagonal() +=
+      ci::per_joint(loop.controller().parameters().dynamics.armature, rig.model().num_joints());
   const double kinetic = 0.5 * state.dq.dot(mass * state.dq);
   const ci::Vector6d error = ci::pose_error(controller.pose, controller.filtered.pose);
   const ci::Vector6d k = controller.filtered.stiffness.diagonal();
@@ -227,7 +228,8 @@ double stored_energy(scenarios::Rig& rig) {
                           : stiffness * clip * (length - 0.5 * clip);
   };
   const ci::SafetyState& safety = controller.safety;
-  return kinetic + clipped_spring(error.head<3>().norm(), safety.pose_error_in_force.translation, k[0]) +
+  return kinetic +
+         clipped_spring(error.head<3>().norm(), safety.pose_error_in_force.translation, k[0]) +
          clipped_spring(error.tail<3>().norm(), safety.pose_error_in_force.rotation, k[3]) +
          safety.tank_level;
 }
@@ -310,8 +312,8 @@ TEST(PayloadEstimate, AReferenceInsideATableIsNoPayload) {
   const scenarios::RobotSetup robot = panda();
   ci::Parameters p = scenarios::base_parameters(robot);
   p.stiffness.translation.setConstant(1000.0);
-  const ci::sim::Box table = ci::sim::Box::table(Eigen::Vector2d(0.3069, 0.0),
-                                                 Eigen::Vector2d(0.1, 0.1), 0.5903 - 0.03);
+  const ci::sim::Box table =
+      ci::sim::Box::table(Eigen::Vector2d(0.3069, 0.0), Eigen::Vector2d(0.1, 0.1), 0.5903 - 0.03);
   scenarios::Rig rig(robot, p, {table});
   rig.run(0.2);
   ci::Pose reference = rig.flange();

@@ -392,8 +392,7 @@ TEST(ParameterUpdate, NamesThatAreNoRowsAreRefused) {
   const std::string message =
       message_of([] { ci::ParameterUpdate::of(ci::Parameters{}, {"safety.max_sped"}); });
   EXPECT_NE(message.find("unknown parameter 'safety.max_sped'"), std::string::npos) << message;
-  EXPECT_EQ(ci::ParameterUpdate::of(ci::Parameters{}, {"safety.max_speed"}).row_names().size(),
-            2u);
+  EXPECT_EQ(ci::ParameterUpdate::of(ci::Parameters{}, {"safety.max_speed"}).row_names().size(), 2u);
 }
 
 TEST(SafetySettings, AreTheSafetyLimitsPlausibilityAndPayloadRows) {

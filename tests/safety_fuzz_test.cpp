@@ -75,10 +75,10 @@ scenarios::RobotSetup generated_arm(int seed) {
                               "/tests/arms/generate_arm.py --seed " +
                               std::to_string(seed) + " --out " + path + " > /dev/null";
   if (std::system(command.c_str()) != 0) throw ci::Error("cannot generate arm: " + command);
-  scenarios::RobotSetup setup{"arm_seed_" + std::to_string(seed), path, "", "base_link", "tool0",
-                              "tool0", ""};
-  setup.start_q = ci::find_start_configuration(ci::RobotModel::from_urdf_file(
-                                                   path, setup.base_link, setup.tip_link))
+  scenarios::RobotSetup setup{
+      "arm_seed_" + std::to_string(seed), path, "", "base_link", "tool0", "tool0", ""};
+  setup.start_q = ci::find_start_configuration(
+                      ci::RobotModel::from_urdf_file(path, setup.base_link, setup.tip_link))
                       .q;
   return setup;
 }
@@ -128,8 +128,8 @@ ci::JointVector random_configuration(const ci::RobotModel& model, const ci::Join
 // An update of the rows named, from the parameters in force; one the loop refuses (it would
 // break a rule that ties parameters together) is logged and skipped.
 template <typename Edit>
-void update(scenarios::Rig& rig, Log& log, double time, std::initializer_list<std::string_view> rows,
-            const Edit& edit) {
+void update(scenarios::Rig& rig, Log& log, double time,
+            std::initializer_list<std::string_view> rows, const Edit& edit) {
   ci::Parameters values = rig.loop().latest_parameters();
   edit(values);
   try {
@@ -192,8 +192,8 @@ void command_composition(const scenarios::RobotSetup& robot, std::uint32_t seed,
   const double duration = 4.0, quiet = 1.5;
   double next_event = uniform(rng, 0.05, 0.3);
   bool pressed = false;
-  double worst = 0.0;     // the largest speed / cap past 1.1
-  std::string violation;  // where it was
+  double worst = 0.0;           // the largest speed / cap past 1.1
+  std::string violation;        // where it was
   std::vector<double> contact;  // the flange's contact force over the last 0.5 s [N]
   for (int k = 1; k <= static_cast<int>(duration / kDt); ++k) {
     const double time = k * kDt;
@@ -201,12 +201,12 @@ void command_composition(const scenarios::RobotSetup& robot, std::uint32_t seed,
       // The settled force: the reference into the table, a wrench down, the stiffness as it is.
       pressed = true;
       ci::Pose target = rig.flange();
-      target.position.z() = boxes.front().center.z() + boxes.front().half_size.z() -
-                            uniform(rng, 0.02, 0.1);
+      target.position.z() =
+          boxes.front().center.z() + boxes.front().half_size.z() - uniform(rng, 0.02, 0.1);
       loop.set_reference_pose(target);
       if (chance(rng, 0.5)) {
-        loop.set_wrench((ci::Vector6d() << 0, 0, -uniform(rng, 0.0, limits.wrench.force), 0, 0, 0)
-                            .finished());
+        loop.set_wrench(
+            (ci::Vector6d() << 0, 0, -uniform(rng, 0.0, limits.wrench.force), 0, 0, 0).finished());
       }
       log.add(time, "press into the table", target.position.transpose());
     }
@@ -237,11 +237,12 @@ void command_composition(const scenarios::RobotSetup& robot, std::uint32_t seed,
           case 2: {  // a full matrix
             const ci::Matrix6d root = ci::Matrix6d::Random();
             ci::Matrix6d k = root * root.transpose();
-            k *= uniform(rng, 0.0, 1.0) * limits.stiffness.translation.max / k.diagonal().maxCoeff();
-            k.bottomRightCorner<3, 3>() *= limits.stiffness.rotation.max /
-                                           limits.stiffness.translation.max;
-            k.topRightCorner<3, 3>() *= std::sqrt(limits.stiffness.rotation.max /
-                                                  limits.stiffness.translation.max);
+            k *=
+                uniform(rng, 0.0, 1.0) * limits.stiffness.translation.max / k.diagonal().maxCoeff();
+            k.bottomRightCorner<3, 3>() *=
+                limits.stiffness.rotation.max / limits.stiffness.translation.max;
+            k.topRightCorner<3, 3>() *=
+                std::sqrt(limits.stiffness.rotation.max / limits.stiffness.translation.max);
             k.bottomLeftCorner<3, 3>() = k.topRightCorner<3, 3>().transpose();
             loop.set_stiffness_matrix(k);
             log.add(time, "full stiffness");
@@ -347,21 +348,6 @@ void command_composition(const scenarios::RobotSetup& robot, std::uint32_t seed,
     if (touching) last_contact = time;
     const bool pushed = push_end > 0.0 || (last_push_end > 0.0 && time - last_push_end < 0.5) ||
                         (last_contact > 0.0 && time - last_contact < 0.2);
-    if (std::getenv("FUZZ_DEBUG") != nullptr && std::atoi(std::getenv("FUZZ_DEBUG")) == static_cast<int>(seed) &&
-        (motion.speed > 0.7 * in_force.max_speed.translation || motion.angular > 0.7 * in_force.max_speed.rotation)) {
-      const ci::SafetyState& sf = state.safety;
-      ci::ModelWorkspace ws(model);
-      ci::Kinematics kin = ws.make_kinematics();
-      ws.compute(loop.state().q, loop.state().dq, kin, ci::ModelTerms::none);
-      const ci::Vector6d tw = kin.jacobian * loop.state().dq;
-      std::cout << "t " << time << " v " << motion.speed << " Jdq " << tw.head<3>().norm() << " w " << tw.tail<3>().norm()
-                << " posdiff " << (kin.pose.position - rig.flange().position).norm() << " wdrive " << sf.rotation_drive_scale << " drive " << sf.translation_drive_scale
-                << " brake " << sf.braking << " fscale " << sf.force_scale << " shaping "
-                << ci::to_string(state.limits.torque_shaping) << " " << state.limits.torque_shaping_scale
-                << " rate " << state.limits.torque_rate_limited << " wall " << sf.wall_force.transpose()
-                << " err " << state.pose_error.head<3>().transpose() << " wrench " << state.wrench_base.head<3>().transpose()
-                << " nsnorm " << state.tau_nullspace.norm() << " jw " << sf.joint_limit_wall << "\n";
-    }
     if (!pushed && state.status == ci::Status::ok) {
       const double fraction = motion.speed / in_force.max_speed.translation;
       const double angular = motion.angular / in_force.max_speed.rotation;
@@ -413,8 +399,8 @@ double stored_energy(scenarios::Rig& rig) {
   ci::Kinematics kinematics = workspace.make_kinematics();
   workspace.compute(state.q, state.dq, kinematics, ci::ModelTerms::mass);
   ci::JointMatrix mass = kinematics.mass;
-  mass.diagonal() += ci::per_joint(loop.controller().parameters().dynamics.armature,
-                                   rig.model().num_joints());
+  mass.diagonal() +=
+      ci::per_joint(loop.controller().parameters().dynamics.armature, rig.model().num_joints());
   const double kinetic = 0.5 * state.dq.dot(mass * state.dq);
   const ci::Vector6d error = ci::pose_error(controller.pose, controller.filtered.pose);
   const ci::Vector6d k = controller.filtered.stiffness.diagonal();
@@ -426,14 +412,8 @@ double stored_energy(scenarios::Rig& rig) {
   };
   const ci::WorkspaceParameters& box = safety.workspace_in_force;
   const Eigen::Vector3d& p = controller.pose.position;
-  const double wall = 0.5 * box.stiffness * (p - p.cwiseMax(box.min).cwiseMin(box.max)).squaredNorm();
-  if (std::getenv("ENERGY_DEBUG") != nullptr) {
-    std::cout << "E kin " << kinetic << " spring "
-              << clipped(error.head<3>().norm(), safety.pose_error_in_force.translation, k[0]) << " rot "
-              << clipped(error.tail<3>().norm(), safety.pose_error_in_force.rotation, k[3]) << " wall " << wall
-              << " tank " << safety.tank_level << " k " << k.transpose() << " box " << box.min.transpose() << " / "
-              << box.max.transpose() << " ks " << box.stiffness << " p " << p.transpose() << " held " << safety.settings_held << "\n";
-  }
+  const double wall =
+      0.5 * box.stiffness * (p - p.cwiseMax(box.min).cwiseMin(box.max)).squaredNorm();
   return kinetic + clipped(error.head<3>().norm(), safety.pose_error_in_force.translation, k[0]) +
          clipped(error.tail<3>().norm(), safety.pose_error_in_force.rotation, k[3]) + wall +
          safety.tank_level;
@@ -501,10 +481,8 @@ void schedule_composition(const scenarios::RobotSetup& robot, std::uint32_t seed
                 const double high = std::max(now.position[i], reference.position[i]);
                 const double inner_low = std::min(reference.position[i], filtered[i]) - 0.001;
                 const double inner_high = std::max(reference.position[i], filtered[i]) + 0.001;
-                v.safety.workspace.min[i] =
-                    std::min(low + uniform(rng, -0.05, 0.08), inner_low);
-                v.safety.workspace.max[i] =
-                    std::max(high - uniform(rng, -0.05, 0.08), inner_high);
+                v.safety.workspace.min[i] = std::min(low + uniform(rng, -0.05, 0.08), inner_low);
+                v.safety.workspace.max[i] = std::max(high - uniform(rng, -0.05, 0.08), inner_high);
               }
               v.safety.workspace.stiffness = log_uniform(rng, 100.0, 1e5);
               v.safety.workspace.damping = uniform(rng, 0.0, 300.0);
@@ -578,8 +556,8 @@ TEST_P(SafetyFuzz, CommandsKeepTheSpeedAndForceCaps) {
   RecordProperty("worst_settled_excess_N", std::to_string(figures.worst_settled_excess));
   std::cout << "[ fuzz     ] " << robot.name << ": " << count << " command compositions, "
             << figures.over_speed << " past 1.1 x a cap; worst speed / cap "
-            << figures.worst_speed_fraction
-            << ", angular " << figures.worst_angular_fraction << ", " << figures.settled_contacts
+            << figures.worst_speed_fraction << ", angular " << figures.worst_angular_fraction
+            << ", " << figures.settled_contacts
             << " settled on a table, worst settled force - (cap + friction) "
             << figures.worst_settled_excess << " N\n";
 }
@@ -604,17 +582,16 @@ TEST_P(SafetyFuzz, ParameterSchedulesPumpNoEnergy) {
             << 100.0 * worst_relative << " % of the store)\n";
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Arms, SafetyFuzz,
-    ::testing::Values(FuzzCase{"panda", ci::sim::Engine::mujoco, 24, 12},
-                      FuzzCase{"iiwa14", ci::sim::Engine::mujoco, 24, 12},
-                      FuzzCase{"ur5e", ci::sim::Engine::mujoco, 24, 12},
-                      FuzzCase{"planar3", ci::sim::Engine::mujoco, 24, 12},
-                      FuzzCase{"arm_seed_1", ci::sim::Engine::mujoco, 16, 8},
-                      FuzzCase{"arm_seed_2", ci::sim::Engine::mujoco, 16, 8},
-                      FuzzCase{"arm_seed_3", ci::sim::Engine::mujoco, 16, 8},
-                      FuzzCase{"panda", ci::sim::Engine::dart, 12, 6},
-                      FuzzCase{"arm_seed_4", ci::sim::Engine::dart, 8, 4}),
-    case_name);
+INSTANTIATE_TEST_SUITE_P(Arms, SafetyFuzz,
+                         ::testing::Values(FuzzCase{"panda", ci::sim::Engine::mujoco, 24, 12},
+                                           FuzzCase{"iiwa14", ci::sim::Engine::mujoco, 24, 12},
+                                           FuzzCase{"ur5e", ci::sim::Engine::mujoco, 24, 12},
+                                           FuzzCase{"planar3", ci::sim::Engine::mujoco, 24, 12},
+                                           FuzzCase{"arm_seed_1", ci::sim::Engine::mujoco, 16, 8},
+                                           FuzzCase{"arm_seed_2", ci::sim::Engine::mujoco, 16, 8},
+                                           FuzzCase{"arm_seed_3", ci::sim::Engine::mujoco, 16, 8},
+                                           FuzzCase{"panda", ci::sim::Engine::dart, 12, 6},
+                                           FuzzCase{"arm_seed_4", ci::sim::Engine::dart, 8, 4}),
+                         case_name);
 
 }  // namespace

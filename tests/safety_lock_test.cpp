@@ -68,9 +68,9 @@ TEST(SafetyLock, ARunningLoopRefusesToSwitchACapOff) {
   EXPECT_EQ(running.loop.latest_state().safety_changes, 0u);
 
   // One row at a time too: each group of safety settings is locked.
-  for (const char* name : {"safety.energy_tank.enabled", "limits.joint_torque_rate",
-                           "limits.pose_error.translation", "plausibility.dt.max",
-                           "payload.mass", "limits.stiffness.translation.max"}) {
+  for (const char* name :
+       {"safety.energy_tank.enabled", "limits.joint_torque_rate", "limits.pose_error.translation",
+        "plausibility.dt.max", "payload.mass", "limits.stiffness.translation.max"}) {
     ci::Parameters values = running.loop.latest_parameters();
     values.safety.energy_tank.enabled = false;
     values.limits.joint_torque_rate = ci::JointVector::Constant(1, 1e6);
@@ -78,8 +78,8 @@ TEST(SafetyLock, ARunningLoopRefusesToSwitchACapOff) {
     values.plausibility.dt.max = 0.0005;
     values.payload.mass = 1.0;
     values.limits.stiffness.translation.max = 1e5;
-    const std::string refused = error_of(
-        [&] { running.loop.update_parameters(ci::ParameterUpdate::of(values, {name})); });
+    const std::string refused =
+        error_of([&] { running.loop.update_parameters(ci::ParameterUpdate::of(values, {name})); });
     EXPECT_NE(refused.find(std::string(name) + " = "), std::string::npos) << refused;
   }
   // What is not a safety setting still changes while the robot runs.
@@ -158,8 +158,9 @@ TEST(ParameterUpdates, AnUpdateThatNoLongerFitsIsRefusedAndCounted) {
   EXPECT_EQ(now.safety.workspace.min.x(), -10.0);
   EXPECT_EQ(running.loop.latest_state().updates_refused, 1u);
   // Sent now, the same update is refused by the sender, with the rule it breaks.
-  const std::string message = error_of(
-      [&] { running.loop.update_parameters(ci::ParameterUpdate::of(b, {"safety.workspace.min"})); });
+  const std::string message = error_of([&] {
+    running.loop.update_parameters(ci::ParameterUpdate::of(b, {"safety.workspace.min"}));
+  });
   EXPECT_NE(message.find("safety.workspace.min.x = 0.5 m is greater than safety.workspace.max.x"),
             std::string::npos)
       << message;

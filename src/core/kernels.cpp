@@ -181,8 +181,8 @@ void NullspaceProjector::project_again(const Jacobian& jacobian, const JointVect
       projected = tau - projected;
       return;
     case Path::joint:
-      joint_vector_ = joint_llt_ok_ ? JointVector(joint_llt_.solve(tau))
-                                    : JointVector(joint_ldlt_.solve(tau));
+      joint_vector_ =
+          joint_llt_ok_ ? JointVector(joint_llt_.solve(tau)) : JointVector(joint_ldlt_.solve(tau));
       projected = tau;
       projected.noalias() -= joint_gram_ * joint_vector_;
       return;
@@ -203,8 +203,8 @@ void NullspaceProjector::project_again(const Jacobian& jacobian, const JointVect
   }
 }
 
-void NullspaceProjector::task_force(const Jacobian& jacobian, double lambda,
-                                    const JointVector& tau, Vector6d& force) noexcept {
+void NullspaceProjector::task_force(const Jacobian& jacobian, double lambda, const JointVector& tau,
+                                    Vector6d& force) noexcept {
   jacobian_times(jacobian, tau, task_vector_);
   if (last_ == Path::task) {
     // The last projection factored J J^T + lambda^2 I already.

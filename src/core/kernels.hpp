@@ -77,7 +77,7 @@ class TaskInertia {
   void acceleration(const JointVector& tau, Vector6d& out) const noexcept;
 
  private:
-  JointMatrix factor_;        // L below the diagonal, D(j) L(k, j) above it
+  JointMatrix factor_;         // L below the diagonal, D(j) L(k, j) above it
   JointVector inverse_pivot_;  // D^-1
   Jacobian reduced_;           // L^-1 J^T, transposed
   Matrix6d inverse_ = Matrix6d::Zero();

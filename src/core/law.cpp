@@ -242,9 +242,11 @@ bool CartesianImpedanceController::nullspace(const RobotState& robot, const Join
   } else {
     law.nullspace_damping = (2.0 * filtered.nullspace_damping_ratio) * stiffness_ns.cwiseSqrt();
   }
-  law.nullspace_damping_torque = -law.nullspace_damping.cwiseMax(parameters_.minimum_damping.nullspace)
-                                      .cwiseProduct(robot.dq - filtered.nullspace_dq);
-  law.tau_0 = law.nullspace_damping_torque - stiffness_ns.cwiseProduct(robot.q - filtered.nullspace_q);
+  law.nullspace_damping_torque =
+      -law.nullspace_damping.cwiseMax(parameters_.minimum_damping.nullspace)
+           .cwiseProduct(robot.dq - filtered.nullspace_dq);
+  law.tau_0 =
+      law.nullspace_damping_torque - stiffness_ns.cwiseProduct(robot.q - filtered.nullspace_q);
   if (robot.secondary_torque.size() == num_joints_) law.tau_0 += robot.secondary_torque;
   const double lambda = parameters_.nullspace.pseudo_inverse_damping;
   if (parameters_.dynamics.dynamically_consistent_nullspace) {
@@ -272,7 +274,7 @@ bool CartesianImpedanceController::nullspace(const RobotState& robot, const Join
 // the motion it causes. Only while the tank is not full (then nothing can be added): the extra
 // projection reuses the cycle's factorisation.
 void CartesianImpedanceController::measure_nullspace_dissipation(const RobotState& robot,
-                                                            double dt) noexcept {
+                                                                 double dt) noexcept {
   const EnergyTankParameters& tank = parameters_.safety.energy_tank;
   Law& law = *law_;
   law.dissipated_nullspace = 0.0;

@@ -142,7 +142,8 @@ std::vector<ParameterInfo> make_table() {
       // Below a centimetre (a hundredth of a radian) the spring could not even hold the arm's
       // own friction: the clip would switch the spring off.
       {"limits.pose_error.translation", "m", 0.01, 10, false,
-       "translation error norm is clipped to this, so a far reference cannot pull violently",
+       "translation error norm is clipped to this, so a far reference cannot pull violently; a "
+       "raise while the error is beyond it is paid from the energy tank",
        [](Parameters& p) { return field_of(&p.limits.pose_error.translation); }},
       {"limits.pose_error.rotation", "rad", 0.01, M_PI, false,
        "rotation error norm is clipped to this",
@@ -198,18 +199,18 @@ std::vector<ParameterInfo> make_table() {
        [](Parameters& p) { return field_of(&p.plausibility.joint_position_margin); }},
       {"safety.max_speed.translation", "m/s", 0, 10, false,
        "speed cap of the end effector: the reference (and a trajectory's velocity) moves no "
-       "faster, the spring and wrench stop accelerating at it, the excess is braked; 0 = off",
+       "faster, nothing the controller adds (spring, wrench, walls, payload) pushes it past 95 % "
+       "of it, the excess is braked out within 5 ms; 0 = off",
        [](Parameters& p) { return field_of(&p.safety.max_speed.translation); }},
       {"safety.max_speed.rotation", "rad/s", 0, 30, false,
        "angular speed cap of the end effector, as for translation; 0 = off",
        [](Parameters& p) { return field_of(&p.safety.max_speed.rotation); }},
       {"safety.max_force.force", "N", 0, kMaxForce, false,
-       "largest norm of the force the controller presses with (spring + commanded wrench); "
-       "0 = off",
+       "largest norm of the force the controller presses with: spring, commanded wrench, walls, "
+       "nullspace leak and a declared payload's compensation, carried or not; 0 = off",
        [](Parameters& p) { return field_of(&p.safety.max_force.force); }},
       {"safety.max_force.torque", "Nm", 0, kMaxTorque, false,
-       "largest norm of the torque the controller presses with (spring + commanded wrench); "
-       "0 = off",
+       "largest norm of the torque the controller presses with, as for the force; 0 = off",
        [](Parameters& p) { return field_of(&p.safety.max_force.torque); }},
       {"safety.workspace.min", "m", -100, 100, false,
        "lower corner of the box (base frame) references are clipped into and walls keep the end "
@@ -218,24 +219,26 @@ std::vector<ParameterInfo> make_table() {
       {"safety.workspace.max", "m", -100, 100, false, "upper corner of the box (base frame)",
        [](Parameters& p) { return field_of(&p.safety.workspace.max); }},
       {"safety.workspace.stiffness", "N/m", 0, kMaxTranslationalStiffness, false,
-       "stiffness of the walls outside the box, also while teaching; 0 = no walls",
+       "stiffness of the walls outside the box, also while teaching, under the force and speed "
+       "caps; a raise or a box moved past the flange is paid from the energy tank; 0 = no walls",
        [](Parameters& p) { return field_of(&p.safety.workspace.stiffness); }},
       {"safety.workspace.damping", "N s/m", 0, 1e4, false,
        "damping of the walls, on motion out of the box",
        [](Parameters& p) { return field_of(&p.safety.workspace.damping); }},
       {"safety.energy_tank.enabled", "", 0, 0, false,
-       "energy tank: a stiffness raise is paid from the tank (1/2 e^T dK e), which the damping "
-       "fills; an empty tank makes the raise wait, so no stiffness schedule pumps up motion",
+       "energy tank: every change that stores energy (Cartesian and nullspace stiffness, "
+       "pose-error clip, workspace box and walls) is paid from it, and the damping fills it; "
+       "what it cannot pay waits, so no parameter schedule pumps up motion",
        [](Parameters& p) { return field_of(&p.safety.energy_tank.enabled); }},
       {"safety.energy_tank.capacity", "J", 0, 1e3, false,
-       "most energy the tank holds: how far stiffness changes may grow the motion's energy",
+       "most energy the tank holds: how far parameter changes may grow the motion's energy",
        [](Parameters& p) { return field_of(&p.safety.energy_tank.capacity); }},
       {"safety.energy_tank.initial", "J", 0, 1e3, false,
        "tank level at start (at most the capacity)",
        [](Parameters& p) { return field_of(&p.safety.energy_tank.initial); }},
       {"payload.mass", "kg", 0, 1e3, false,
        "mass carried at the end effector: its gravity is compensated and its inertia shapes the "
-       "damping; filtered with filter.wrench",
+       "damping; filtered with filter.wrench; its weight must fit under safety.max_force.force",
        [](Parameters& p) { return field_of(&p.payload.mass); }},
       {"payload.center_of_mass", "m", -10, 10, false,
        "centre of mass of the payload in the end-effector frame",
@@ -256,7 +259,6 @@ std::string with_unit(double value, std::string_view unit) {
   if (!unit.empty() && unit != "-") text += " " + std::string(unit);
   return text;
 }
-
 
 }  // namespace
 
@@ -399,8 +401,7 @@ Fault consistency_fault(const Parameters& parameters) noexcept {
        [](const Parameters& p) -> const Range& { return p.limits.stiffness.rotation; }},
       {"limits.damping_ratio.min", "is greater than limits.damping_ratio.max", "",
        [](const Parameters& p) -> const Range& { return p.limits.damping_ratio; }},
-      {"limits.nullspace_stiffness.min", "is greater than limits.nullspace_stiffness.max",
-       "Nm/rad",
+      {"limits.nullspace_stiffness.min", "is greater than limits.nullspace_stiffness.max", "Nm/rad",
        [](const Parameters& p) -> const Range& { return p.limits.nullspace_stiffness; }},
       {"plausibility.dt.min", "is greater than plausibility.dt.max", "s",
        [](const Parameters& p) -> const Range& { return p.plausibility.dt; }},
@@ -417,8 +418,9 @@ Fault consistency_fault(const Parameters& parameters) noexcept {
   const WorkspaceParameters& box = parameters.safety.workspace;
   for (int i = 0; i < 3; ++i) {
     if (box.min[i] > box.max[i]) {
-      return Fault{"safety.workspace.min", i,    box.min[i], kWorkspaceReasons[i],
-                   box.max[i],             true, "m",        Fault::Form::axis};
+      return Fault{
+          "safety.workspace.min", i, box.min[i], kWorkspaceReasons[i], box.max[i], true, "m",
+          Fault::Form::axis};
     }
   }
   const EnergyTankParameters& tank = parameters.safety.energy_tank;
@@ -539,9 +541,8 @@ ParameterNames changed_parameters(const Parameters& a, const Parameters& b) noex
 
 bool is_safety_setting(std::string_view name) {
   for (const std::string_view group : {"safety", "limits", "plausibility", "payload"}) {
-    if (name == group ||
-        (name.size() > group.size() && name.substr(0, group.size()) == group &&
-         name[group.size()] == '.')) {
+    if (name == group || (name.size() > group.size() && name.substr(0, group.size()) == group &&
+                          name[group.size()] == '.')) {
       return true;
     }
   }

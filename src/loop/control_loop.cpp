@@ -192,8 +192,9 @@ int ControlLoop::claim(std::vector<std::unique_ptr<SlotType>>& slots) const {
 
 void ControlLoop::allow_runtime_safety_changes(bool allow) {
   if (running_.load(std::memory_order_acquire)) {
-    throw Error("allow_runtime_safety_changes() after start(): whether safety settings may change "
-                "while the robot runs is decided before it starts");
+    throw Error(
+        "allow_runtime_safety_changes() after start(): whether safety settings may change "
+        "while the robot runs is decided before it starts");
   }
   allow_safety_changes_ = allow;
 }
@@ -222,12 +223,13 @@ void ControlLoop::check_safety_lock(const Command& command) const {
                                  ? std::string()
                                  : " " + std::string(table[i].unit);
     names += std::string(names.empty() ? "" : ", ") + std::string(table[i].name) + " = " +
-             value_text(*values, table[i]) + unit + " (in force: " +
-             value_text(current, table[i]) + unit + ")";
+             value_text(*values, table[i]) + unit + " (in force: " + value_text(current, table[i]) +
+             unit + ")";
   }
   throw Error("safety settings are locked while the robot runs, and this would change " + names +
               "; only the program that owns the controller can allow run-time changes, before it "
-              "starts (ControlLoop::allow_runtime_safety_changes(), the nodes' setting "
+              "starts (ControlLoop::allow_runtime_safety_changes(); in Python "
+              "ControlLoop(..., allow_runtime_safety_changes=True); the nodes' setting "
               "allow_runtime_safety_changes); nothing was changed");
 }
 
@@ -282,21 +284,21 @@ ValidCommand ControlLoop::validate(const Command& command) const {
 void ControlLoop::send(const Command& command) {
   ValidCommand valid = validate(command);
   const auto queue_parameters = [&](auto set) {
-                          const int claimed = claim(parameter_sets_);
-                          if (claimed < 0) {
-                            throw QueueFull("all " + std::to_string(parameter_sets_.size()) +
-                                            " parameter sets are queued: is the loop stepping?");
-                          }
-                          ParameterSlot& slot = *parameter_sets_[static_cast<std::size_t>(claimed)];
-                          slot.parameters = std::move(valid);
-                          slot.state.store(Slot::queued, std::memory_order_release);
-                          try {
-                            set.slot = claimed;
-                            enqueue(set);
-                          } catch (...) {
-                            slot.state.store(Slot::free, std::memory_order_release);
-                            throw;
-                          }
+    const int claimed = claim(parameter_sets_);
+    if (claimed < 0) {
+      throw QueueFull("all " + std::to_string(parameter_sets_.size()) +
+                      " parameter sets are queued: is the loop stepping?");
+    }
+    ParameterSlot& slot = *parameter_sets_[static_cast<std::size_t>(claimed)];
+    slot.parameters = std::move(valid);
+    slot.state.store(Slot::queued, std::memory_order_release);
+    try {
+      set.slot = claimed;
+      enqueue(set);
+    } catch (...) {
+      slot.state.store(Slot::free, std::memory_order_release);
+      throw;
+    }
   };
   std::visit(Overloaded{[&](const Parameters&) { queue_parameters(ParameterSet{}); },
                         [&](const ParameterUpdate&) { queue_parameters(ParameterUpdateSet{}); },
@@ -410,7 +412,8 @@ void ControlLoop::apply_parameter_set(int index) noexcept {
   if (!controller_.apply(*slot.parameters)) ++updates_refused_;
   slot.state.store(Slot::free, std::memory_order_release);
   if (controller_.started() &&
-      (changed_parameters(parameters_before_, controller_.parameters()) & safety_settings()).any()) {
+      (changed_parameters(parameters_before_, controller_.parameters()) & safety_settings())
+          .any()) {
     ++safety_changes_;
   }
 }
@@ -524,8 +527,8 @@ const JointVector& ControlLoop::step(const JointVector& q, const JointVector& dq
   // caps' governor measures a push by the acceleration it causes, through M(q).
   const MaxSpeedParameters& speed_cap = parameters.safety.max_speed;
   const bool need_mass = dynamics.inertia_shaped_damping ||
-                         dynamics.dynamically_consistent_nullspace ||
-                         speed_cap.translation > 0.0 || speed_cap.rotation > 0.0;
+                         dynamics.dynamically_consistent_nullspace || speed_cap.translation > 0.0 ||
+                         speed_cap.rotation > 0.0;
   const bool need_gravity = dynamics.gravity_compensation;
   const ModelTerms terms = (need_mass ? ModelTerms::mass : ModelTerms::none) |
                            (need_gravity ? ModelTerms::gravity : ModelTerms::none);

@@ -94,9 +94,9 @@ struct Wrench {
 /// Any command (each alternative's kName names it). `Parameters` replaces the whole configuration,
 /// including the commanded stiffness (as a diagonal), damping ratios, nullspace stiffness and
 /// damping and the wrench; `ParameterUpdate` (parameters.hpp) sets only the rows it names.
-using Command = std::variant<ReferencePose, Stiffness, DampingRatio, NullspaceTarget,
-                             NullspaceStiffness, NullspaceDampingRatio, Wrench, Parameters,
-                             ParameterUpdate>;
+using Command =
+    std::variant<ReferencePose, Stiffness, DampingRatio, NullspaceTarget, NullspaceStiffness,
+                 NullspaceDampingRatio, Wrench, Parameters, ParameterUpdate>;
 
 /// A visitor made of one lambda per alternative: std::visit(Overloaded{[](const Wrench&) {...},
 /// ...}, command). A missing alternative does not compile.

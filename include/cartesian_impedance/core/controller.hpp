@@ -70,9 +70,9 @@ struct Targets {
 /// Which term of the law gave way when the torque it asked for exceeded a joint's bound
 /// (ControllerState::joint_torque_limit). The command is shaped in task space, in this order of
 /// giving way: the nullspace torque, then the Cartesian spring, then the commanded wrench, then a
-/// declared payload's compensation, then the damping; gravity is only ever clipped. The term named was scaled by
-/// ActiveLimits::torque_shaping_scale (keeping its direction); the terms before it were dropped,
-/// those after it kept whole.
+/// declared payload's compensation, then the damping; gravity is only ever clipped. The term named
+/// was scaled by ActiveLimits::torque_shaping_scale (keeping its direction); the terms before it
+/// were dropped, those after it kept whole.
 enum class TorqueShaping {
   none,       ///< the torque fitted: nothing shaped
   nullspace,  ///< the nullspace torque scaled

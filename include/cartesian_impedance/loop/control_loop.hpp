@@ -247,7 +247,7 @@ class ControlLoop : public CommandSetters<ControlLoop> {
   bool allow_safety_changes_ = false;
   std::atomic<bool> running_{false};  // start() succeeded (read by senders for the lock)
   Parameters parameters_before_;      // the cycle's copy, to see what a parameter command changed
-  bool was_holding_ = false;  // ActiveLimits::holding of the last step
+  bool was_holding_ = false;          // ActiveLimits::holding of the last step
 };
 
 }  // namespace cartesian_impedance
