@@ -178,6 +178,8 @@ TEST(PayloadNotCarried, RisesUnderTheCapAndIsReportedAtRest) {
   EXPECT_NEAR(rig.flange().position.z() - 0.5903, 3.5 * 9.81 / 1000.0, 0.01)
       << "the spring holds the compensation";
   EXPECT_LT(rig.loop().state().controller.safety.payload_estimate_mass, 0.5);
+  ::testing::Test::RecordProperty("peak_speed", std::to_string(peak));
+  ::testing::Test::RecordProperty("reported_after_rest", std::to_string(reported_at - rest_since));
 }
 
 // ---- 3. Teaching against a wall --------------------------------------------------------------

@@ -143,6 +143,10 @@ struct SafetyState {
   bool reference_clipped = false;
   Eigen::Vector3d workspace_penetration = Eigen::Vector3d::Zero();
   Eigen::Vector3d wall_force = Eigen::Vector3d::Zero();
+  /// The energy the walls' springs hold [J] (their passivity observer): what the end effector did
+  /// pushing into them and what the energy tank paid into them, less what they gave back. The
+  /// springs give back no more (with the tank on); zero inside the box in force.
+  double wall_energy = 0.0;
   /// The settings that store energy as they are in force: limits.pose_error and the workspace box
   /// and wall stiffness follow their parameters as far as the energy tank pays for what a change
   /// stores (at once where it releases energy; always at once with the tank off). A box that
