@@ -343,8 +343,8 @@ void bind_states(py::module_& m) {
           "wall_force", [](const ci::SafetyState& s) { return vector_array(s.wall_force); },
           "Force of the workspace walls on the end effector (3,) [N], base frame.")
       .def_readonly("wall_energy", &ci::SafetyState::wall_energy,
-                    "Energy the workspace walls' springs hold [J]: what the end effector did "
-                    "pushing into them and the tank paid into them, less what they gave back.")
+                    "What the workspace walls hold [J]: the work the end effector did pushing "
+                    "into them and the tank paid into them, less what they gave back.")
       .def_readonly("pose_error_in_force", &ci::SafetyState::pose_error_in_force,
                     "limits.pose_error as in force (PoseErrorLimits): it follows its parameter "
                     "as far as the energy tank pays for what a change stores.")

@@ -180,9 +180,10 @@ ci::Matrix6d random_stiffness(std::mt19937& rng, double largest) {
 // One seeded run: the point mass starts up to 30 mm off a fixed reference at up to 0.1 m/s, and
 // the stiffness is commanded anew at random cycles (a fresh random matrix, or a jump between a
 // soft and a stiff value, on a filter that is off or 50 ms), the damping ratio now and then
-// too; in the base frame or the end effector's, which is turned. With `clip` [m], the pose error
-// is clipped there (limits.pose_error.translation), the arm starts 1.5 to 3 times as far off and
-// the stiffness stays isotropic (the clipped spring has a potential then).
+// too; in the base frame or the end effector's, which is turned, and switched between them. With
+// `clip` [m], the pose error is clipped there (limits.pose_error.translation), the arm starts 1.5
+// to 3 times as far off and the stiffness stays isotropic (the clipped spring has a potential
+// then).
 Ledger random_schedule(unsigned seed, bool tank, double clip = 0.0) {
   std::mt19937 rng(seed);
   ci::Parameters p = point_mass_parameters();
@@ -206,7 +207,15 @@ Ledger random_schedule(unsigned seed, bool tank, double clip = 0.0) {
   for (int k = 0; k < 3000; ++k) {
     const double draw = uniform(rng, 0.0, 1.0);
     if (draw < 0.05 && !clipped) {
-      controller.set_stiffness_matrix(random_stiffness(rng, largest));
+      // Now and then in the other frame: the same numbers there are another spring in the base
+      // frame, which the filter moves to as the tank pays.
+      const ci::Matrix6d stiffness = random_stiffness(rng, largest);
+      if (uniform(rng, 0.0, 1.0) < 0.3) {
+        controller.set_stiffness_matrix(
+            stiffness, uniform(rng, 0.0, 1.0) < 0.5 ? ci::Frame::base : ci::Frame::end_effector);
+      } else {
+        controller.set_stiffness_matrix(stiffness);
+      }
     } else if (draw < 0.15) {
       // The pumping kind: soft or stiff, isotropic.
       const double k_t = uniform(rng, 0.0, 1.0) < 0.5 ? 0.04 * largest : 0.6 * largest;

@@ -389,8 +389,8 @@ void command_composition(const scenarios::RobotSetup& robot, std::uint32_t seed,
 
 // ---- the schedule family ---------------------------------------------------------------------
 
-// Kinetic energy (M(q) with the rotors), the clipped spring as in force, what the walls' springs
-// hold, and the tank. The simulated firmware holds gravity.
+// Kinetic energy (M(q) with the rotors), the clipped spring as in force, what the walls hold, and
+// the tank. The simulated firmware holds gravity.
 double stored_energy(scenarios::Rig& rig) {
   const ci::ControlLoop& loop = rig.loop();
   const ci::LoopState& state = loop.state();
@@ -410,9 +410,9 @@ double stored_energy(scenarios::Rig& rig) {
     return length <= clip ? 0.5 * stiffness * length * length
                           : stiffness * clip * (length - 0.5 * clip);
   };
-  // The walls hold what their springs took in, not 1/2 k x^2: met at speed a stiff wall's force
-  // comes at the joints' torque rate and lags the depth (an 80,000 N/m wall entered 1 mm with
-  // a fraction of k x: 1/2 k x^2 = 40 mJ that was never stored).
+  // The walls hold what they took in (their passivity observer's account), not 1/2 k x^2: met at
+  // speed a stiff wall's force comes at the joints' torque rate and lags the depth (an 80,000 N/m
+  // wall entered 1 mm with a fraction of k x: 1/2 k x^2 = 40 mJ that was never stored).
   return kinetic + clipped(error.head<3>().norm(), safety.pose_error_in_force.translation, k[0]) +
          clipped(error.tail<3>().norm(), safety.pose_error_in_force.rotation, k[3]) +
          safety.wall_energy + safety.tank_level;

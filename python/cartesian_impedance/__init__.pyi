@@ -661,7 +661,7 @@ class SafetyState:
         """safety.max_speed.translation: fraction of the spring + wrench push along the end effector's linear velocity that was kept [0, 1] (below 1 from 0.8 x the cap, 0 at the cap)."""
     @property
     def wall_energy(self) -> float:
-        """Energy the workspace walls' springs hold [J]: what the end effector did pushing into them and the tank paid into them, less what they gave back."""
+        """What the workspace walls hold [J]: the work the end effector did pushing into them and the tank paid into them, less what they gave back."""
     @property
     def wall_force(self) -> numpy.typing.NDArray[numpy.float64]:
         """Force of the workspace walls on the end effector (3,) [N], base frame."""

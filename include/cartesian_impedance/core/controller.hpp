@@ -143,9 +143,10 @@ struct SafetyState {
   bool reference_clipped = false;
   Eigen::Vector3d workspace_penetration = Eigen::Vector3d::Zero();
   Eigen::Vector3d wall_force = Eigen::Vector3d::Zero();
-  /// The energy the walls' springs hold [J] (their passivity observer): what the end effector did
-  /// pushing into them and what the energy tank paid into them, less what they gave back. The
-  /// springs give back no more (with the tank on); zero inside the box in force.
+  /// What the walls hold [J] (their passivity observer): the work the end effector did pushing
+  /// into them (against spring and damper) and what the energy tank paid into them, less what
+  /// they gave back. With the tank on their spring gives back no more; zero inside the box in
+  /// force (what was left was dissipated).
   double wall_energy = 0.0;
   /// The settings that store energy as they are in force: limits.pose_error and the workspace box
   /// and wall stiffness follow their parameters as far as the energy tank pays for what a change
@@ -421,7 +422,9 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   void safety_layer(const RobotState& robot, const JointMatrix& mass, double dt) noexcept;
   void walls(const RobotState& robot, double dt) noexcept;
   void follow_the_rate_limit(const RobotState& robot, double dt) noexcept;
-  void keep_walls_passive(double dt) noexcept;
+  void keep_walls_passive(const RobotState& robot, double dt) noexcept;
+  double wall_rate_step(const RobotState& robot, const Eigen::Vector3d& direction,
+                        double dt) noexcept;
   void cap_force() noexcept;
   void govern_speed(const RobotState& robot, const JointMatrix& mass, double dt) noexcept;
   void expect_acceleration(const RobotState& robot) noexcept;
