@@ -72,7 +72,7 @@ void BM_LoopStepEveryCap(benchmark::State& state) {
   ci::JointVector q = ready(), dq = ci::JointVector::Constant(7, 0.01);
   const safety_caps::Scene scene = safety_caps::scene(model, q, dq);
   ci::ControlLoop loop(model, scene.parameters);
-  loop.start(q, dq);
+  loop.start(scene.start, dq);
   for (const ci::Command& command : scene.commands) loop.send(command);
   loop.step(q, dq, 0.001);  // applies the commands; the reference is clipped into the box
   safety_caps::Acted first;

@@ -128,9 +128,12 @@ TEST_P(SafetyAllocationFree, UpdateAllocatesNothingWithEverySafetyCapActing) {
     robot.jacobian = kinematics.jacobian;
     robot.mass = kinematics.mass;
   };
+  const ci::JointVector q_moving = q;
+  q = scene.start;
   measure();
   ci::CartesianImpedanceController controller(7, scene.parameters);
   controller.start(robot);
+  q = q_moving;
   for (const ci::Command& command : scene.commands) {
     // The scene's wrench is in the base frame: say so when the configured frame is another.
     if (const auto* wrench = std::get_if<ci::Wrench>(&command)) {

@@ -85,7 +85,7 @@ TEST(LoopAllocation, StepAllocatesNothingWithEverySafetyCapActing) {
   ci::JointVector dq = ci::JointVector::Constant(7, 0.01);
   const safety_caps::Scene scene = safety_caps::scene(model, q, dq);
   ci::ControlLoop loop(model, scene.parameters);
-  loop.start(q, dq);
+  loop.start(scene.start, dq);
   for (const ci::Command& command : scene.commands) loop.send(command);
 
   safety_caps::Acted moving, still;

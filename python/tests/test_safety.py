@@ -22,6 +22,7 @@ SAFETY_FIELDS = {
     "reference_clipped": "",
     "workspace_penetration": "[m]",
     "wall_force": "[N]",
+    "wall_energy": "[J]",
     "tank_level": "[J]",
     "tank_draw": "[J]",
     "stiffness_change_scale": "[0, 1]",

@@ -137,7 +137,8 @@ void CartesianImpedanceController::pay_stiffness_change() noexcept {
   // tank can pay is in proportion.)
   const Vector6d error = pose_error(state_.pose, law_->reference_before);
   const PoseErrorLimits& clip = safety.pose_error_in_force;
-  const double cost = spring_energy(error, stiffness, clip) - spring_energy(error, before, clip);
+  // The stored energy is linear in K: the change's cost is the energy of dK alone.
+  const double cost = spring_energy(error, stiffness - before, clip);
   if (cost > safety.tank_level) {
     // What the tank holds pays for the part of the change it covers, and the tank is then empty:
     // exactly, as level - cost * (level / cost) may round below zero.

@@ -18,7 +18,8 @@ namespace {
 // once), so that the next pivot waits for one multiply-subtract after the division, not for a sum
 // over all earlier columns; the loops have constant bounds, which the compiler unrolls
 // completely. False if A is not positive definite.
-bool ldlt_factor(const Matrix6d& system, Matrix6d& factor, Vector6d& inverse_pivot) noexcept {
+inline __attribute__((always_inline)) bool ldlt_factor(const Matrix6d& system, Matrix6d& factor,
+                                                       Vector6d& inverse_pivot) noexcept {
   Matrix6d a = system;  // a local, so that the unrolled code keeps it in registers
 #pragma GCC unroll 6
   for (int j = 0; j < 6; ++j) {
@@ -42,8 +43,9 @@ bool ldlt_factor(const Matrix6d& system, Matrix6d& factor, Vector6d& inverse_piv
 }
 
 // x = A^-1 b with A = L D L^T as ldlt_factor() left it.
-void ldlt_solve(const Matrix6d& factor, const Vector6d& inverse_pivot, const Vector6d& rhs,
-                Vector6d& x) noexcept {
+inline __attribute__((always_inline)) void ldlt_solve(const Matrix6d& factor,
+                                                      const Vector6d& inverse_pivot,
+                                                      const Vector6d& rhs, Vector6d& x) noexcept {
   Vector6d b = rhs;
 #pragma GCC unroll 6
   for (int i = 0; i < 6; ++i) {  // L y = b
@@ -83,10 +85,14 @@ void outer_sum(const Jacobian& left, const Jacobian& right, Matrix6d& out) noexc
 
 void NullspaceProjector::solve_task_system() noexcept {
   // L D L^T is the fast path; a singular J with lambda = 0 makes the matrix only semi-definite,
-  // and Eigen's pivoting LDLT then still returns a finite least-squares answer.
-  factored_ = ldlt_factor(task_gram_, task_factor_, task_inverse_pivot_);
+  // and Eigen's pivoting LDLT then still returns a finite least-squares answer. The factor is
+  // kept for solve_task_again() (the tank's nullspace dissipation and the caps solve again in
+  // most cycles); the solve works on the local copy, still in registers.
+  Matrix6d factor;
+  factored_ = ldlt_factor(task_gram_, factor, task_inverse_pivot_);
   if (factored_) {
-    ldlt_solve(task_factor_, task_inverse_pivot_, task_vector_, task_solution_);
+    ldlt_solve(factor, task_inverse_pivot_, task_vector_, task_solution_);
+    task_factor_ = factor;
   } else {
     task_ldlt_.compute(task_gram_);
     task_solution_ = task_ldlt_.solve(task_vector_);
@@ -415,14 +421,16 @@ bool TaskInertia::compute(const Jacobian& jacobian, const JointMatrix& mass) noe
 
 void TaskInertia::acceleration(const JointVector& tau, Vector6d& out) const noexcept {
   // J M^-1 tau = (L^-1 J^T)^T D^-1 (L^-1 tau): one forward substitution with L.
+  // With z = D^-1 y, L(i, k) y[k] = (D(k) L(i, k)) z[k], and D(k) L(i, k) is kept above the
+  // diagonal: row i of L is read down column i of factor_, contiguously.
   const Eigen::Index n = reduced_.cols();
   out.setZero();
-  JointVector y(n);
+  double z[kMaxJoints];
   for (Eigen::Index i = 0; i < n; ++i) {
     double value = tau[i];
-    for (Eigen::Index k = 0; k < i; ++k) value -= factor_(i, k) * y[k];
-    y[i] = value;
-    out += reduced_.col(i) * (value * inverse_pivot_[i]);
+    for (Eigen::Index k = 0; k < i; ++k) value -= factor_(k, i) * z[k];
+    z[i] = value * inverse_pivot_[i];
+    out += reduced_.col(i) * z[i];
   }
 }
 

@@ -13,7 +13,34 @@ struct CartesianImpedanceController::Law {
 
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();  // R_base_ee of the cycle
   bool damping_diagonal = true;  // this cycle's D is diagonal (the cheap route)
-  Matrix6d damping_frame;        // D before the minimum damping, in the stiffness frame
+  // (The small terms every cycle reads come first, before the large workspaces below, so that
+  // they share a few cache lines: behind them they cost a cache miss each, about 15 ns a cycle.)
+  // The safety envelope's terms, base frame: the workspace walls' spring and damper, the force
+  // the joint-limit walls press with at the end effector (joint_walls: they act this cycle), and
+  // what the nullspace torque leaks there.
+  Eigen::Vector3d wall_spring = Eigen::Vector3d::Zero();
+  Eigen::Vector3d wall_damper = Eigen::Vector3d::Zero();
+  // The walls' passivity observer: the force they sent last cycle, where the end effector was then,
+  // and the energy they hold (paid in by the tank or by the arm pushing in, less what they gave
+  // back) [J].
+  Eigen::Vector3d wall_force_sent = Eigen::Vector3d::Zero();
+  Eigen::Vector3d wall_spring_sent = Eigen::Vector3d::Zero();
+  Eigen::Vector3d wall_damper_sent = Eigen::Vector3d::Zero();
+  Eigen::Vector3d wall_position = Eigen::Vector3d::Zero();
+  double wall_energy = 0.0;
+  Vector6d joint_wall_force = Vector6d::Zero();
+  Vector6d joint_wall_force_before = Vector6d::Zero();  // before the caps
+  Vector6d nullspace_leak = Vector6d::Zero();
+  bool joint_walls = false;
+  // The speed governor's disturbance observer: the end effector's twist and the acceleration the
+  // torque sent should have given it (J M^-1 tau), both of the last cycle, and the low-passed
+  // difference to the acceleration measured since: what the law does not model (the centripetal
+  // and Coriolis terms, the rate limit's and the shaping's changes to the torque, a push).
+  Vector6d twist_before = Vector6d::Zero();
+  Vector6d expected_acceleration = Vector6d::Zero();
+  Vector6d disturbance = Vector6d::Zero();
+  bool expecting = false;
+  Matrix6d damping_frame;  // D before the minimum damping, in the stiffness frame
   // The filtered K and zeta the (full, unit-mass) damping was last computed for: it is only
   // recomputed while they move.
   Matrix6d damping_computed_for_stiffness;
@@ -40,39 +67,16 @@ struct CartesianImpedanceController::Law {
   // The nullspace damping torque, before and after the projection: what it dissipates fills the
   // tank (computed while the tank is not full).
   JointVector nullspace_damping_torque, nullspace_damping_projected;
+  // Scratch space of the speed governor (a joint torque).
+  JointVector governor_joint;
   // What the Cartesian and the nullspace damping dissipate this cycle [J], for the tank once the
   // torque is known (fill_tank()).
   double dissipated_cartesian = 0.0;
   double dissipated_nullspace = 0.0;
   // The pose error before clipping, base frame.
   Vector6d unclipped_error = Vector6d::Zero();
-  // The safety envelope's terms, base frame: the workspace walls' spring and damper, the force
-  // the joint-limit walls press with at the end effector (joint_walls: they act this cycle), and
-  // what the nullspace torque leaks there.
-  Eigen::Vector3d wall_spring = Eigen::Vector3d::Zero();
-  Eigen::Vector3d wall_damper = Eigen::Vector3d::Zero();
-  // The walls' passivity observer: the force they sent last cycle, where the end effector was then,
-  // and the energy they hold (paid in by the tank or by the arm pushing in, less what they gave
-  // back) [J].
-  Eigen::Vector3d wall_force_sent = Eigen::Vector3d::Zero();
-  Eigen::Vector3d wall_spring_sent = Eigen::Vector3d::Zero();
-  Eigen::Vector3d wall_damper_sent = Eigen::Vector3d::Zero();
-  Eigen::Vector3d wall_position = Eigen::Vector3d::Zero();
-  double wall_energy = 0.0;
-  Vector6d joint_wall_force = Vector6d::Zero();
-  Vector6d joint_wall_force_before = Vector6d::Zero();  // before the caps
-  Vector6d nullspace_leak = Vector6d::Zero();
-  bool joint_walls = false;
-  // Scratch space of the speed governor (a joint torque).
-  JointVector governor_joint;
-  // The speed governor's disturbance observer: the end effector's twist and the acceleration the
-  // torque sent should have given it (J M^-1 tau), both of the last cycle, and the low-passed
-  // difference to the acceleration measured since: what the law does not model (the centripetal
-  // and Coriolis terms, the rate limit's and the shaping's changes to the torque, a push).
-  Vector6d twist_before = Vector6d::Zero();
-  Vector6d expected_acceleration = Vector6d::Zero();
-  Vector6d disturbance = Vector6d::Zero();
-  bool expecting = false;
+  // The rotation speed cap's largest step per cycle [rad] and the cosine and sine of its half.
+  double speed_step_angle = -1.0, speed_step_cos = 1.0, speed_step_sin = 0.0;
   // The filtered reference before this cycle's filter step: the speed cap limits the step.
   Pose reference_before;
   // M(q) with the payload's inertia (payload.mass > 0 and a dynamic option on), and the
