@@ -3,7 +3,7 @@
 
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
-#include <chrono>
+#include <unistd.h>
 
 #include <chrono>
 #include <cmath>
@@ -97,7 +97,22 @@ class Batch {
     batch_ = std::make_unique<ci::sim::BatchRunner>(pairs, threads, spin);
   }
 
+  Batch(const Batch&) = delete;
+  Batch& operator=(const Batch&) = delete;
+
+  ~Batch() {
+    // A forked process holds a copy of this runner but none of its pool's threads (fork copies
+    // only the calling thread): joining them would wait forever, and a pool thread may have
+    // held the runner's mutex at the fork. The copy is left to the process's exit.
+    if (::getpid() != process_) static_cast<void>(batch_.release());
+  }
+
   py::array_t<std::int64_t> run(Real seconds_object) {
+    if (::getpid() != process_) {
+      throw ci::Error("this BatchRunner was made in process " + std::to_string(process_) +
+                      " and its threads do not exist in this forked process " +
+                      std::to_string(::getpid()) + ": make a new BatchRunner here");
+    }
     const double seconds = read_scalar(seconds_object, "seconds");
     if (!(seconds >= 0.0) || !std::isfinite(seconds)) {
       throw ci::Error("seconds = " + ci::format_number(seconds) + " must be finite and >= 0");
@@ -142,6 +157,7 @@ class Batch {
   std::vector<py::object> loops_;
   std::unique_ptr<ci::sim::BatchRunner> batch_;
   Holder running_{nullptr};
+  const pid_t process_ = ::getpid();  // where the pool's threads run
 };
 
 }  // namespace
@@ -161,7 +177,8 @@ void bind_batch(py::module_& sim) {
       "pair (e.g. 'pair 3: the control loop has not been started ...') and then nothing runs. "
       "Meanwhile the simulations and the loops' start/step/state raise RuntimeError in other "
       "threads; commands to the loops are fine from any thread. Ctrl+C stops every pair and "
-      "raises KeyboardInterrupt (checked every 0.1 s).";
+      "raises KeyboardInterrupt (checked every 0.1 s). In a process forked after the runner was "
+      "made (its threads stay in the parent) it raises Error: make a new one there.";
 
   py::class_<Batch>(sim, "BatchRunner",
                     (std::string("Many independent closed loops (Simulation, ControlLoop) run "

@@ -256,6 +256,12 @@ void bind_states(py::module_& m) {
       .def_readonly("holding", &ci::ActiveLimits::holding,
                     "Repeated implausible motion made the controller hold where the arm is "
                     "(cleared by the next reference pose).")
+      .def_readonly("joint_limit_held", &ci::ActiveLimits::joint_limit_held,
+                    "The first joint (-1: none) the joint-limit bounds held off its position "
+                    "limit against the task this cycle: the reference asks, as the law resolves "
+                    "it locally, for a configuration past that limit, and the arm stays short of "
+                    "it. A nullspace target that reaches the reference, or a joint trajectory, "
+                    "takes it around.")
       .def("__repr__", [](const ci::ActiveLimits& l) {
         std::string active;
         const std::pair<const char*, bool> flags[] = {
@@ -271,6 +277,10 @@ void bind_states(py::module_& m) {
             {"holding", l.holding}};
         for (const auto& [name, on] : flags) {
           if (on) active += (active.empty() ? "" : ", ") + std::string(name);
+        }
+        if (l.joint_limit_held >= 0) {
+          active += (active.empty() ? "" : ", ") + std::string("joint_limit_held=") +
+                    std::to_string(l.joint_limit_held);
         }
         return "ActiveLimits(" + (active.empty() ? std::string("none") : active) + ")";
       });

@@ -27,12 +27,10 @@ struct Policy {
 };
 
 ci::PolicyInterface::Action read_action(const ci::PolicyInterface& policy, py::handle action) {
-  // ensure() converts what NumPy can and is empty (its error cleared) for anything else.
-  const auto values =
-      py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(action);
-  if (!values) {
-    throw ci::Error("action = " + std::string(py::repr(action)) + " is not an array of numbers");
-  }
+  // real_array() first: forcecast alone would turn a complex action into its real part (with
+  // only a ComplexWarning) and None into NaN, reported as a value that is not finite.
+  const auto values = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(
+      real_array(action, "action"));
   if (values.ndim() != 1 || values.shape(0) != policy.action_size()) {
     throw ci::Error("action has shape " + shape_text(values) + ", expected (" +
                     std::to_string(policy.action_size()) + ",) (" + policy.layout() + ")");
@@ -130,8 +128,9 @@ void bind_policy_interface(py::module_& m) {
             return action_array(read_action(self.policy, action));
           },
           py::arg("action"),
-          "The action as float64, clipped to [-1, 1]; raises Error for a wrong shape or a value "
-          "that is not finite, naming the index, the value and the field.")
+          "The action as float64, clipped to [-1, 1]; raises TypeError for values that are not "
+          "real numbers (complex, None, strings, bool), Error for a wrong shape or a value that "
+          "is not finite, naming the index, the value and the field.")
       .def(
           "stiffness",
           [](const Policy& self, py::handle action) {
@@ -160,7 +159,8 @@ void bind_policy_interface(py::module_& m) {
             return action_array(checked);
           },
           py::arg("action"), py::arg("loop"),
-          "Checks the action (a bad one raises Error and changes nothing), moves the reference "
+          "Checks the action (a bad one raises TypeError or Error and changes nothing), moves the "
+          "reference "
           "(kept within the leash of the flange's pose in loop.latest_state()) and sends "
           "reference, stiffness and wrench to the loop in one send_all. Returns the checked "
           "action.")

@@ -26,6 +26,9 @@ class ActiveLimits:
     def holding(self) -> bool:
         """Repeated implausible motion made the controller hold where the arm is (cleared by the next reference pose)."""
     @property
+    def joint_limit_held(self) -> int:
+        """The first joint (-1: none) the joint-limit bounds held off its position limit against the task this cycle: the reference asks, as the law resolves it locally, for a configuration past that limit, and the arm stays short of it. A nullspace target that reaches the reference, or a joint trajectory, takes it around."""
+    @property
     def joint_torque_limit_ramping(self) -> bool: ...
     @property
     def joint_torque_saturated(self) -> bool: ...
@@ -423,9 +426,9 @@ class PolicyInterface:
     @property
     def action_size(self) -> int: ...
     def apply(self, action: object, loop: ControlLoop) -> numpy.typing.NDArray[numpy.float64]:
-        """Checks the action (a bad one raises Error and changes nothing), moves the reference (kept within the leash of the flange's pose in loop.latest_state()) and sends reference, stiffness and wrench to the loop in one send_all. Returns the checked action."""
+        """Checks the action (a bad one raises TypeError or Error and changes nothing), moves the reference (kept within the leash of the flange's pose in loop.latest_state()) and sends reference, stiffness and wrench to the loop in one send_all. Returns the checked action."""
     def check(self, action: object) -> numpy.typing.NDArray[numpy.float64]:
-        """The action as float64, clipped to [-1, 1]; raises Error for a wrong shape or a value that is not finite, naming the index, the value and the field."""
+        """The action as float64, clipped to [-1, 1]; raises TypeError for values that are not real numbers (complex, None, strings, bool), Error for a wrong shape or a value that is not finite, naming the index, the value and the field."""
     @staticmethod
     def field(index: int) -> str:
         """The field action[index] sets, e.g. 'stiffness.rotation.y'."""

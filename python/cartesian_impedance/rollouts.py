@@ -16,7 +16,9 @@ gives the same dict, wherever it runs.
   submitted again, up to ``retries`` times. Each pair's result is taken once, from the run that
   completed.
 - A rollout that raises ends the call with ``RolloutError`` naming the pair (index, params, seed)
-  and carrying the worker's traceback; the remaining rollouts are cancelled.
+  and carrying the worker's traceback; the remaining rollouts are cancelled. So does one that
+  calls sys.exit() (SystemExit is the rollout's failure, not its worker's death), and one whose
+  result cannot be pickled: each result is pickled on its worker, which names the keys that fail.
 
 Needs dask.distributed (Debian: python3-distributed); it is imported when a cluster is used, so
 ``serial=True`` runs anywhere.
@@ -27,6 +29,7 @@ import logging
 import os
 import pickle
 import traceback
+import warnings
 from typing import Any, Callable, Iterable, List, Optional, Sequence, Tuple
 
 import numpy as np
@@ -50,9 +53,12 @@ class RolloutError(RuntimeError):
         self.remote_traceback = remote_traceback
 
 
-def _run_chunk(rollout, chunk):
-    """On a worker: each (params, seed) of the chunk, caught, so that an exception is reported
-    for its pair instead of being retried by Dask (it would only repeat)."""
+def _run_chunk(rollout, chunk, pickled=False):
+    """Each (params, seed) of the chunk, caught, so that an exception is reported for its pair
+    instead of being retried by Dask (it would only repeat). ``pickled`` (on a worker): each
+    result is pickled here, so that one that cannot be is reported as this pair's error; left to
+    Dask, it fails in the worker's send, which logs tracebacks and leaves the task 'finished'
+    with nothing to fetch."""
     records = []
     for params, seed in chunk:
         try:
@@ -60,8 +66,12 @@ def _run_chunk(rollout, chunk):
             if not isinstance(result, dict):
                 raise TypeError("the rollout returned %s; a rollout returns a dict of results"
                                 % type(result).__name__)
-            records.append(("ok", result))
-        except Exception as error:  # noqa: BLE001  (reported to the caller, with its pair)
+            records.append(("ok", _pickle_result(result) if pickled else result))
+        except KeyboardInterrupt:
+            raise  # the user stopping the program, not the rollout's failure
+        # BaseException: a rollout calling sys.exit() (SystemExit) would otherwise escape a serial
+        # run, and on a worker end the task as if its process had died, to be run again.
+        except BaseException as error:  # noqa: BLE001  (reported to the caller, with its pair)
             try:
                 pickle.loads(pickle.dumps(error))
                 carried = error
@@ -71,6 +81,31 @@ def _run_chunk(rollout, chunk):
                             traceback.format_exc(), carried))
             break  # the call ends at this error: the rest of the chunk would be thrown away
     return records
+
+
+def _pickle_result(result: dict) -> bytes:
+    """The result pickled as Dask would (cloudpickle); TypeError naming the keys whose values
+    cannot be."""
+    import cloudpickle
+
+    try:
+        return cloudpickle.dumps(result)
+    except Exception as error:  # noqa: BLE001  (pickle raises many kinds)
+        keys = []
+        for key, value in result.items():
+            try:
+                cloudpickle.dumps(value)
+            except Exception:  # noqa: BLE001
+                keys.append(key)
+        raise TypeError("the rollout's result cannot be pickled to be sent back from its worker "
+                        "(%s: %s); the values of %s cannot be pickled" % (
+                            type(error).__name__, error,
+                            ", ".join(repr(key) for key in keys) or "no single key")) from None
+
+
+def _is_int(value) -> bool:
+    """An int or a NumPy integer, not a bool (True is an int to Python, not a count to a user)."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
 
 
 def _pair_text(params, seed):
@@ -100,6 +135,35 @@ def _raise_for(record, index, params, seed):
     raise error from carried
 
 
+def _name_what_cannot_be_pickled(rollout, listed):
+    """After a submission failed: TypeError naming the rollout or the first pair that cannot be
+    pickled (Dask's own error says only 'cannot pickle <type>'); returns if both can."""
+    import cloudpickle
+
+    try:
+        cloudpickle.dumps(rollout)
+    except Exception as error:  # noqa: BLE001
+        raise TypeError("the rollout %r cannot be pickled to be sent to the workers (%s: %s); "
+                        "what it refers to travels with it" % (
+                            rollout, type(error).__name__, error)) from error
+    for index, (params, seed) in enumerate(listed):
+        try:
+            cloudpickle.dumps((params, seed))
+        except Exception as error:  # noqa: BLE001
+            raise TypeError("pairs[%d] (%s) cannot be pickled to be sent to a worker (%s: %s)" % (
+                index, _pair_text(params, seed), type(error).__name__, error)) from error
+
+
+def _unpickle_result(payload, index, params, seed):
+    try:
+        return pickle.loads(payload)
+    except Exception as error:  # noqa: BLE001  (e.g. a class this process cannot import)
+        raise RolloutError("rollout %d (%s) returned a result its worker pickled but this "
+                           "process cannot unpickle: %s: %s" % (
+                               index, _pair_text(params, seed), type(error).__name__, error),
+                           index, params, seed) from error
+
+
 class Pool:
     """Where rollouts run: a LocalCluster of ``n_workers`` worker processes with one thread each,
     started here (default: one per CPU), or the cluster of the given ``client``
@@ -108,18 +172,19 @@ class Pool:
     this process, in order (for debugging, and the reference the parallel runs equal).
 
     A context manager: ``with Pool(n_workers=2) as pool: results = pool.map(rollout, pairs)``.
+    One dropped without close() closes its LocalCluster then, with a ResourceWarning.
     """
 
     def __init__(self, client=None, *, n_workers: Optional[int] = None, retries: int = 3,
                  serial: bool = False):
-        if not isinstance(retries, int) or isinstance(retries, bool) or retries < 0:
+        if not _is_int(retries) or retries < 0:
             raise ValueError("retries = %r must be an int >= 0" % (retries,))
-        if n_workers is not None and (not isinstance(n_workers, int) or n_workers < 1):
+        if n_workers is not None and (not _is_int(n_workers) or n_workers < 1):
             raise ValueError("n_workers = %r must be an int >= 1 (or None: one per CPU)"
                              % (n_workers,))
         if serial and client is not None:
             raise ValueError("serial=True runs in this process: give no client")
-        self.retries = retries
+        self.retries = int(retries)
         self.serial = serial
         self._cluster = None
         self._client = client
@@ -132,7 +197,7 @@ class Pool:
         # own rescheduling would run a rollout up to allowed-failures more times on top.
         with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
             self._cluster = distributed.LocalCluster(
-                n_workers=n_workers or os.cpu_count() or 1, threads_per_worker=1,
+                n_workers=int(n_workers or os.cpu_count() or 1), threads_per_worker=1,
                 processes=True, dashboard_address=":0", silence_logs=logging.ERROR)
         try:
             self._client = distributed.Client(self._cluster)
@@ -154,8 +219,9 @@ class Pool:
         if not callable(rollout):
             raise TypeError("rollout must be callable as rollout(params, seed) -> dict, got %r"
                             % (rollout,))
-        if not isinstance(chunk_size, int) or isinstance(chunk_size, bool) or chunk_size < 1:
+        if not _is_int(chunk_size) or chunk_size < 1:
             raise ValueError("chunk_size = %r must be an int >= 1" % (chunk_size,))
+        chunk_size = int(chunk_size)
         listed = _as_pairs(pairs)
         if self.serial:
             results = []
@@ -181,7 +247,8 @@ class Pool:
 
         def submit(number):
             # pure=False: every submission is a new task, also a resubmitted one.
-            future = self._client.submit(_run_chunk, rollout, chunks[number], pure=False)
+            future = self._client.submit(_run_chunk, rollout, chunks[number], True,
+                                         pure=False)
             pending[future] = number
             completed.add(future)
 
@@ -210,7 +277,12 @@ class Pool:
         results: List[Optional[dict]] = [None] * len(listed)
         try:
             # One message to the scheduler for all of them (submit() per chunk costs more).
-            first = self._client.map(_run_chunk, [rollout] * len(chunks), chunks, pure=False)
+            try:
+                first = self._client.map(_run_chunk, [rollout] * len(chunks), chunks,
+                                         [True] * len(chunks), pure=False)
+            except Exception:
+                _name_what_cannot_be_pickled(rollout, listed)
+                raise
             for number, future in enumerate(first):
                 pending[future] = number
                 completed.add(future)
@@ -241,7 +313,7 @@ class Pool:
                         index = starts[number] + offset
                         if record[0] != "ok":
                             _raise_for(record, index, *listed[index])
-                        results[index] = record[1]
+                        results[index] = _unpickle_result(record[1], index, *listed[index])
         finally:
             for future in list(pending):
                 future.cancel()
@@ -254,6 +326,16 @@ class Pool:
             self._cluster.close()
             self._cluster = None
             self._client = None
+
+    def __del__(self):
+        # A Pool dropped unclosed would keep its worker processes until the interpreter exits.
+        if getattr(self, "_cluster", None) is not None:
+            warnings.warn("a rollouts.Pool was dropped without close(): closing its LocalCluster "
+                          "(use `with Pool(...) as pool:`)", ResourceWarning, stacklevel=2)
+            try:
+                self.close()
+            except Exception:  # noqa: BLE001  (interpreter shutdown)
+                pass
 
     def __enter__(self):
         return self
@@ -290,7 +372,9 @@ def evaluate(rollout: Rollout, pairs: Iterable[Tuple[Any, int]], *, client=None,
 class CemResult:
     """What cem() found: ``mean`` and ``std`` of the final sampling distribution, the best
     sample seen (``best_params``, ``best_score``, ``best_result``: its rollout's dict), and per
-    iteration ``history``: dicts with mean, std, the elite's mean score and the best score."""
+    iteration ``history``: dicts with mean, std, the elite's mean score, the best score and
+    ``unscored``, how many of the population were scored NaN (all of them: NaN scores, and the
+    distribution stayed)."""
 
     mean: np.ndarray
     std: np.ndarray
@@ -298,6 +382,30 @@ class CemResult:
     best_score: float
     best_result: dict
     history: List[dict]
+
+
+def _score_value(score_of, score, result) -> float:
+    """The result's score as a float (NaN allowed: that rollout counts as unscored); ValueError
+    naming the score for anything that is not one real number."""
+    try:
+        value = score_of(result)
+        if np.iscomplexobj(value) or isinstance(value, (str, bytes)):
+            # float() of a NumPy complex drops the imaginary part with only a warning.
+            raise TypeError("%r is not a real number" % (value,))
+        return float(value)
+    except (KeyError, TypeError, ValueError, IndexError) as error:
+        raise ValueError("score %r could not be read from a rollout's result (%s: %s); "
+                         "a result: %r" % (score, type(error).__name__, error, result)) from error
+
+
+def _real_vector(name, values) -> np.ndarray:
+    """`values` as a float64 vector; TypeError naming `name` for a dtype that is not real numbers
+    (float() of a complex would drop its imaginary part with only a warning, None be NaN)."""
+    array = np.asarray(values)
+    if array.dtype.kind not in "fiu":
+        raise TypeError("%s = %r must be real numbers (an integer or float dtype), got dtype %s"
+                        % (name, values, array.dtype))
+    return np.array(array, dtype=float).reshape(-1)
 
 
 def cem(rollout: Rollout, mean: Any, std: Any, *, iterations: int = 10,
@@ -316,31 +424,34 @@ def cem(rollout: Rollout, mean: Any, std: Any, *, iterations: int = 10,
     0.5 it arrives (within 0.005 in 500 runs of 20 iterations).
 
     ``score``: the key of the rollout's dict to rank by, or a callable dict -> float; higher is
-    better with ``maximize`` (lower without). ``seed`` fixes the samples and the rollouts' seeds,
-    so a run is reproducible, serial or on any cluster. The pool (or the LocalCluster started
-    here) is kept across iterations."""
-    mean_in, std_in = mean, std
-    mean, std = np.array(mean_in, dtype=float).reshape(-1), np.array(std_in, dtype=float).reshape(-1)
+    better with ``maximize`` (lower without). A NaN score marks a rollout that could not be
+    scored: it is never in the elite nor the best; ValueError if nothing was scored in the whole
+    run, or for a score that is not one real number. ``seed`` fixes the samples and the
+    rollouts' seeds, so a run is reproducible, serial or on any cluster. The pool (or the
+    LocalCluster started here) is kept across iterations."""
+    mean, std = _real_vector("mean", mean), _real_vector("std", std)
     if mean.shape != std.shape or mean.size == 0:
         raise ValueError("mean has shape %s and std %s: give two vectors of the same length >= 1"
                          % (mean.shape, std.shape))
     if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(std)) and np.all(std >= 0)):
         raise ValueError("mean must be finite and std finite and >= 0; got mean=%s, std=%s"
                          % (mean, std))
-    if not isinstance(iterations, int) or iterations < 1:
-        raise ValueError("iterations = %r must be an int >= 1" % (iterations,))
-    if not isinstance(population, int) or population < 2:
-        raise ValueError("population = %r must be an int >= 2" % (population,))
-    if not 0.0 < elite_fraction <= 1.0:
-        raise ValueError("elite_fraction = %r must be in (0, 1]" % (elite_fraction,))
-    if not 0.0 <= std_smoothing < 1.0:
-        raise ValueError("std_smoothing = %r must be in [0, 1)" % (std_smoothing,))
-    if not min_std >= 0.0:
-        raise ValueError("min_std = %r must be >= 0" % (min_std,))
+    for name, count, least in (("iterations", iterations, 1), ("population", population, 2)):
+        if not _is_int(count) or count < least:
+            raise ValueError("%s = %r must be an int >= %d" % (name, count, least))
+    for name, value, ok, bound in (
+            ("elite_fraction", elite_fraction, lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
+            ("std_smoothing", std_smoothing, lambda v: 0.0 <= v < 1.0, "in [0, 1)"),
+            ("min_std", min_std, lambda v: 0.0 <= v < np.inf, "finite and >= 0")):
+        # A bool or a string compares (or fails to) in ways that hide the mistake.
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer,
+                                                             np.floating)) or not ok(value):
+            raise ValueError("%s = %r must be a number %s" % (name, value, bound))
     score_of = score if callable(score) else (lambda result: result[score])
     elite_count = max(1, int(round(elite_fraction * population)))
     rng = np.random.default_rng(seed)
     best = None  # (score, params, result)
+    last_result = None
     history = []
 
     own = None
@@ -352,14 +463,22 @@ def cem(rollout: Rollout, mean: Any, std: Any, *, iterations: int = 10,
             seeds = rng.integers(0, 2**31 - 1, size=population)
             results = pool.map(rollout, [(sample, int(s)) for sample, s in zip(samples, seeds)],
                                chunk_size=chunk_size)
-            try:
-                scores = np.array([float(score_of(result)) for result in results])
-            except (KeyError, TypeError, ValueError) as error:
-                raise ValueError("score %r could not be read from a rollout's result (%s: %s); "
-                                 "a result: %r" % (score, type(error).__name__, error,
-                                                   results[0])) from error
-            ranked = np.argsort(-scores if maximize else scores, kind="stable")
-            elite = samples[ranked[:elite_count]]
+            scores = np.array([_score_value(score_of, score, result) for result in results])
+            last_result = results[0]
+            # NaN (a rollout that could not be scored) is never elite nor best: a NaN best would
+            # never be beaten (every comparison with it is False), and a population of NaN has
+            # no elite to move to.
+            scored = np.flatnonzero(~np.isnan(scores))
+            if scored.size == 0:
+                # Nothing to learn from: the distribution stays, the next draw tries again.
+                history.append({"mean": mean.copy(), "std": std.copy(),
+                                "elite_score": float("nan"), "best_score": float("nan"),
+                                "unscored": population})
+                continue
+            order = np.argsort(-scores[scored] if maximize else scores[scored], kind="stable")
+            ranked = scored[order]
+            elite_ranks = ranked[:elite_count]  # fewer when fewer were scored
+            elite = samples[elite_ranks]
             top = ranked[0]
             if best is None or (scores[top] > best[0] if maximize else scores[top] < best[0]):
                 best = (float(scores[top]), samples[top].copy(), results[top])
@@ -367,11 +486,16 @@ def cem(rollout: Rollout, mean: Any, std: Any, *, iterations: int = 10,
             std = np.maximum(std_smoothing * std + (1.0 - std_smoothing) * elite.std(axis=0),
                              min_std)
             history.append({"mean": mean.copy(), "std": std.copy(),
-                            "elite_score": float(scores[ranked[:elite_count]].mean()),
-                            "best_score": float(scores[top])})
+                            "elite_score": float(scores[elite_ranks].mean()),
+                            "best_score": float(scores[top]),
+                            "unscored": population - int(scored.size)})
     finally:
         if own is not None:
             own.close()
-    assert best is not None  # iterations >= 1
+    if best is None:
+        raise ValueError("score %r was NaN for every one of the %d rollouts (%d iterations of %d): "
+                         "nothing to rank; a result: %r" % (
+                             score, iterations * population, iterations, population,
+                             last_result))
     return CemResult(mean=mean, std=std, best_params=best[1], best_score=best[0],
                      best_result=best[2], history=history)

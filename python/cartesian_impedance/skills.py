@@ -55,11 +55,22 @@ class InsertionSkill:
     @classmethod
     def from_vector(cls, values):
         """The skill from a vector in NAMES' order, clipped to where each parameter means
-        something (cem samples a Gaussian)."""
-        v = [float(x) for x in np.asarray(values, dtype=float).reshape(-1)]
+        something (cem samples a Gaussian). TypeError for values that are not real numbers,
+        ValueError for a wrong count or a value that is not finite."""
+        array = np.asarray(values)
+        if array.dtype.kind not in "fiu":
+            # float() would take a complex's real part with only a warning, and None as NaN.
+            raise TypeError("InsertionSkill values must be real numbers, got dtype %s: %r" %
+                            (array.dtype, values))
+        v = [float(x) for x in array.astype(float).reshape(-1)]
         if len(v) != len(cls.NAMES):
             raise ValueError("InsertionSkill takes %d values (%s), got %d" %
                              (len(cls.NAMES), ", ".join(cls.NAMES), len(v)))
+        for name, value in zip(cls.NAMES, v):
+            # min(max(nan, low), high) is NaN: the clipping below would pass it on to the
+            # actions, where the environment rejects it mid-episode.
+            if not math.isfinite(value):
+                raise ValueError("InsertionSkill %s = %r is not finite" % (name, value))
         return cls(approach=min(max(v[0], 0.0), 0.03), speed=min(max(v[1], 0.02), 1.0),
                    press=min(max(v[2], 0.0), 0.02), radius=min(max(v[3], 0.0), 0.01),
                    turns=min(max(v[4], 0.5), 10.0), period=min(max(v[5], 0.2), 5.0),
@@ -122,6 +133,8 @@ def insertion_rollout(params, seed, env_options=None, episodes=1):
     jammed episode, between equals; several episodes make it less of a lottery over the
     hole's draw).
     Deterministic for (params, seed); picklable, for rollouts.Pool."""
+    if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
+        raise ValueError("episodes = %r must be an int >= 1" % (episodes,))
     from .envs import make  # in the worker process
     env = make("CartesianImpedance/PegInsertion-v0", **(env_options or {}))
     skill = InsertionSkill.from_vector(params)

@@ -3,7 +3,9 @@ episode ends, render), each task's behaviour under a scripted policy and under p
 fail, the stiffness in the action reaching the law, bad actions, and the same actions on a
 ControlLoop that the runtime's control thread steps from a simulated robot driver."""
 
+import re
 import time
+import warnings
 
 import numpy as np
 import pytest
@@ -252,8 +254,22 @@ def test_bad_actions_raise_naming_the_field_and_change_nothing():
         env.step(bad)
     with pytest.raises(ci.Error, match=r"action has shape \(6,\), expected \(12,\)"):
         env.step(np.zeros(6))
-    with pytest.raises(ci.Error, match="not an array of numbers"):
-        env.step(["left"] * 12)
+    # Values that are not real numbers are a wrong type, named as such: forcecast made a complex
+    # action its real part (only a ComplexWarning) and None NaN ('action[0] = nan is not finite').
+    for wrong, dtype in [(["left"] * 12, "<U4"), (np.full(12, 0.5 + 0.5j), "complex128"),
+                         (np.full(12, 0.5, dtype=np.complex64), "complex64"),
+                         (np.array([None] * 12), "object"), ([None] * 12, "object"),
+                         (np.ones(12, dtype=bool), "bool")]:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # a ComplexWarning would be a silent conversion
+            with pytest.raises(TypeError, match=r"^action must be real numbers \(an integer or "
+                               r"float dtype\), got .*dtype " + re.escape(dtype) + "$"):
+                env.step(wrong)
+    with pytest.raises(TypeError, match=r"^action must be real numbers, got None"):
+        env.step(None)
+    # Any real dtype is converted, as everywhere in the module.
+    assert env.actions.check(np.zeros(12, dtype=np.float16)).dtype == np.float64
+    assert env.actions.check(np.zeros(12, dtype=np.int8)).dtype == np.float64
     assert (env.sim.time, env.loop.state.cycle) == before[:2]
     np.testing.assert_array_equal(env.actions.reference_position, before[2])
     # The episode goes on as one that never saw them.
@@ -377,3 +393,46 @@ def test_robot_action_interface_observation_without_a_goal_is_the_robots_part():
         interface.observation([[0.4, 0.0, 0.5]])
     with pytest.raises(TypeError, match="model must be a RobotModel, got str"):
         ci.PolicyInterface("panda", parameters)
+
+
+def test_environment_options_of_a_wrong_type_or_out_of_range_are_named():
+    # `max_episode_steps or default` made 0 the default, int() made 2.9 two steps.
+    for options, error, message in [
+            (dict(max_episode_steps=0), ci.Error, r"max_episode_steps = 0 must be >= 1"),
+            (dict(max_episode_steps=2.9), TypeError, r"max_episode_steps = 2.9 must be an int"),
+            (dict(policy_rate="20"), TypeError, r"policy_rate = '20' must be a number \[Hz\]"),
+            (dict(policy_rate=np.inf), ci.Error, r"policy_rate = inf Hz must be finite and >= 0.1"),
+            (dict(start_noise=np.nan), ci.Error, r"start_noise = nan rad must be finite and >= 0"),
+            (dict(start_noise=-0.1), ci.Error, r"start_noise = -0.1 rad must be finite and >= 0"),
+            (dict(wrench="no"), TypeError, r"wrench = 'no' must be True, False or None"),
+            (dict(render_size=(480.5, 640)), TypeError,
+             r"render_size\[0\] \(height\) = 480.5 must be an int"),
+            (dict(render_size=480), TypeError, r"render_size = 480 must be \(height, width\)")]:
+        with pytest.raises(error, match="^" + message):
+            envs.make(REACH, **options)
+    # Each task's own options: a NaN goal range made NaN goals, band = 0 divided by zero.
+    wipe, peg = "CartesianImpedance/Wipe-v0", "CartesianImpedance/PegInsertion-v0"
+    for env_id, options, error, message in [
+            (REACH, dict(goal_range=np.nan), ci.Error, r"goal_range = nan m must be finite"),
+            (REACH, dict(tolerance=0.0), ci.Error, r"tolerance = 0.0 m must be finite and > 0"),
+            (wipe, dict(band=0), ci.Error, r"band = 0.0 N must be finite and > 0"),
+            (wipe, dict(force_range=(15.0, 8.0)), ci.Error,
+             r"force_range\[1\] = 8.0 N must be finite and >= force_range\[0\]"),
+            (wipe, dict(force_range=10.0), TypeError, r"force_range = 10.0 must be \(low, high\)"),
+            (peg, dict(peg_mass="0.2"), TypeError, r"peg_mass = '0.2' must be a number \[kg\]"),
+            (peg, dict(depth=np.inf), ci.Error, r"depth = inf m must be finite")]:
+        with pytest.raises(error, match="^" + message):
+            envs.make(env_id, **options)
+    # A policy faster than the simulation never advanced it (Simulation.run rounds to whole
+    # steps); one slower than 0.1 Hz ran the 1 kHz loop for minutes per step.
+    for options, error, message in [
+            (dict(policy_rate=5000.0), ci.Error,
+             r"policy_rate = 5000 Hz is faster than the simulation's 1000 Hz"),
+            (dict(policy_rate=0.001), ci.Error,
+             r"policy_rate = 0.001 Hz must be finite and >= 0.1"),
+            (dict(engine=None), TypeError, r"engine = None must be 'mujoco' or 'dart'"),
+            (dict(action_limits={"max_force": 1 + 1j}), TypeError,
+             r"action limits: max_force = \(1\+1j\) must be a number, got complex")]:
+        with pytest.raises(error, match="^" + message):
+            envs.make(REACH, **options)
+    assert envs.make(REACH, policy_rate=1000.0).reset(seed=0) is not None

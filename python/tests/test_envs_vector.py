@@ -3,6 +3,8 @@ bit for bit where n separate environments with the same seeds and actions end (n
 autoreset included), with Gymnasium's vector API (batched spaces, infos with masks) and errors
 that name the environment and change nothing."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -178,3 +180,37 @@ def test_bad_actions_and_seeds_raise_naming_the_environment_and_change_nothing()
         envs.make_vector(REACH, 0)
     with pytest.raises(ci.Error, match=r"spin = -0.1 s is outside \[0, 1\] s"):
         envs.make_vector(REACH, 1, spin=-0.1)
+
+
+def test_counts_seeds_and_actions_of_a_wrong_type_raise_before_anything_changes():
+    # int() made 2.9 environments 2 and accepted '2'.
+    for n in (2.9, "2", 2.0, True, None):
+        with pytest.raises(TypeError, match=r"^n = %s must be an int, got %s$" % (
+                re.escape(repr(n)), type(n).__name__)):
+            envs.make_vector(REACH, n)
+    with pytest.raises(TypeError, match=r"^threads = 1.5 must be an int"):
+        envs.make_vector(REACH, 1, threads=1.5)
+    with pytest.raises(ci.Error, match=r"^threads = -1 must be >= 0 \(0 = one per core\)"):
+        envs.make_vector(REACH, 1, threads=-1)
+    with pytest.raises(TypeError, match=r"^seeds\[1\] = 2.5 must be an int or None"):
+        envs.make_vector(REACH, 2, seeds=[1, 2.5])
+    with pytest.raises(TypeError, match=r"^seeds = '12' must be an int, a sequence of 2 ints"):
+        envs.make_vector(REACH, 2, seeds="12")
+    vector = envs.make_vector(REACH, np.int64(2), seeds=[3, None], max_episode_steps=5)
+    twin = envs.make_vector(REACH, 2, seeds=[3, None], max_episode_steps=5)
+    assert vector.num_envs == 2
+    # A negative seed is refused before environment 0 is reset (SeedSequence would refuse it
+    # only at environment 0, after nothing, or at a later one, after the first were reset).
+    with pytest.raises(ci.Error, match=r"^seed\[0\] = -1 must be >= 0"):
+        vector.reset(seed=-1)
+    first = vector.reset(seed=[3, 4])
+    assert np.array_equal(first[0], twin.reset(seed=[3, 4])[0])
+    good = np.full((2, 12), 0.5, dtype=np.float32)
+    with pytest.raises(TypeError, match=r"^env 1: action must be real numbers .* complex64$"):
+        vector.step([good[0], good[1] + 0.5j])
+    with pytest.raises(TypeError, match=r"^actions = 0.5 must be an array of num_envs = 2 rows"):
+        vector.step(0.5)
+    got, expected = vector.step(good), twin.step(good)
+    for a, b in zip(got[:4], expected[:4]):
+        assert np.array_equal(a, b)
+

@@ -9,6 +9,7 @@
 #include <string_view>
 
 #include <cartesian_impedance/core/error.hpp>
+#include <cartesian_impedance/node/log_throttle.hpp>
 
 #include "node.hpp"
 
@@ -180,13 +181,20 @@ std::optional<ci::Frame> CartesianImpedanceNode::frame_of(const std::string& fra
 Eigen::Isometry3d CartesianImpedanceNode::lookup(const std::string& frame_id) const {
   const std::string frame(strip_slash(frame_id));
   const std::string base = tf_frame(settings_, settings_.base_link);
+  // No frame of a tf tree is this long: refused before tf2 waits tf_timeout for it and quotes it
+  // in its message (a megabyte frame_id made log lines of megabytes).
+  constexpr std::size_t kMaxFrameLength = 256;
+  if (frame.size() > kMaxFrameLength) {
+    throw ci::Error("header.frame_id = " + ci::node::quoted(frame) + " is longer than " +
+                    std::to_string(kMaxFrameLength) + " characters: no frame of the tf tree");
+  }
   try {
     const geometry_msgs::TransformStamped transform = tf_buffer_->lookupTransform(
         base, frame, ros::Time(0), ros::Duration(configuration_.tf_timeout));
     return isometry_from_transform(transform.transform);
   } catch (const tf2::TransformException& error) {
-    throw ci::Error("no transform from frame '" + frame + "' to the base frame '" + base +
-                    "' within " + ci::format_number(configuration_.tf_timeout) +
+    throw ci::Error("no transform from frame " + ci::node::quoted(frame) + " to the base frame '" +
+                    base + "' within " + ci::format_number(configuration_.tf_timeout) +
                     " s: " + error.what());
   }
 }

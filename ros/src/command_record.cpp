@@ -4,7 +4,9 @@
 #include <string>
 #include <type_traits>
 
+#include <cartesian_impedance/core/error.hpp>
 #include <cartesian_impedance/core/math.hpp>
+#include <cartesian_impedance/node/log_throttle.hpp>
 
 namespace cartesian_impedance_ros {
 
@@ -151,6 +153,12 @@ std::vector<ci::Command> reconfigure_commands(const CommandRecord& record,
   const ci::Vector6d after = wrench_of(requested);
   const bool frame_changed = requested.frame != applied.frame;
   if (after == before && !frame_changed) return {};
+  // The library's message quotes a name it refuses whole: a peer's megabyte would be a megabyte
+  // log line. No valid name is long.
+  if (frame_changed && requested.frame.size() > 64) {
+    throw ci::Error("frame = " + ci::node::quoted(requested.frame, 32) +
+                    " is not a frame (valid: base, end_effector)");
+  }
   const ci::Frame frame =
       frame_changed ? ci::frame_from_name("frame", requested.frame) : record.wrench_frame;
   return {ci::Wrench(replace_changed(record.wrench, before, after), frame)};

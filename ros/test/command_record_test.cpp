@@ -164,6 +164,19 @@ TEST(CommandRecord, WrenchFieldsAndFrame) {
   EXPECT_EQ(std::get<ci::Wrench>(commands[0]).frame, ci::Frame::end_effector);
   request.frame = "tool";
   EXPECT_THROW(cir::reconfigure_commands(f.record, applied, request), ci::Error);
+  // A megabyte frame is named by its start and length, not echoed into the log line.
+  request.frame = std::string(1 << 20, 't');
+  try {
+    cir::reconfigure_commands(f.record, applied, request);
+    ADD_FAILURE() << "a megabyte frame was accepted";
+  } catch (const ci::Error& error) {
+    const std::string message = error.what();
+    EXPECT_LT(message.size(), 300u);
+    EXPECT_NE(message.find("frame = 'tttt"), std::string::npos) << message;
+    EXPECT_NE(message.find("(1048576 characters) is not a frame (valid: base, end_effector)"),
+              std::string::npos)
+        << message;
+  }
 }
 
 TEST(CommandRecord, FullMatrixStiffnessKeepsItsCouplingOrFailsValidation) {

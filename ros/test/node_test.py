@@ -154,6 +154,14 @@ def case_stiffness(processes, args):
                timeout=3.0, what="the stiffness from dynamic_reconfigure")
     state.wait(lambda m: close(m.nullspace_stiffness, [15.0] * 7, 0.5), timeout=3.0,
                what="the nullspace stiffness from dynamic_reconfigure")
+    # A negative stiffness is refused on dynamic_reconfigure as on the topic (below), by the same
+    # check: before, the server clamped it to its .cfg's minimum, 0, and x went limp.
+    result = client.update_configuration({"translation_x": -5.0, "update_stiffness": True})
+    assert result["translation_x"] == 800.0, result  # the server shows the value in force
+    wait_until(lambda: "stiffness_reconfigure rejected" in processes.log("launch"), 3.0,
+               "the reconfigure's rejection to be logged")
+    holds(state, 0.5, lambda m: close(vector6(m.commanded_cartesian_stiffness), expected, 1e-9),
+          "a negative stiffness from dynamic_reconfigure changed the stiffness")
 
     # Negative stiffness is invalid (not saturated): rejected, nothing changes.
     pub = publisher("/%s/set_cartesian_stiffness" % CONTROLLER, WrenchStamped)
@@ -269,8 +277,8 @@ def case_trajectory(processes, args):
 
 
 def case_nan_pose(processes, args):
-    """A NaN pose and a non-unit quaternion are rejected and logged; the robot holds and the
-    controller keeps running and accepts the next good pose."""
+    """A NaN pose, a non-unit quaternion and a megabyte frame_id are rejected and logged; the
+    robot holds and the controller keeps running and accepts the next good pose."""
     processes.launch("launch", "sim_panda.launch")
     init_rospy()
     from geometry_msgs.msg import PoseStamped
@@ -290,6 +298,12 @@ def case_nan_pose(processes, args):
                "the rejection to be logged")
     log = processes.log("launch")
     assert "nan" in log, log[-2000:]
+    # A frame_id of a megabyte is refused by its length and named, not echoed: before, tf2 waited
+    # for it and the log line quoted it twice (2 MB).
+    pub.publish(pose_stamped("f" * (1 << 20), (p0[0] + 0.1, p0[1], p0[2]), q0))
+    wait_until(lambda: "(1048576 characters) is longer than 256 characters"
+               in processes.log("launch"), 3.0, "the long frame_id's rejection to be logged")
+    assert "f" * 1000 not in processes.log("launch"), "the frame_id was echoed"
     cycle = state.get().cycle
     target = (p0[0], p0[1] + 0.03, p0[2])
     reach_pose(state, "/%s/reference_pose" % CONTROLLER, "", target, q0)

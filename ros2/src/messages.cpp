@@ -7,6 +7,7 @@
 #include <unordered_map>
 
 #include <cartesian_impedance/core/error.hpp>
+#include <cartesian_impedance/node/log_throttle.hpp>
 #include <cartesian_impedance/node/state_message.hpp>
 
 namespace cartesian_impedance_ros2 {
@@ -26,8 +27,8 @@ std::optional<ci::Frame> frame_of(const char* frame_id, const Frames& frames, co
   if (frame.empty()) return std::nullopt;
   if (frames.is_base(frame)) return ci::Frame::base;
   if (frames.is_tip(frame)) return ci::Frame::end_effector;
-  throw ci::Error(std::string(topic) + ": header.frame_id = '" + std::string(frame) +
-                  "' is not a frame of this controller (valid: '', '" + frames.base_link + "', '" +
+  throw ci::Error(std::string(topic) + ": header.frame_id = " + ci::node::quoted(frame) +
+                  " is not a frame of this controller (valid: '', '" + frames.base_link + "', '" +
                   frames.tip_link + "'; the ROS 2 node does not look up other frames)");
 }
 
@@ -67,8 +68,8 @@ ci::Vector6d vector_from_wrench(const WrenchMessage& message) {
 ci::Command reference_from_message(const PoseStamped& message, const Frames& frames) {
   const std::string_view frame = text(message.header.frame_id);
   if (!frame.empty() && !frames.is_base(frame)) {
-    throw ci::Error("reference_pose: header.frame_id = '" + std::string(frame) +
-                    "' is not the base frame (valid: '' or '" + frames.base_link +
+    throw ci::Error("reference_pose: header.frame_id = " + ci::node::quoted(frame) +
+                    " is not the base frame (valid: '' or '" + frames.base_link +
                     "'; the ROS 2 node does not look up other frames)");
   }
   return ci::ReferencePose{pose_from_message(message.pose)};
@@ -105,7 +106,39 @@ std::vector<ci::Command> config_from_message(const ControllerConfig& message, in
   return commands;
 }
 
-ci::JointTrajectory trajectory_from_message(const JointTrajectoryMessage& message) {
+ci::JointTrajectory trajectory_from_message(const JointTrajectoryMessage& message,
+                                            std::uint32_t max_points) {
+  // Bounds first: the loop would refuse a larger trajectory, but only after the node had copied
+  // all of it (a million points were a million allocations on the command thread).
+  constexpr std::size_t kMaxNameLength = 256;
+  const std::uint32_t joints = static_cast<std::uint32_t>(ci::kMaxJoints);
+  if (message.points._length > max_points) {
+    throw ci::Error("joint_trajectory: " + std::to_string(message.points._length) +
+                    " points; at most " + std::to_string(max_points) + " are accepted");
+  }
+  if (message.joint_names._length > joints) {
+    throw ci::Error("joint_trajectory: " + std::to_string(message.joint_names._length) +
+                    " joint names; a chain has at most " + std::to_string(joints) + " joints");
+  }
+  for (std::uint32_t i = 0; i < message.joint_names._length; ++i) {
+    const std::string_view name = text(message.joint_names._buffer[i]);
+    if (name.size() > kMaxNameLength) {
+      throw ci::Error("joint_trajectory: joint_names[" + std::to_string(i) +
+                      "] = " + ci::node::quoted(name) + " is longer than " +
+                      std::to_string(kMaxNameLength) + " characters");
+    }
+  }
+  for (std::uint32_t k = 0; k < message.points._length; ++k) {
+    const auto& point = message.points._buffer[k];
+    for (const std::uint32_t count : {point.positions._length, point.velocities._length,
+                                      point.accelerations._length, point.effort._length}) {
+      if (count > joints) {
+        throw ci::Error("joint_trajectory: points[" + std::to_string(k) + "] has " +
+                        std::to_string(count) + " values in an array; a chain has at most " +
+                        std::to_string(joints) + " joints");
+      }
+    }
+  }
   ci::JointTrajectory trajectory;
   for (std::uint32_t i = 0; i < message.joint_names._length; ++i) {
     trajectory.joint_names.emplace_back(text(message.joint_names._buffer[i]));

@@ -74,8 +74,12 @@ std::vector<cartesian_impedance::Command> config_from_message(const ControllerCo
                                                               int num_joints);
 /// The library's trajectory (header.stamp is ignored: execution starts at the next cycle).
 /// Velocities are used if every point has them.
-/// @throws cartesian_impedance::Error if some points have velocities and others not.
-cartesian_impedance::JointTrajectory trajectory_from_message(const JointTrajectoryMessage& message);
+/// @throws cartesian_impedance::Error if some points have velocities and others not, or before
+///         anything is copied if the message is larger than any trajectory the loop takes: more
+///         than `max_points` points (LoopCapacity::trajectory_points), more than kMaxJoints joint
+///         names or values in a point, or a joint name beyond 256 characters.
+cartesian_impedance::JointTrajectory trajectory_from_message(const JointTrajectoryMessage& message,
+                                                             std::uint32_t max_points);
 /// Views of a JointState's arrays for node::JointStateMapper.
 cartesian_impedance::node::JointStateView joint_state_view(const JointStateMessage& message);
 

@@ -365,7 +365,9 @@ void Node::take_commands() {
         log(LogLevel::info, "joint_trajectory: empty, the running trajectory is cancelled");
         return;
       }
-      const std::uint64_t id = loop_->execute_trajectory(trajectory_from_message(message));
+      // The loop was made with the default capacity (the constructor's LoopCapacity).
+      const std::uint64_t id = loop_->execute_trajectory(trajectory_from_message(
+          message, static_cast<std::uint32_t>(ci::LoopCapacity{}.trajectory_points)));
       log(LogLevel::info, "joint_trajectory " + std::to_string(id) + ": " +
                               std::to_string(message.points._length) + " points");
     });

@@ -7,6 +7,7 @@
 
 #include <cartesian_impedance/core/error.hpp>
 #include <cartesian_impedance/core/parameter_tree.hpp>
+#include <cartesian_impedance/node/startup_report.hpp>
 #include <cartesian_impedance/sim/engine.hpp>
 
 #include "log.hpp"
@@ -206,7 +207,8 @@ NodeParameters::NodeParameters(ci::ControlLoop& loop, const ci::node::NodeSettin
       control_rate_(settings.control_rate),
       safety_locked_(!loop.runtime_safety_changes_allowed()),
       accepting_(std::move(accepting)),
-      node_name_(std::move(node_name)) {
+      node_name_(std::move(node_name)),
+      shown_(loop.latest_parameters()) {
   for (const ci::ParameterInfo& row : ci::parameter_table()) {
     Entry entry;
     entry.row = &row;
@@ -328,10 +330,25 @@ std::optional<std::vector<std::uint8_t>> NodeParameters::types(
   return types;
 }
 
-std::vector<NamedValue> NodeParameters::all() const {
-  const ci::Parameters parameters = loop_.latest_parameters();
+std::vector<NamedValue> NodeParameters::all() {
+  shown_ = loop_.latest_parameters();
   std::vector<NamedValue> values;
-  for (const auto& [name, entry] : entries_) values.emplace_back(name, value_of(entry, parameters));
+  for (const auto& [name, entry] : entries_) values.emplace_back(name, value_of(entry, shown_));
+  return values;
+}
+
+std::vector<NamedValue> NodeParameters::changes() {
+  const ci::Parameters now = loop_.latest_parameters();
+  const ci::ParameterNames changed = ci::changed_parameters(shown_, now);
+  std::vector<NamedValue> values;
+  if (changed.none()) return values;
+  const std::vector<ci::ParameterInfo>& table = ci::parameter_table();
+  for (std::size_t i = 0; i < table.size(); ++i) {
+    if (!changed[i]) continue;
+    const auto found = entries_.find(std::string(table[i].name));
+    if (found != entries_.end()) values.emplace_back(found->first, value_of(found->second, now));
+  }
+  shown_ = now;
   return values;
 }
 
@@ -440,6 +457,7 @@ SetResult NodeParameters::set(const std::vector<NamedValue>& parameters,
   }
   // A safety setting changed while the robot runs (only possible when the node's configuration
   // allowed it): said loudly, so that the log shows who relaxed a cap and when.
+  bool safety_changed = false;
   for (const auto& [name, value] : parameters) {
     const auto found = entries_.find(name);
     if (found == entries_.end() || found->second.row == nullptr) continue;
@@ -450,7 +468,20 @@ SetResult NodeParameters::set(const std::vector<NamedValue>& parameters,
                             " changed while the controller runs: " + shown(in_force, row) + " -> " +
                             shown(update.values, row) + " (parameter set on " + node_name_ +
                             "; allow_runtime_safety_changes is true)");
+    safety_changed = true;
   }
+  // The torque-rate check the node makes at start (node::startup_report()) reads the limits:
+  // made again, by the same function, when they change at run time, at the arm's configuration.
+  if (safety_changed) {
+    for (const ci::node::ReportLine& line :
+         ci::node::rate_check_report(loop_.latest_parameters(), loop_.model(),
+                                     loop_.latest_state().q, "the current configuration")) {
+      log(LogLevel::warn, line.text);
+    }
+  }
+  // The set's own event shows these rows: changes() reports them only if the loop stored them
+  // otherwise, or something else changed them since.
+  ci::copy_parameters(update.values, shown_, update.names);
   if (changed != nullptr) {
     changed->clear();
     for (const auto& p : parameters) {

@@ -121,8 +121,18 @@ class NodeParameters {
   /// applied the set, so that a following set or get starts from it.
   SetResult set(const std::vector<NamedValue>& parameters, std::vector<NamedValue>* changed);
 
-  /// Every parameter with its value, in name order (for the first parameter event).
-  std::vector<NamedValue> all() const;
+  /// Every parameter with its value, in name order (for the first parameter event); what
+  /// changes() compares with from then on.
+  std::vector<NamedValue> all();
+
+  /// The parameters whose values in force differ from what the parameter events have shown
+  /// (all(), set(), the last changes()), with their values in force, in table order; empty if
+  /// none. This is how a change that did not come through set() reaches /parameter_events: a
+  /// stiffness, damping, wrench or nullspace command on a topic changes the rows it commands
+  /// (a full stiffness matrix shows as its diagonal, as get() shows it), and the loop may store
+  /// a set's value otherwise than given. Changes between two calls show as one, with the value in
+  /// force at the second.
+  std::vector<NamedValue> changes();
 
  private:
   struct Entry {
@@ -143,6 +153,8 @@ class NodeParameters {
   std::function<bool()> accepting_;
   std::string node_name_;
   std::map<std::string, Entry> entries_;  // sorted, as rclcpp's
+  // The values the parameter events have shown: all(), each set's rows, changes().
+  cartesian_impedance::Parameters shown_;
 };
 
 /// The shell's own read-only settings: the URDF's source (urdf_path, or robot_description with its

@@ -1,11 +1,19 @@
 #include "parameter_services.hpp"
 
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <chrono>
 #include <cstring>
 #include <deque>
+#include <map>
+#include <optional>
 #include <thread>
 
 #include <cartesian_impedance/core/error.hpp>
+#include <cartesian_impedance/node/log_throttle.hpp>
 
 #include "log.hpp"
 #include "messages.hpp"
@@ -27,6 +35,32 @@ const TopicQos kEventQos{true, false, 1000};
 
 // How long a reply waits for the client's reply reader to match (rmw_cyclonedds_cpp: 100 ms).
 constexpr auto kMatchWait = std::chrono::milliseconds(100);
+// How often the values in force are compared with what /parameter_events showed (topic commands
+// change parameters without a set): the longest an event lags the change.
+constexpr auto kEventPoll = std::chrono::milliseconds(50);
+// The services' thread's nice value (0 is the default; 19 the lowest priority).
+constexpr int kServicesNice = 10;
+
+}  // namespace
+
+std::optional<std::string> count_fault(const char* what, std::uint64_t count, std::uint64_t limit) {
+  if (count <= limit) return std::nullopt;
+  return std::string(what) + ": " + std::to_string(count) + ", more than " + std::to_string(limit);
+}
+
+std::optional<std::string> length_fault(const char* what, const char* text, std::size_t limit) {
+  // strnlen: the bound is checked without reading past it; the whole length is counted only for
+  // the message of one that is too long.
+  if (text == nullptr || strnlen(text, limit + 1) <= limit) return std::nullopt;
+  std::string start;
+  for (const char* c = text; *c != '\0' && start.size() < 32; ++c) {
+    start += (*c >= 0x20 && *c < 0x7f) ? *c : '?';
+  }
+  return std::string(what) + " of " + std::to_string(std::strlen(text)) +
+         " characters (beginning '" + start + "...') is longer than " + std::to_string(limit);
+}
+
+namespace {
 
 std::string text(const char* value) {
   return value == nullptr ? std::string() : std::string(value);
@@ -67,6 +101,55 @@ std::vector<NamedValue> from_message(const dds_sequence_rcl_interfaces_msg_dds__
     out.emplace_back(text(list._buffer[i].name), from_message(list._buffer[i].value));
   }
   return out;
+}
+
+// The first bound (request_limits) a request's names or prefixes break.
+std::optional<std::string> names_fault(const dds_sequence_string& names, const char* what) {
+  using namespace request_limits;
+  if (auto fault = count_fault(what, names._length, kItems)) return fault;
+  for (std::uint32_t i = 0; i < names._length; ++i) {
+    const std::string item = std::string(what) + "[" + std::to_string(i) + "]";
+    if (auto fault = length_fault(item.c_str(), names._buffer[i], kNameLength)) return fault;
+  }
+  return std::nullopt;
+}
+
+std::optional<std::string> value_fault(const ValueMessage& value, const std::string& where) {
+  using namespace request_limits;
+  const auto count = [&](const char* member, std::uint32_t length) {
+    return count_fault((where + "." + member + " elements").c_str(), length, kArrayLength);
+  };
+  if (auto fault =
+          length_fault((where + ".string_value").c_str(), value.string_value, kStringLength)) {
+    return fault;
+  }
+  if (auto f = count("byte_array_value", value.byte_array_value._length)) return f;
+  if (auto f = count("bool_array_value", value.bool_array_value._length)) return f;
+  if (auto f = count("integer_array_value", value.integer_array_value._length)) return f;
+  if (auto f = count("double_array_value", value.double_array_value._length)) return f;
+  if (auto f = count("string_array_value", value.string_array_value._length)) return f;
+  for (std::uint32_t i = 0; i < value.string_array_value._length; ++i) {
+    const std::string item = where + ".string_array_value[" + std::to_string(i) + "]";
+    if (auto fault =
+            length_fault(item.c_str(), value.string_array_value._buffer[i], kStringLength)) {
+      return fault;
+    }
+  }
+  return std::nullopt;
+}
+
+std::optional<std::string> parameters_fault(
+    const dds_sequence_rcl_interfaces_msg_dds__Parameter_& list) {
+  using namespace request_limits;
+  if (auto fault = count_fault("parameters", list._length, kItems)) return fault;
+  for (std::uint32_t i = 0; i < list._length; ++i) {
+    const std::string where = "parameters[" + std::to_string(i) + "]";
+    if (auto fault = length_fault((where + ".name").c_str(), list._buffer[i].name, kNameLength)) {
+      return fault;
+    }
+    if (auto fault = value_fault(list._buffer[i].value, where + ".value")) return fault;
+  }
+  return std::nullopt;
 }
 
 template <typename Sequence, typename T>
@@ -140,6 +223,36 @@ std::string user_data_value(const dds_qos_t* qos, const std::string& key) {
   return "";
 }
 
+// The clients whose reply reader did not match within kMatchWait. A client that announces itself
+// (clientid) but never reads replies would otherwise hold the services' thread for kMatchWait per
+// request, and every other client's requests behind it: it is not waited for again for
+// kForgetAfter (its replies are written at once, as to a client that names none). Bounded: a
+// peer that makes up a new id per request costs one wait per id, and the record forgets the
+// oldest ids first.
+class ReplyWaits {
+ public:
+  static constexpr auto kForgetAfter = std::chrono::seconds(10);
+  static constexpr std::size_t kMaxClients = 256;
+
+  bool patient(const std::string& client, std::chrono::steady_clock::time_point now) const {
+    const auto found = gave_up_.find(client);
+    return found == gave_up_.end() || now - found->second > kForgetAfter;
+  }
+  void give_up(const std::string& client, std::chrono::steady_clock::time_point now) {
+    if (gave_up_.size() >= kMaxClients) {
+      auto oldest = gave_up_.begin();
+      for (auto it = gave_up_.begin(); it != gave_up_.end(); ++it) {
+        if (it->second < oldest->second) oldest = it;
+      }
+      gave_up_.erase(oldest);
+    }
+    gave_up_[client] = now;
+  }
+
+ private:
+  std::map<std::string, std::chrono::steady_clock::time_point> gave_up_;
+};
+
 }  // namespace
 
 // One service: its request reader and reply writer.
@@ -152,6 +265,7 @@ struct ParameterServices::Endpoints {
   Service list, get, set, set_atomically, describe, types;
   Entity events;
   Entity wake;  // guard condition: stop
+  ReplyWaits waits;
 };
 
 namespace {
@@ -177,17 +291,22 @@ Service make_service(const Participant& participant, const std::string& node,
   return s;
 }
 
-// rmw_cyclonedds_cpp's check_for_response_reader: true once the client that wrote the request
-// (`request_writer`, matched by `service.reader`) has a reader matched by `service.writer`, or if
-// the client does not name itself (clientid), or is gone (then the reply is written anyway: it is
-// harmless, and a client that is slow to be discovered still gets it).
-bool client_can_receive(const Service& service, dds_instance_handle_t request_writer) {
+// The client id (clientid in USER_DATA, as rmw_cyclonedds_cpp's clients announce it) of the
+// writer of a request (`request_writer`, matched by `service.reader`); empty if it names none or
+// is gone (then the reply is written at once: it is harmless, and a client that is slow to be
+// discovered still gets it).
+std::string client_of(const Service& service, dds_instance_handle_t request_writer) {
   dds_builtintopic_endpoint_t* writer =
       dds_get_matched_publication_data(service.reader.get(), request_writer);
-  if (writer == nullptr) return true;
-  const std::string client = user_data_value(writer->qos, "clientid");
+  if (writer == nullptr) return "";
+  std::string client = user_data_value(writer->qos, "clientid");
   dds_builtintopic_free_endpoint(writer);
-  if (client.empty()) return true;
+  return client;
+}
+
+// rmw_cyclonedds_cpp's check_for_response_reader: true once `client` has a reader matched by
+// `service.writer`.
+bool has_reply_reader(const Service& service, const std::string& client) {
   dds_instance_handle_t readers[64];
   const dds_return_t count = dds_get_matched_subscriptions(service.writer.get(), readers, 64);
   for (dds_return_t i = 0; i < count && i < 64; ++i) {
@@ -201,12 +320,17 @@ bool client_can_receive(const Service& service, dds_instance_handle_t request_wr
   return false;
 }
 
-// Takes every request waiting on `service` and answers each with `answer(request, reply)`:
-// the request is read where DDS loaned it, the reply written with the request's header.
+// Requests taken from one service before the others are served: a flood on one service cannot
+// keep the thread from the others.
+constexpr int kPerRound = 16;
+
+// Takes up to kPerRound requests waiting on `service` and answers each with
+// `answer(request, reply)`: the request is read where DDS loaned it, the reply written with the
+// request's header. Returns how many were answered (kPerRound: more may wait).
 template <typename Request, typename Reply, typename Answer>
-std::uint64_t serve_requests(const Service& service, Answer&& answer) {
+std::uint64_t serve_requests(const Service& service, ReplyWaits& waits, Answer&& answer) {
   std::uint64_t answered = 0;
-  for (;;) {
+  for (int taken = 0; taken < kPerRound; ++taken) {
     void* samples[1] = {};
     dds_sample_info_t info;
     if (dds_take(service.reader.get(), samples, &info, 1, 1) <= 0) break;
@@ -217,10 +341,14 @@ std::uint64_t serve_requests(const Service& service, Answer&& answer) {
       reply.cdds_request_header_seq = request.cdds_request_header_seq;
       Storage storage;
       answer(request, reply, storage);
-      const auto deadline = std::chrono::steady_clock::now() + kMatchWait;
-      while (!client_can_receive(service, info.publication_handle) &&
-             std::chrono::steady_clock::now() < deadline) {
-        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      const std::string client = client_of(service, info.publication_handle);
+      const auto start = std::chrono::steady_clock::now();
+      if (!client.empty() && waits.patient(client, start)) {
+        while (!has_reply_reader(service, client) &&
+               std::chrono::steady_clock::now() < start + kMatchWait) {
+          std::this_thread::sleep_for(std::chrono::milliseconds(5));
+        }
+        if (!has_reply_reader(service, client)) waits.give_up(client, start);
       }
       if (dds_write(service.writer.get(), &reply) < 0) {
         log(LogLevel::warn, "DDS: cannot write a parameter service reply");
@@ -298,6 +426,13 @@ void ParameterServices::stop() {
 }
 
 void ParameterServices::serve() {
+  // A storm of requests must not take CPU from the control thread (which may not run at a
+  // real-time priority): on a machine with few cores the scheduler then prefers it. Raising one's
+  // own nice value needs no privilege.
+  if (setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), kServicesNice) != 0) {
+    log(LogLevel::warn, std::string("cannot lower the parameter services' thread's priority: ") +
+                            std::strerror(errno));
+  }
   const dds_entity_t waitset = dds_create_waitset(dds_get_participant(endpoints_->wake.get()));
   if (waitset < 0) {
     log(LogLevel::error, std::string("DDS: cannot create the parameter services' waitset: ") +
@@ -310,41 +445,68 @@ void ParameterServices::serve() {
   }
   dds_waitset_attach(waitset, endpoints_->wake.get(), endpoints_->wake.get());
   while (!stop_) {
-    take_requests();
-    dds_waitset_wait(waitset, nullptr, 0, DDS_MSECS(100));
+    const bool more = take_requests();
+    // What changed without a set (a topic's stiffness, ...), as rclcpp nodes report every change.
+    const std::vector<NamedValue> changes = parameters_.changes();
+    if (!changes.empty()) publish_event({}, changes);
+    // Requests left for the next round do not wake the waitset again.
+    if (!more) {
+      dds_waitset_wait(waitset, nullptr, 0,
+                       std::chrono::duration_cast<std::chrono::nanoseconds>(kEventPoll).count());
+    }
   }
   dds_delete(waitset);
 }
 
-void ParameterServices::take_requests() {
+bool ParameterServices::take_requests() {
   Endpoints& e = *endpoints_;
   std::uint64_t answered = 0;
-  answered += serve_requests<rcl_interfaces_srv_dds__ListParameters_Request_,
-                             rcl_interfaces_srv_dds__ListParameters_Response_>(
-      e.list, [&](const auto& request, auto& reply, Storage& storage) {
+  bool more = false;  // a service had kPerRound requests: more may wait
+  const auto busy = [&](std::uint64_t count) {
+    more = more || count >= static_cast<std::uint64_t>(kPerRound);
+    return count;
+  };
+  answered += busy(serve_requests<rcl_interfaces_srv_dds__ListParameters_Request_,
+                                  rcl_interfaces_srv_dds__ListParameters_Response_>(
+      e.list, e.waits, [&](const auto& request, auto& reply, Storage& storage) {
         static thread_local ListResult result;
+        if (auto fault = names_fault(request.prefixes, "prefixes")) {
+          refused("list_parameters", *fault);
+          return;  // nothing listed, as for a prefix that names nothing
+        }
         result = parameters_.list(strings(request.prefixes), request.depth);
         storage.strings(reply.result.names, result.names);
         storage.strings(reply.result.prefixes, result.prefixes);
-      });
-  answered += serve_requests<rcl_interfaces_srv_dds__GetParameters_Request_,
-                             rcl_interfaces_srv_dds__GetParameters_Response_>(
-      e.get, [&](const auto& request, auto& reply, Storage& storage) {
+      }));
+  answered += busy(serve_requests<rcl_interfaces_srv_dds__GetParameters_Request_,
+                                  rcl_interfaces_srv_dds__GetParameters_Response_>(
+      e.get, e.waits, [&](const auto& request, auto& reply, Storage& storage) {
         static thread_local std::vector<RosValue> values;
-        values = parameters_.get(strings(request.names)).value_or(std::vector<RosValue>{});
+        values.clear();
+        // rclcpp answers a request it cannot answer whole with no values.
+        if (auto fault = names_fault(request.names, "names")) {
+          refused("get_parameters", *fault);
+        } else {
+          values = parameters_.get(strings(request.names)).value_or(std::vector<RosValue>{});
+        }
         auto& messages = storage.values();
         for (const RosValue& value : values) messages.push_back(storage.value(value));
         point(reply.values, messages.data(), messages.size());
-      });
-  answered += serve_requests<rcl_interfaces_srv_dds__DescribeParameters_Request_,
-                             rcl_interfaces_srv_dds__DescribeParameters_Response_>(
-      e.describe, [&](const auto& request, auto& reply, Storage&) {
+      }));
+  answered += busy(serve_requests<rcl_interfaces_srv_dds__DescribeParameters_Request_,
+                                  rcl_interfaces_srv_dds__DescribeParameters_Response_>(
+      e.describe, e.waits, [&](const auto& request, auto& reply, Storage&) {
         static thread_local std::vector<RosDescriptor> descriptors;
         static thread_local std::vector<DescriptorMessage> messages;
         static thread_local std::vector<rcl_interfaces_msg_dds__FloatingPointRange_> floats;
         static thread_local std::vector<rcl_interfaces_msg_dds__IntegerRange_> integers;
-        descriptors =
-            parameters_.describe(strings(request.names)).value_or(std::vector<RosDescriptor>{});
+        descriptors.clear();
+        if (auto fault = names_fault(request.names, "names")) {
+          refused("describe_parameters", *fault);
+        } else {
+          descriptors =
+              parameters_.describe(strings(request.names)).value_or(std::vector<RosDescriptor>{});
+        }
         messages.assign(descriptors.size(), DescriptorMessage{});
         floats.assign(descriptors.size(), {});
         integers.assign(descriptors.size(), {});
@@ -367,22 +529,36 @@ void ParameterServices::take_requests() {
           }
         }
         point(reply.descriptors, messages.data(), messages.size());
-      });
-  answered += serve_requests<rcl_interfaces_srv_dds__GetParameterTypes_Request_,
-                             rcl_interfaces_srv_dds__GetParameterTypes_Response_>(
-      e.types, [&](const auto& request, auto& reply, Storage&) {
+      }));
+  answered += busy(serve_requests<rcl_interfaces_srv_dds__GetParameterTypes_Request_,
+                                  rcl_interfaces_srv_dds__GetParameterTypes_Response_>(
+      e.types, e.waits, [&](const auto& request, auto& reply, Storage&) {
         static thread_local std::vector<std::uint8_t> types;
-        types = parameters_.types(strings(request.names)).value_or(std::vector<std::uint8_t>{});
+        types.clear();
+        if (auto fault = names_fault(request.names, "names")) {
+          refused("get_parameter_types", *fault);
+        } else {
+          types = parameters_.types(strings(request.names)).value_or(std::vector<std::uint8_t>{});
+        }
         point(reply.types, types.data(), types.size());
-      });
+      }));
   // set_parameters: one result per parameter, each set on its own, in order (as rclcpp does).
-  answered += serve_requests<rcl_interfaces_srv_dds__SetParameters_Request_,
-                             rcl_interfaces_srv_dds__SetParameters_Response_>(
-      e.set, [&](const auto& request, auto& reply, Storage& storage) {
+  answered += busy(serve_requests<rcl_interfaces_srv_dds__SetParameters_Request_,
+                                  rcl_interfaces_srv_dds__SetParameters_Response_>(
+      e.set, e.waits, [&](const auto& request, auto& reply, Storage& storage) {
         static thread_local std::vector<SetResult> results;
         static thread_local std::vector<SetResultMessage> messages;
         results.clear();
-        for (const NamedValue& parameter : from_message(request.parameters)) {
+        if (auto fault = parameters_fault(request.parameters)) {
+          // One result per parameter as rclcpp's clients expect, unless the count itself is the
+          // fault: then one, rather than as many results as the request claims.
+          const SetResult refusal{false, refused("set_parameters", *fault)};
+          results.assign(
+              std::min<std::uint64_t>(request.parameters._length, request_limits::kItems), refusal);
+          if (request.parameters._length > request_limits::kItems) results.resize(1);
+        }
+        for (const NamedValue& parameter :
+             results.empty() ? from_message(request.parameters) : std::vector<NamedValue>{}) {
           std::vector<NamedValue> changed;
           results.push_back(parameters_.set({parameter}, &changed));
           if (results.back().successful) publish_event({}, changed);
@@ -392,18 +568,32 @@ void ParameterServices::take_requests() {
           messages.push_back({result.successful, storage.c_str(result.reason)});
         }
         point(reply.results, messages.data(), messages.size());
-      });
-  answered += serve_requests<rcl_interfaces_srv_dds__SetParametersAtomically_Request_,
-                             rcl_interfaces_srv_dds__SetParametersAtomically_Response_>(
-      e.set_atomically, [&](const auto& request, auto& reply, Storage& storage) {
+      }));
+  answered += busy(serve_requests<rcl_interfaces_srv_dds__SetParametersAtomically_Request_,
+                                  rcl_interfaces_srv_dds__SetParametersAtomically_Response_>(
+      e.set_atomically, e.waits, [&](const auto& request, auto& reply, Storage& storage) {
         static thread_local SetResult result;
         std::vector<NamedValue> changed;
-        result = parameters_.set(from_message(request.parameters), &changed);
+        if (auto fault = parameters_fault(request.parameters)) {
+          result = {false, refused("set_parameters_atomically", *fault)};
+        } else {
+          result = parameters_.set(from_message(request.parameters), &changed);
+        }
         if (result.successful && !changed.empty()) publish_event({}, changed);
         reply.result.successful = result.successful;
         reply.result.reason = storage.c_str(result.reason);
-      });
+      }));
   answered_ += answered;
+  return more;
+}
+
+std::string ParameterServices::refused(const char* service, const std::string& fault) {
+  const std::string reason = "request to " + node_ + "/" + service + " refused: " + fault +
+                             " (see request_limits); nothing was changed";
+  if (auto line = throttle_.line(service, cartesian_impedance::Fault{}, reason)) {
+    log(LogLevel::warn, *line);
+  }
+  return reason;
 }
 
 void ParameterServices::publish_event(const std::vector<NamedValue>& fresh,

@@ -105,6 +105,15 @@ class NodeProcess {
 
   bool running() { return pid_ > 0 && !wait_for_exit(0.0); }
 
+  /// The node's resident memory [kB] (VmRSS), 0 if it is not running.
+  long resident_kb() const {
+    std::ifstream status("/proc/" + std::to_string(pid_) + "/status");
+    for (std::string line; std::getline(status, line);) {
+      if (line.rfind("VmRSS:", 0) == 0) return std::stol(line.substr(6));
+    }
+    return 0;
+  }
+
   /// Everything the node wrote so far.
   std::string log() const {
     std::ifstream file(log_path_);

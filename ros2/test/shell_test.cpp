@@ -473,6 +473,81 @@ TEST(Ros2Messages, FramesAreNamedWithOrWithoutTheTfPrefix) {
   EXPECT_THROW(reference_from_message(pose, frames), ci::Error);
 }
 
+// A peer's frame_id is named, not echoed: an 8 MiB one made a log line of 8 MiB per second (the
+// throttle's one line), and a newline in it a second, forged line.
+TEST(Ros2Messages, AnUnknownFrameIsNamedNotEchoed) {
+  const Frames frames{"panda_link0", "panda_link8", ""};
+  std::string huge(8 << 20, 'f');
+  const auto message_of = [](const auto& convert) {
+    try {
+      convert();
+    } catch (const ci::Error& error) {
+      return std::string(error.what());
+    }
+    return std::string("accepted");
+  };
+  PoseStamped pose{};
+  pose.pose.orientation.w = 1.0;
+  pose.header.frame_id = huge.data();
+  const std::string reference = message_of([&] { reference_from_message(pose, frames); });
+  EXPECT_LT(reference.size(), 300u);
+  EXPECT_NE(reference.find("header.frame_id = 'ffff"), std::string::npos) << reference;
+  EXPECT_NE(reference.find("...' (8388608 characters) is not the base frame"), std::string::npos)
+      << reference;
+  WrenchStamped wrench{};
+  wrench.header.frame_id = huge.data();
+  const std::string stiffness = message_of([&] { stiffness_from_message(wrench, frames); });
+  EXPECT_LT(stiffness.size(), 400u);
+  EXPECT_NE(stiffness.find("(8388608 characters) is not a frame of this controller"),
+            std::string::npos)
+      << stiffness;
+  std::string forged = "x\n[INFO] [0.0] [cartesian_impedance_controller]: all is well";
+  wrench.header.frame_id = forged.data();
+  const std::string line = message_of([&] { wrench_from_message(wrench, frames); });
+  EXPECT_EQ(line.find('\n'), std::string::npos) << line;
+  EXPECT_NE(line.find("'x?[INFO]"), std::string::npos) << line;
+}
+
+// A trajectory larger than the loop takes is refused before the node copies it: a million points
+// were a million allocations on the command thread before the loop refused them.
+TEST(Ros2Messages, ATrajectoryBeyondTheLoopsCapacityIsRefusedBeforeItIsCopied) {
+  std::vector<trajectory_msgs_msg_dds__JointTrajectoryPoint_> points(10001);
+  std::vector<double> q(7, 0.0);
+  for (auto& point : points) {
+    point.positions._buffer = q.data();
+    point.positions._length = point.positions._maximum = 7;
+  }
+  JointTrajectoryMessage message{};
+  message.points._buffer = points.data();
+  message.points._length = message.points._maximum = 10001;
+  const auto message_of = [&](std::uint32_t max_points) {
+    try {
+      trajectory_from_message(message, max_points);
+    } catch (const ci::Error& error) {
+      return std::string(error.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_EQ(message_of(10000), "joint_trajectory: 10001 points; at most 10000 are accepted");
+  EXPECT_EQ(message_of(10001), "accepted");
+  message.points._length = 1;
+  std::vector<double> many(17, 0.0);
+  points[0].velocities._buffer = many.data();
+  points[0].velocities._length = points[0].velocities._maximum = 17;
+  EXPECT_EQ(message_of(10000),
+            "joint_trajectory: points[0] has 17 values in an array; a chain has at most 16 "
+            "joints");
+  points[0].velocities._length = 0;
+  std::string long_name(300, 'j');
+  char* names[] = {long_name.data()};
+  message.joint_names._buffer = names;
+  message.joint_names._length = message.joint_names._maximum = 1;
+  EXPECT_NE(message_of(10000).find("joint_names[0] = 'jjjj"), std::string::npos);
+  EXPECT_NE(message_of(10000).find("(300 characters) is longer than 256 characters"),
+            std::string::npos)
+      << message_of(10000);
+}
+
 // full_state carries the torque shaping, the hold and every field of the safety layer, each in
 // its own field of the generated C type: every value distinct, so a field filled from the wrong
 // member shows.

@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <limits>
 #include <string>
+#include <thread>
+#include <utility>
 
 #include "cartesian_impedance/core/checks.hpp"
 #include "cartesian_impedance/core/error.hpp"
@@ -98,8 +100,13 @@ const char* const kWrenchNames[6] = {"applyWrench: f_x",   "applyWrench: f_y",
 
 // The native controller set up to evaluate exactly the published law: no filters (the
 // compatibility class filters with the published semantics and schedules the result), no damping
-// floor, lambda = 0.2, unit-mass damping, and the torque delta per call as a rate [Nm/s].
-ci::Parameters native_parameters(double torque_rate) {
+// floor, lambda = 0.2, unit-mass damping. Its torque-rate limit is the widest the library allows:
+// the published one, each joint's change clipped on its own to the torque delta per call, is
+// applied by the compatibility class itself (limit_torque_change()), so that it stays the
+// published one whatever the library's own rate limit does (it once shaped the change and the
+// filtered, rate-limited torques drifted from the published ones by 0.13 Nm). The widest rate,
+// 1e6 Nm/s, is at least the torque delta at any frequency (reconfigure() clamps the delta to it).
+ci::Parameters native_parameters() {
   ci::Parameters parameters;
   for (ci::FilterSettings* filter : {&parameters.filter.pose, &parameters.filter.stiffness,
                                      &parameters.filter.nullspace, &parameters.filter.wrench}) {
@@ -118,7 +125,8 @@ ci::Parameters native_parameters(double torque_rate) {
                           ci::parameter_info("limits.pose_error.rotation").max};
   parameters.limits.joint_torque =
       ci::JointVector::Constant(1, ci::parameter_info("limits.joint_torque").max);
-  parameters.limits.joint_torque_rate = ci::JointVector::Constant(1, torque_rate);
+  parameters.limits.joint_torque_rate =
+      ci::JointVector::Constant(1, ci::parameter_info("limits.joint_torque_rate").max);
   parameters.plausibility.dt = ci::Range{1.0 / kMaxFrequency, 1.0 / kMinFrequency};
   parameters.plausibility.joint_velocity =
       ci::JointVector::Constant(1, ci::parameter_info("plausibility.joint_velocity").max);
@@ -131,15 +139,40 @@ ci::Parameters native_parameters(double torque_rate) {
 // assertions, which must follow the NDEBUG of the caller's code, and a copy instantiated here
 // would carry this library's.
 
-CartesianImpedanceController::CartesianImpedanceController(Checking checking)
-    : checking_(checking), controller_(7, native_parameters(1e5)) {
-  setNumberOfJoints(7);
+CartesianImpedanceController::CycleState::CycleState()
+    : controller(7, native_parameters()),
+      measured(ci::make_robot_state(7)),
+      tau(ci::JointVector::Zero(7)) {
+  controller.start(ci::make_robot_state(7));
+  filtered.q_d_nullspace = ci::JointVector::Zero(7);
+}
+
+CartesianImpedanceController::CartesianImpedanceController(Checking checking) {
+  set_.checking = checking;
+  set_.settings.targets.q_d_nullspace = ci::JointVector::Zero(7);
+  set_.settings.init_q_d_nullspace = set_.settings.targets.q_d_nullspace;
   set_stiffness(
       (Eigen::Matrix<double, 7, 1>() << 200.0, 200.0, 200.0, 20.0, 20.0, 20.0, 0.0).finished(),
       true);
+  take_settings();
   // As published, only the Cartesian stiffness and damping start at their targets.
-  filtered_.stiffness = targets_.stiffness;
-  filtered_.damping = targets_.damping;
+  cycle_.filtered.stiffness = cycle_.settings.targets.stiffness;
+  cycle_.filtered.damping = cycle_.settings.targets.damping;
+}
+
+CartesianImpedanceController& CartesianImpedanceController::operator=(
+    const CartesianImpedanceController& other) {
+  if (this == &other) return *this;
+  // A controller handed over and not yet taken up is taken up first, so the copy has it.
+  other.take_settings();
+  set_ = other.set_;
+  cycle_ = other.cycle_;
+  handoff_.reset();
+  handoff_state_.store(kSetterOwns, std::memory_order_relaxed);
+  settings_version_.store(cycle_.version, std::memory_order_relaxed);
+  publish();
+  take_settings();
+  return *this;
 }
 
 void CartesianImpedanceController::setNumberOfJoints(size_t n_joints) {
@@ -150,45 +183,58 @@ void CartesianImpedanceController::setNumberOfJoints(size_t n_joints) {
                     " is outside [1, " + std::to_string(ci::kMaxJoints) + "]");
   }
   const int n = static_cast<int>(n_joints);
-  ci::CartesianImpedanceController controller(n, native_parameters(torque_rate_));
-  // With the same joint count the robot keeps receiving the last torque: the next call moves from
-  // it by at most the torque delta, as every call does (a reset to zero would jump).
-  if (n == n_joints_ && controller_.torque().size() == n) {
-    controller.start(ci::make_robot_state(n), controller_.torque());
-  } else {
+  if (n != set_.n_joints) {
+    // A new count needs a controller of that size. It is built here, on the setter's thread:
+    // constructing it allocates, and the control thread must not (it only swaps it in).
+    ci::CartesianImpedanceController controller(n, native_parameters());
     controller.start(ci::make_robot_state(n));
+    // The hand-over slot is the setter's unless the cycle is swapping right now (a few moves),
+    // or holds an earlier controller not yet taken up, which this one replaces.
+    for (;;) {
+      int state = handoff_state_.load(std::memory_order_acquire);
+      if (state == kSetterOwns) break;
+      if (state == kReady &&
+          handoff_state_.compare_exchange_weak(state, kSetterOwns, std::memory_order_acquire)) {
+        break;
+      }
+      std::this_thread::yield();
+    }
+    // Frees the controller the cycle left here, or the one replaced.
+    handoff_ = std::move(controller);
+    handoff_state_.store(kReady, std::memory_order_release);
   }
-  controller_ = controller;
-  n_joints_ = n;
-  const ci::Pose measured_pose = measured_.pose;
-  measured_ = ci::make_robot_state(n);
-  measured_.pose = measured_pose;
-  filtered_.q_d_nullspace = ci::JointVector::Zero(n);
-  targets_.q_d_nullspace = filtered_.q_d_nullspace;
-  status_ = ci::Status::not_started;
-  fault_ = ci::Fault{};
+  Settings& settings = set_.settings;
+  ++settings.joint_count_changes;
+  set_.n_joints = n;
+  settings.n_joints = n;
+  settings.targets.q_d_nullspace = ci::JointVector::Zero(n);
+  settings.init_q_d_nullspace = settings.targets.q_d_nullspace;
+  ++settings.nullspace_inits;
+  publish();
 }
 
 void CartesianImpedanceController::set_stiffness(const Eigen::Matrix<double, 7, 1>& stiffness,
                                                  bool auto_damping) {
   static const char* const names[7] = {"t_x", "t_y", "t_z", "r_x", "r_y", "r_z", "n"};
-  if (checking_ == Checking::strict) {
+  if (set_.checking == Checking::strict) {
     for (int i = 0; i < 7; ++i)
       check_row(kStiffnessRows[i], "setStiffness", names[i], stiffness[i]);
   }
   begin_call();
   for (int i = 0; i < 7; ++i) {
     const ci::ParameterInfo& row = ci::parameter_info(kStiffnessRows[i]);
-    double& target = i < 6 ? targets_.stiffness(i, i) : targets_.nullspace_stiffness;
+    Impedance& targets = set_.settings.targets;
+    double& target = i < 6 ? targets.stiffness(i, i) : targets.nullspace_stiffness;
     target = accept(kStiffnessNames[i], i < 3 ? "N/m" : "Nm/rad", stiffness[i], target, 0.0,
                     row.min, row.max);
   }
   if (auto_damping) apply_damping_rule();
+  publish();
 }
 
 void CartesianImpedanceController::set_damping_factors(const Eigen::Matrix<double, 7, 1>& factors) {
   static const char* const names[7] = {"d_x", "d_y", "d_z", "d_a", "d_b", "d_c", "d_n"};
-  if (checking_ == Checking::strict) {
+  if (set_.checking == Checking::strict) {
     for (int i = 0; i < 7; ++i) {
       check_row("damping_ratio.translation", "setDampingFactors", names[i], factors[i]);
     }
@@ -196,43 +242,53 @@ void CartesianImpedanceController::set_damping_factors(const Eigen::Matrix<doubl
   begin_call();
   const ci::ParameterInfo& row = ci::parameter_info("damping_ratio.translation");
   for (int i = 0; i < 7; ++i) {
-    damping_factors_[i] =
-        accept(kDampingNames[i], "", factors[i], damping_factors_[i], 0.0, row.min, row.max);
+    set_.damping_factors[i] =
+        accept(kDampingNames[i], "", factors[i], set_.damping_factors[i], 0.0, row.min, row.max);
   }
   apply_damping_rule();
+  publish();
 }
 
 void CartesianImpedanceController::apply_damping_rule() {
   // The published "unit mass" rule: d = factor * 2 sqrt(k), per axis and for the nullspace.
-  targets_.damping.setZero();
+  Impedance& targets = set_.settings.targets;
+  const Eigen::Matrix<double, 7, 1>& factors = set_.damping_factors;
+  targets.damping.setZero();
   for (int i = 0; i < 6; ++i) {
-    targets_.damping(i, i) = damping_factors_[i] * (2.0 * std::sqrt(targets_.stiffness(i, i)));
+    targets.damping(i, i) = factors[i] * (2.0 * std::sqrt(targets.stiffness(i, i)));
   }
-  targets_.nullspace_damping =
-      damping_factors_[6] * (2.0 * std::sqrt(targets_.nullspace_stiffness));
+  targets.nullspace_damping = factors[6] * (2.0 * std::sqrt(targets.nullspace_stiffness));
 }
 
 void CartesianImpedanceController::initDesiredPose(const Eigen::Vector3d& position_d_target,
                                                    const Eigen::Quaterniond& orientation_d_target) {
+  Settings& settings = set_.settings;
   set_reference_pose(position_d_target, orientation_d_target);
-  filtered_.position_d = targets_.position_d;
-  filtered_.orientation_d = targets_.orientation_d;
+  // A pose kept whole (not a number, a zero quaternion) leaves the filtered one as it was too.
+  if (set_.report.adjusted == 0 || set_.report.action != Action::kept) {
+    settings.init_position_d = settings.targets.position_d;
+    settings.init_orientation_d = settings.targets.orientation_d;
+    ++settings.pose_inits;
+  }
+  publish();
 }
 
 void CartesianImpedanceController::setReferencePose(const Eigen::Vector3d& position_d,
                                                     const Eigen::Quaterniond& orientation_d) {
   set_reference_pose(position_d, orientation_d);
+  publish();
 }
 
 void CartesianImpedanceController::set_reference_pose(const Eigen::Vector3d& position_d,
                                                       const Eigen::Quaterniond& orientation_d) {
-  if (checking_ == Checking::strict) {
+  if (set_.checking == Checking::strict) {
     const ci::Pose pose = ci::checks::pose("setReferencePose", ci::Pose{position_d, orientation_d});
     begin_call();
-    targets_.position_d = pose.position;
-    targets_.orientation_d = pose.orientation;
+    set_.settings.targets.position_d = pose.position;
+    set_.settings.targets.orientation_d = pose.orientation;
     return;
   }
+  Impedance& targets = set_.settings.targets;
   begin_call();
   static const char* const kPosition = "setReferencePose: position_d";
   static const char* const kOrientation = "setReferencePose: orientation_d";
@@ -242,7 +298,7 @@ void CartesianImpedanceController::set_reference_pose(const Eigen::Vector3d& pos
       report(Action::kept,
              ci::Fault{kPosition, i, position_d[i], "is not finite", 0.0, false, "m",
                        ci::Fault::Form::element},
-             targets_.position_d[i]);
+             targets.position_d[i]);
       return;
     }
   }
@@ -262,63 +318,71 @@ void CartesianImpedanceController::set_reference_pose(const Eigen::Vector3d& pos
            1.0);
   }
   for (int i = 0; i < 3; ++i) {
-    targets_.position_d[i] =
-        accept(kPosition, "m", position_d[i], targets_.position_d[i], -kInfinity,
-               -ci::checks::kMaxPosition, ci::checks::kMaxPosition);
+    targets.position_d[i] = accept(kPosition, "m", position_d[i], targets.position_d[i], -kInfinity,
+                                   -ci::checks::kMaxPosition, ci::checks::kMaxPosition);
   }
-  targets_.orientation_d = orientation_d.normalized();
+  targets.orientation_d = orientation_d.normalized();
 }
 
 void CartesianImpedanceController::set_nullspace_config(const Eigen::VectorXd& q_d_nullspace_target,
                                                         bool init) {
   static const char* const kName = "setNullspaceConfig: q_d_nullspace_target";
-  if (checking_ == Checking::strict) {
+  if (set_.checking == Checking::strict) {
     ci::checks::size("setNullspaceConfig: q_d_nullspace_target", q_d_nullspace_target.size(),
-                     n_joints_);
+                     set_.n_joints);
     ci::checks::bounded_vector("setNullspaceConfig: q_d_nullspace_target", q_d_nullspace_target,
                                ci::checks::kMaxJointPosition, "rad");
   }
   begin_call();
+  Settings& settings = set_.settings;
+  const int n = set_.n_joints;
   // A wrongly sized or not finite configuration is kept whole: joints taken from two
   // configurations would be a third one nobody asked for.
-  if (q_d_nullspace_target.size() != n_joints_) {
+  if (q_d_nullspace_target.size() != n) {
     report(Action::kept,
            ci::Fault{kName, -1, static_cast<double>(q_d_nullspace_target.size()), "",
-                     static_cast<double>(n_joints_), true, "values", ci::Fault::Form::size},
+                     static_cast<double>(n), true, "values", ci::Fault::Form::size},
            kNaN);
   } else if (!q_d_nullspace_target.allFinite()) {
     int i = 0;
     while (std::isfinite(q_d_nullspace_target[i])) ++i;
     report(Action::kept,
            ci::Fault{kName, i, q_d_nullspace_target[i], "is not finite", 0.0, false, "rad"},
-           targets_.q_d_nullspace[i]);
+           settings.targets.q_d_nullspace[i]);
   } else {
-    for (int i = 0; i < n_joints_; ++i) {
-      targets_.q_d_nullspace[i] =
+    for (int i = 0; i < n; ++i) {
+      settings.targets.q_d_nullspace[i] =
           accept(kName, "rad", q_d_nullspace_target[i], 0.0, -kInfinity,
                  -ci::checks::kMaxJointPosition, ci::checks::kMaxJointPosition);
     }
+    // A configuration kept whole leaves the filtered one as it was too.
+    if (init) {
+      settings.init_q_d_nullspace = settings.targets.q_d_nullspace;
+      ++settings.nullspace_inits;
+    }
   }
-  if (init) filtered_.q_d_nullspace = targets_.q_d_nullspace;
+  publish();
 }
 
 void CartesianImpedanceController::set_filtering(double update_frequency, double filter_nullspace,
                                                  double filter_stiffness, double filter_pose,
                                                  double filter_wrench) {
-  if (checking_ == Checking::strict) {
+  if (set_.checking == Checking::strict) {
     check_filter_fraction("filter_params_nullspace_config", filter_nullspace);
     check_filter_fraction("filter_params_stiffness", filter_stiffness);
     check_filter_fraction("filter_params_pose", filter_pose);
     check_filter_fraction("filter_params_wrench", filter_wrench);
     check_frequency("setFiltering", update_frequency);
-    check_torque_delta("setFiltering", requested_torque_delta_, update_frequency);
+    check_torque_delta("setFiltering", set_.requested_torque_delta, update_frequency);
   }
   begin_call();
   static const char* const names[4] = {
       "setFiltering: filter_params_nullspace_config", "setFiltering: filter_params_stiffness",
       "setFiltering: filter_params_pose", "setFiltering: filter_params_wrench"};
   const double given[4] = {filter_nullspace, filter_stiffness, filter_pose, filter_wrench};
-  double* const kept[4] = {&filter_nullspace_, &filter_stiffness_, &filter_pose_, &filter_wrench_};
+  Settings& settings = set_.settings;
+  double* const kept[4] = {&settings.filter_nullspace, &settings.filter_stiffness,
+                           &settings.filter_pose, &settings.filter_wrench};
   for (int i = 0; i < 4; ++i) {
     if (given[i] > 0.0 && given[i] <= 1.0) {
       // As published, fractions below 1e-7 count as 1e-7.
@@ -331,15 +395,16 @@ void CartesianImpedanceController::set_filtering(double update_frequency, double
           *kept[i]);
     }
   }
-  reconfigure("torque delta (setMaxTorqueDelta: d)", requested_torque_delta_,
-              accept("setFiltering: update_frequency", "Hz", update_frequency, update_frequency_,
-                     0.0, kMinFrequency, kMaxFrequency));
+  reconfigure("torque delta (setMaxTorqueDelta: d)", set_.requested_torque_delta,
+              accept("setFiltering: update_frequency", "Hz", update_frequency,
+                     settings.update_frequency, 0.0, kMinFrequency, kMaxFrequency));
   update_filter_steps();
+  publish();
 }
 
 void CartesianImpedanceController::set_max_torque_delta(double d, double update_frequency,
                                                         bool frequency_given) {
-  if (checking_ == Checking::strict) {
+  if (set_.checking == Checking::strict) {
     check_frequency("setMaxTorqueDelta", update_frequency);
     check_torque_delta("setMaxTorqueDelta", d, update_frequency);
   }
@@ -347,20 +412,22 @@ void CartesianImpedanceController::set_max_torque_delta(double d, double update_
   // Any delta from 0 up is the published domain, infinity included (no limit); the rate range
   // is applied with the frequency.
   const double requested =
-      accept("setMaxTorqueDelta: d", "Nm", d, requested_torque_delta_, 0.0, 0.0, kInfinity);
+      accept("setMaxTorqueDelta: d", "Nm", d, set_.requested_torque_delta, 0.0, 0.0, kInfinity);
   const double frequency =
       frequency_given ? accept("setMaxTorqueDelta: update_frequency", "Hz", update_frequency,
-                               update_frequency_, 0.0, kMinFrequency, kMaxFrequency)
-                      : update_frequency_;
+                               set_.settings.update_frequency, 0.0, kMinFrequency, kMaxFrequency)
+                      : set_.settings.update_frequency;
   reconfigure("setMaxTorqueDelta: d", requested, frequency);
   if (frequency_given) update_filter_steps();
+  publish();
 }
 
 void CartesianImpedanceController::update_filter_steps() {
-  step_nullspace_ = published_filter_step(update_frequency_, filter_nullspace_);
-  step_stiffness_ = published_filter_step(update_frequency_, filter_stiffness_);
-  step_pose_ = published_filter_step(update_frequency_, filter_pose_);
-  step_wrench_ = published_filter_step(update_frequency_, filter_wrench_);
+  Settings& s = set_.settings;
+  s.step_nullspace = published_filter_step(s.update_frequency, s.filter_nullspace);
+  s.step_stiffness = published_filter_step(s.update_frequency, s.filter_stiffness);
+  s.step_pose = published_filter_step(s.update_frequency, s.filter_pose);
+  s.step_wrench = published_filter_step(s.update_frequency, s.filter_wrench);
 }
 
 void CartesianImpedanceController::reconfigure(const char* input, double requested,
@@ -378,16 +445,14 @@ void CartesianImpedanceController::reconfigure(const char* input, double request
                      rate / update_frequency, true, "Nm"},
            rate / update_frequency);
   }
-  controller_.set_parameters(native_parameters(rate));
-  torque_rate_ = rate;
-  max_torque_delta_ = rate / update_frequency;
-  requested_torque_delta_ = requested;
-  update_frequency_ = update_frequency;
+  set_.settings.max_torque_delta = rate / update_frequency;
+  set_.settings.update_frequency = update_frequency;
+  set_.requested_torque_delta = requested;
 }
 
 void CartesianImpedanceController::applyWrench(const Eigen::Matrix<double, 6, 1>& wrench) {
   static const char* const names[6] = {"f_x", "f_y", "f_z", "tau_x", "tau_y", "tau_z"};
-  if (checking_ == Checking::strict) {
+  if (set_.checking == Checking::strict) {
     for (int i = 0; i < 6; ++i) {
       check_row(i < 3 ? "wrench.force" : "wrench.torque", "applyWrench", names[i], wrench[i]);
     }
@@ -399,15 +464,17 @@ void CartesianImpedanceController::applyWrench(const Eigen::Matrix<double, 6, 1>
       report(Action::kept,
              ci::Fault{kWrenchNames[i], -1, wrench[i], "is not finite", 0.0, false,
                        i < 3 ? "N" : "Nm"},
-             targets_.wrench[i]);
+             set_.settings.targets.wrench[i]);
+      publish();
       return;
     }
   }
   for (int i = 0; i < 6; ++i) {
     const ci::ParameterInfo& row = ci::parameter_info(i < 3 ? "wrench.force" : "wrench.torque");
-    targets_.wrench[i] =
+    set_.settings.targets.wrench[i] =
         accept(kWrenchNames[i], i < 3 ? "N" : "Nm", wrench[i], 0.0, -kInfinity, row.min, row.max);
   }
+  publish();
 }
 
 void CartesianImpedanceController::setWarningInterval(double seconds) {
@@ -415,11 +482,11 @@ void CartesianImpedanceController::setWarningInterval(double seconds) {
     throw ci::Error("setWarningInterval: seconds = " + ci::format_number(seconds) +
                     " s is outside [0, inf]");
   }
-  warning_interval_ = seconds;
+  set_.warning_interval = seconds;
 }
 
 void CartesianImpedanceController::begin_call() noexcept {
-  report_ = InputReport{};
+  set_.report = InputReport{};
 }
 
 double CartesianImpedanceController::accept(const char* input, const char* unit, double value,
@@ -448,18 +515,19 @@ double CartesianImpedanceController::accept(const char* input, const char* unit,
 
 void CartesianImpedanceController::report(InputReport::Action action, const ci::Fault& fault,
                                           double applied) {
-  ++adjustment_count_;
-  if (report_.adjusted++ == 0) {
-    report_.action = action;
-    report_.fault = fault;
-    report_.applied = applied;
+  ++set_.adjustment_count;
+  InputReport& last = set_.report;
+  if (last.adjusted++ == 0) {
+    last.action = action;
+    last.fault = fault;
+    last.applied = applied;
   }
   // One line per interval at most: a program that sets a bad value every cycle at 1 kHz gets a
   // line a second, not a thousand, and the next line counts those left out.
   const auto now = std::chrono::steady_clock::now();
-  if (warned_ &&
-      !(std::chrono::duration<double>(now - last_warning_).count() >= warning_interval_)) {
-    ++warnings_left_out_;
+  if (set_.warned &&
+      !(std::chrono::duration<double>(now - set_.last_warning).count() >= set_.warning_interval)) {
+    ++set_.warnings_left_out;
     return;
   }
   std::string line = "cartesian_impedance_controller: " + ci::to_string(fault);
@@ -469,49 +537,134 @@ void CartesianImpedanceController::report(InputReport::Action action, const ci::
   } else {
     line += "; the last valid value stays in effect";
   }
-  if (warnings_left_out_ > 0) {
-    line += " (" + std::to_string(warnings_left_out_) + " more adjustments since the last line)";
+  if (set_.warnings_left_out > 0) {
+    line +=
+        " (" + std::to_string(set_.warnings_left_out) + " more adjustments since the last line)";
   }
   line += "\n";
   std::fputs(line.c_str(), stderr);
-  warned_ = true;
-  last_warning_ = now;
-  warnings_left_out_ = 0;
+  set_.warned = true;
+  set_.last_warning = now;
+  set_.warnings_left_out = 0;
+}
+
+void CartesianImpedanceController::publish() noexcept {
+  // One setter thread: with three slots and one reader, a free slot always exists.
+  settings_buffer_.publish(set_.settings);
+  settings_version_.fetch_add(1, std::memory_order_release);
+}
+
+void CartesianImpedanceController::take_settings() const noexcept {
+  CycleState& cycle = cycle_;
+  const std::uint64_t version = settings_version_.load(std::memory_order_acquire);
+  if (version == cycle.version) return;  // most calls: nothing changed
+  Settings& incoming = cycle.incoming;
+  settings_buffer_.read(incoming);
+  if (incoming.joint_count_changes != cycle.joint_count_changes && !reset_joints(incoming)) {
+    return;
+  }
+  // The buffer may hold settings newer than `version`: taking them up again is harmless, each
+  // initialisation is applied once by its count.
+  cycle.version = version;
+  if (incoming.pose_inits != cycle.pose_inits) {
+    cycle.filtered.position_d = incoming.init_position_d;
+    cycle.filtered.orientation_d = incoming.init_orientation_d;
+    cycle.pose_inits = incoming.pose_inits;
+  }
+  if (incoming.nullspace_inits != cycle.nullspace_inits) {
+    cycle.filtered.q_d_nullspace = incoming.init_q_d_nullspace;
+    cycle.nullspace_inits = incoming.nullspace_inits;
+  }
+  std::swap(cycle.settings, incoming);
+}
+
+bool CartesianImpedanceController::reset_joints(const Settings& incoming) const noexcept {
+  CycleState& cycle = cycle_;
+  const int n = incoming.n_joints;
+  if (n == cycle.n_joints) {
+    // The same count: the controller starts over in place, as a new one would (no allocation).
+    const ci::JointVector zero = ci::JointVector::Zero(n);
+    cycle.controller.start(ci::make_robot_state(n), zero);
+  } else if (!take_controller(n)) {
+    // Settings for another count go with the controller built for it, which the setter thread
+    // hands over before it publishes them; until it is here the settings in force stay, whole.
+    return false;
+  } else {
+    // A new count starts from zero torque, as published. (With the same count the robot keeps
+    // receiving the last torque, and the next call moves from it by at most the torque delta,
+    // as every call does: a reset to zero would jump.)
+    cycle.tau = ci::JointVector::Zero(n);
+    cycle.n_joints = n;
+  }
+  cycle.joint_count_changes = incoming.joint_count_changes;
+  const ci::Pose measured_pose = cycle.measured.pose;
+  cycle.measured = ci::make_robot_state(n);
+  cycle.measured.pose = measured_pose;
+  cycle.status = ci::Status::not_started;
+  cycle.fault = ci::Fault{};
+  return true;
+}
+
+bool CartesianImpedanceController::take_controller(int n) const noexcept {
+  int state = kReady;
+  if (!handoff_state_.compare_exchange_strong(state, kTaking, std::memory_order_acquire)) {
+    return false;
+  }
+  // One built for an earlier or later count change waits for the settings that go with it.
+  if (!handoff_.has_value() || handoff_->num_joints() != n) {
+    handoff_state_.store(kReady, std::memory_order_release);
+    return false;
+  }
+  // Moves only: the old controller stays in the slot, and the setter thread frees it.
+  std::swap(cycle_.controller, *handoff_);
+  handoff_state_.store(kSetterOwns, std::memory_order_release);
+  return true;
 }
 
 void CartesianImpedanceController::filter_step(Impedance& next) const noexcept {
   // The published order and switches: a parameter of exactly 1 takes the target at once; an
   // unfiltered stiffness also snaps the nullspace configuration to its target.
-  if (filter_nullspace_ == 1.0) {
-    next.q_d_nullspace = targets_.q_d_nullspace;
+  const Settings& s = cycle_.settings;
+  const Impedance& targets = s.targets;
+  if (s.filter_nullspace == 1.0) {
+    next.q_d_nullspace = targets.q_d_nullspace;
   } else {
-    next.q_d_nullspace = blend(next.q_d_nullspace, targets_.q_d_nullspace, step_nullspace_);
+    next.q_d_nullspace = blend(next.q_d_nullspace, targets.q_d_nullspace, s.step_nullspace);
   }
-  if (filter_stiffness_ == 1.0) {
-    next.stiffness = targets_.stiffness;
-    next.damping = targets_.damping;
-    next.nullspace_stiffness = targets_.nullspace_stiffness;
-    next.q_d_nullspace = targets_.q_d_nullspace;
-    next.nullspace_damping = targets_.nullspace_damping;
+  if (s.filter_stiffness == 1.0) {
+    next.stiffness = targets.stiffness;
+    next.damping = targets.damping;
+    next.nullspace_stiffness = targets.nullspace_stiffness;
+    next.q_d_nullspace = targets.q_d_nullspace;
+    next.nullspace_damping = targets.nullspace_damping;
   } else {
-    next.stiffness = blend(next.stiffness, targets_.stiffness, step_stiffness_);
-    next.damping = blend(next.damping, targets_.damping, step_stiffness_);
+    next.stiffness = blend(next.stiffness, targets.stiffness, s.step_stiffness);
+    next.damping = blend(next.damping, targets.damping, s.step_stiffness);
     next.nullspace_stiffness =
-        blend(next.nullspace_stiffness, targets_.nullspace_stiffness, step_stiffness_);
+        blend(next.nullspace_stiffness, targets.nullspace_stiffness, s.step_stiffness);
     next.nullspace_damping =
-        blend(next.nullspace_damping, targets_.nullspace_damping, step_stiffness_);
+        blend(next.nullspace_damping, targets.nullspace_damping, s.step_stiffness);
   }
-  if (filter_pose_ == 1.0) {
-    next.position_d = targets_.position_d;
-    next.orientation_d = targets_.orientation_d;
+  if (s.filter_pose == 1.0) {
+    next.position_d = targets.position_d;
+    next.orientation_d = targets.orientation_d;
   } else {
-    next.position_d = blend(next.position_d, targets_.position_d, step_pose_);
-    next.orientation_d = next.orientation_d.slerp(step_pose_, targets_.orientation_d);
+    next.position_d = blend(next.position_d, targets.position_d, s.step_pose);
+    next.orientation_d = next.orientation_d.slerp(s.step_pose, targets.orientation_d);
   }
-  if (filter_wrench_ == 1.0) {
-    next.wrench = targets_.wrench;
+  if (s.filter_wrench == 1.0) {
+    next.wrench = targets.wrench;
   } else {
-    next.wrench = blend(next.wrench, targets_.wrench, step_wrench_);
+    next.wrench = blend(next.wrench, targets.wrench, s.step_wrench);
+  }
+}
+
+void CartesianImpedanceController::limit_torque_change() noexcept {
+  CycleState& cycle = cycle_;
+  const ci::JointVector& law = cycle.controller.torque();
+  const double delta = cycle.settings.max_torque_delta;
+  for (int i = 0; i < cycle.n_joints; ++i) {
+    cycle.tau[i] += std::clamp(law[i] - cycle.tau[i], -delta, delta);
   }
 }
 
@@ -519,36 +672,46 @@ ci::Status CartesianImpedanceController::step(const ci::RobotState& measured,
                                               bool measurement_checked) noexcept {
   // The filters advance only on a step the native controller accepts, so a rejected measurement
   // changes nothing but the torque (which steps toward zero).
-  next_ = filtered_;
-  filter_step(next_);
-  schedule_.reference = ci::Pose{next_.position_d, next_.orientation_d};
-  schedule_.stiffness = next_.stiffness;
-  schedule_.damping = next_.damping;
-  schedule_.nullspace_q = next_.q_d_nullspace;
-  schedule_.nullspace_stiffness.setConstant(n_joints_, next_.nullspace_stiffness);
-  schedule_.nullspace_damping.setConstant(n_joints_, next_.nullspace_damping);
-  schedule_.wrench = next_.wrench;
-  controller_.schedule(schedule_);
-  status_ = measurement_checked ? controller_.update_measured(measured, 1.0 / update_frequency_)
-                                : controller_.update(measured, 1.0 / update_frequency_);
-  fault_ = controller_.state().fault;
-  if (status_ == ci::Status::ok) {
-    filtered_ = next_;
-    if (&measured != &measured_) measured_ = measured;
+  CycleState& cycle = cycle_;
+  const int n = cycle.n_joints;
+  const double dt = 1.0 / cycle.settings.update_frequency;
+  cycle.next = cycle.filtered;
+  filter_step(cycle.next);
+  const Impedance& next = cycle.next;
+  ci::ScheduledImpedance& schedule = cycle.schedule;
+  schedule.reference = ci::Pose{next.position_d, next.orientation_d};
+  schedule.stiffness = next.stiffness;
+  schedule.damping = next.damping;
+  schedule.nullspace_q = next.q_d_nullspace;
+  schedule.nullspace_stiffness.setConstant(n, next.nullspace_stiffness);
+  schedule.nullspace_damping.setConstant(n, next.nullspace_damping);
+  schedule.wrench = next.wrench;
+  cycle.controller.schedule(schedule);
+  cycle.status = measurement_checked ? cycle.controller.update_measured(measured, dt)
+                                     : cycle.controller.update(measured, dt);
+  cycle.fault = cycle.controller.state().fault;
+  limit_torque_change();
+  if (cycle.status == ci::Status::ok) {
+    cycle.filtered = cycle.next;
+    if (&measured != &cycle.measured) cycle.measured = measured;
   }
-  return status_;
+  return cycle.status;
 }
 
 Eigen::VectorXd CartesianImpedanceController::calculateCommandedTorques() {
-  step(measured_);
-  return controller_.torque();
+  take_settings();
+  step(cycle_.measured);
+  return cycle_.tau;
 }
 
 Eigen::VectorXd CartesianImpedanceController::calculateCommandedTorques(
     const Eigen::VectorXd& q, const Eigen::VectorXd& dq, const Eigen::Vector3d& position,
     Eigen::Quaterniond orientation, const Eigen::MatrixXd& jacobian) {
-  Eigen::VectorXd tau(n_joints_);
-  calculateCommandedTorques(q, dq, position, orientation, jacobian, tau);
+  // The joint count is read once, after the settings are taken up: a setNumberOfJoints() on
+  // another thread takes effect at the next call, not between sizing and computing.
+  take_settings();
+  Eigen::VectorXd tau(cycle_.n_joints);
+  compute(q, dq, position, orientation, jacobian, tau);
   return tau;
 }
 
@@ -556,33 +719,45 @@ ci::Status CartesianImpedanceController::calculateCommandedTorques(
     const Eigen::Ref<const Eigen::VectorXd>& q, const Eigen::Ref<const Eigen::VectorXd>& dq,
     const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation,
     const Eigen::Ref<const Eigen::MatrixXd>& jacobian, Eigen::Ref<Eigen::VectorXd> tau) noexcept {
-  const Eigen::Index n = n_joints_;
+  take_settings();
+  return compute(q, dq, position, orientation, jacobian, tau);
+}
+
+ci::Status CartesianImpedanceController::compute(const Eigen::Ref<const Eigen::VectorXd>& q,
+                                                 const Eigen::Ref<const Eigen::VectorXd>& dq,
+                                                 const Eigen::Vector3d& position,
+                                                 const Eigen::Quaterniond& orientation,
+                                                 const Eigen::Ref<const Eigen::MatrixXd>& jacobian,
+                                                 Eigen::Ref<Eigen::VectorXd> tau) noexcept {
+  CycleState& cycle = cycle_;
+  const Eigen::Index n = cycle.n_joints;
   if (const ci::Fault fault = ci::checks::count("tau", tau.size(), n)) {
-    status_ = ci::Status::invalid_robot_state;
-    fault_ = fault;
-    return status_;
+    cycle.status = ci::Status::invalid_robot_state;
+    cycle.fault = fault;
+    return cycle.status;
   }
   // The measurement is checked once, here (its sizes must be right before it is copied); the
   // native controller then checks only the rest.
   ci::checks::MeasurementBounds bounds;
-  bounds.speed = &controller_.joint_velocity_bound();
+  bounds.speed = &cycle.controller.joint_velocity_bound();
   ci::Fault fault = ci::checks::measurement(q, dq, static_cast<int>(n), bounds);
   if (!fault) fault = ci::checks::count("jacobian", jacobian.rows(), 6, "rows");
   if (!fault) fault = ci::checks::count("jacobian", jacobian.cols(), n, "columns");
   if (fault) {
-    status_ =
-        controller_.fail_closed(ci::Status::invalid_robot_state, fault, 1.0 / update_frequency_);
-    fault_ = fault;
+    cycle.status = cycle.controller.fail_closed(ci::Status::invalid_robot_state, fault,
+                                                1.0 / cycle.settings.update_frequency);
+    cycle.fault = fault;
+    limit_torque_change();
   } else {
-    input_.q = q;
-    input_.dq = dq;
-    input_.pose.position = position;
-    input_.pose.orientation = orientation;
-    input_.jacobian = jacobian;
-    step(input_, true);
+    cycle.input.q = q;
+    cycle.input.dq = dq;
+    cycle.input.pose.position = position;
+    cycle.input.pose.orientation = orientation;
+    cycle.input.jacobian = jacobian;
+    step(cycle.input, true);
   }
-  tau = controller_.torque();
-  return status_;
+  tau = cycle.tau;
+  return cycle.status;
 }
 
 void CartesianImpedanceController::getState(
@@ -590,10 +765,12 @@ void CartesianImpedanceController::getState(
     Eigen::Quaterniond* orientation, Eigen::Vector3d* position_d, Eigen::Quaterniond* orientation_d,
     Eigen::Matrix<double, 6, 6>* cartesian_stiffness, double* nullspace_stiffness,
     Eigen::VectorXd* q_d_nullspace, Eigen::Matrix<double, 6, 6>* cartesian_damping) const {
-  if (q != nullptr) *q = measured_.q;
-  if (dq != nullptr) *dq = measured_.dq;
-  if (position != nullptr) *position = measured_.pose.position;
-  if (orientation != nullptr) *orientation = measured_.pose.orientation;
+  take_settings();
+  const ci::RobotState& measured = cycle_.measured;
+  if (q != nullptr) *q = measured.q;
+  if (dq != nullptr) *dq = measured.dq;
+  if (position != nullptr) *position = measured.pose.position;
+  if (orientation != nullptr) *orientation = measured.pose.orientation;
   getState(position_d, orientation_d, cartesian_stiffness, nullspace_stiffness, q_d_nullspace,
            cartesian_damping);
 }
@@ -604,24 +781,14 @@ void CartesianImpedanceController::getState(Eigen::Vector3d* position_d,
                                             double* nullspace_stiffness,
                                             Eigen::VectorXd* q_d_nullspace,
                                             Eigen::Matrix<double, 6, 6>* cartesian_damping) const {
-  if (position_d != nullptr) *position_d = filtered_.position_d;
-  if (orientation_d != nullptr) *orientation_d = filtered_.orientation_d;
-  if (cartesian_stiffness != nullptr) *cartesian_stiffness = filtered_.stiffness;
-  if (nullspace_stiffness != nullptr) *nullspace_stiffness = filtered_.nullspace_stiffness;
-  if (q_d_nullspace != nullptr) *q_d_nullspace = filtered_.q_d_nullspace;
-  if (cartesian_damping != nullptr) *cartesian_damping = filtered_.damping;
-}
-
-Eigen::VectorXd CartesianImpedanceController::getLastCommands() const {
-  return controller_.torque();
-}
-
-Eigen::Matrix<double, 6, 1> CartesianImpedanceController::getAppliedWrench() const {
-  return filtered_.wrench;
-}
-
-Eigen::Matrix<double, 6, 1> CartesianImpedanceController::getPoseError() const {
-  return controller_.state().pose_error;
+  take_settings();
+  const Impedance& filtered = cycle_.filtered;
+  if (position_d != nullptr) *position_d = filtered.position_d;
+  if (orientation_d != nullptr) *orientation_d = filtered.orientation_d;
+  if (cartesian_stiffness != nullptr) *cartesian_stiffness = filtered.stiffness;
+  if (nullspace_stiffness != nullptr) *nullspace_stiffness = filtered.nullspace_stiffness;
+  if (q_d_nullspace != nullptr) *q_d_nullspace = filtered.q_d_nullspace;
+  if (cartesian_damping != nullptr) *cartesian_damping = filtered.damping;
 }
 
 }  // namespace cartesian_impedance_controller

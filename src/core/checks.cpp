@@ -131,6 +131,14 @@ Fault kinematics(const RobotState& robot, int num_joints) noexcept {
   if (robot.secondary_torque.size() != 0 && robot.secondary_torque.size() != n) {
     return size_fault("secondary_torque", robot.secondary_torque.size(), n);
   }
+  // The joint-limit bounds may be infinite (a free joint), never NaN.
+  for (const auto& [bound, name] : {std::pair{&robot.joint_limit_ceiling, "joint_limit_ceiling"},
+                                    std::pair{&robot.joint_limit_floor, "joint_limit_floor"}}) {
+    if (bound->size() != 0 && bound->size() != n) return size_fault(name, bound->size(), n);
+    for (int i = 0; i < bound->size(); ++i) {
+      if (std::isnan((*bound)[i])) return Fault{name, i, (*bound)[i], "is not a number"};
+    }
+  }
   const double optional_sum = robot.mass.sum() + robot.gravity.sum() + robot.secondary_torque.sum();
   if (!std::isfinite(optional_sum)) {
     for (const Fault& fault :

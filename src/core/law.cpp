@@ -43,6 +43,8 @@ CartesianImpedanceController::Law::Law(int num_joints)
       tau_spring(JointVector::Zero(num_joints)),
       tau_damping(JointVector::Zero(num_joints)),
       tau_kept(JointVector::Zero(num_joints)),
+      joint_drive(JointVector::Zero(num_joints)),
+      joint_wall_torque(JointVector::Zero(num_joints)),
       tau_payload(JointVector::Zero(num_joints)),
       nullspace_q_before(JointVector::Zero(num_joints)),
       nullspace_stiffness_before(JointVector::Zero(num_joints)),
@@ -225,7 +227,7 @@ void CartesianImpedanceController::spring_damper(const RobotState& robot, double
 void CartesianImpedanceController::cartesian_torques(const RobotState& robot) noexcept {
   const Vector6d force = law_->spring_force + law_->damping_force;
   jacobian_transpose_times(robot.jacobian, force, state_.tau_cartesian);
-  if (law_->joint_walls) state_.tau_cartesian += robot.joint_wall_torque;
+  if (law_->joint_walls) state_.tau_cartesian += law_->joint_wall_torque;
   state_.safety.joint_limit_wall = law_->joint_walls;
   jacobian_transpose_times(robot.jacobian, state_.wrench_base, state_.tau_wrench);
 }

@@ -54,6 +54,10 @@ struct CartesianImpedanceController::Law {
   // shaping (limit_torque) splits the cycle's torque into when it does not fit.
   Vector6d spring_force = Vector6d::Zero();
   JointVector tau_spring, tau_damping, tau_kept;
+  // The drive's torque J^T (spring + wrench) + the nullspace torque, where the joint-limit bounds
+  // act (bound_joint_drive()), and the joint-space walls: the loop's plus what those bounds took.
+  JointVector joint_drive;
+  JointVector joint_wall_torque;
   JointVector tau_payload;  // the declared payload's compensation (part of tau_gravity)
   // The rest of the Cartesian force (damping, and the safety layer's walls and brake), base frame,
   // and the end effector's twist J dq of the cycle.

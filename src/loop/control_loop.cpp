@@ -2,8 +2,10 @@
 
 #include "cartesian_impedance/model/robot_limits.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <thread>
 
 #include "cartesian_impedance/core/checks.hpp"
@@ -483,9 +485,13 @@ void ControlLoop::joint_limit_torque() noexcept {
   const JointLimitAvoidanceParameters& avoidance = controller_.parameters().joint_limit_avoidance;
   JointVector& torque = robot_.secondary_torque;
   JointVector& wall = robot_.joint_wall_torque;
+  JointVector& ceiling = robot_.joint_limit_ceiling;
+  JointVector& floor = robot_.joint_limit_floor;
   if (!(avoidance.stiffness > 0.0)) {
     torque.resize(0);
     wall.resize(0);
+    ceiling.resize(0);
+    floor.resize(0);
     return;
   }
   torque.setZero(num_joints());
@@ -494,12 +500,27 @@ void ControlLoop::joint_limit_torque() noexcept {
   // to the joint's torque bound at the limit and is critically damped (with M(q)'s diagonal,
   // 1 kg m^2 without a model) on motion toward the limit, so a push the joint can hold stops
   // inside the margin instead of at the limit (where the robot's own safety would stop).
+  // Otherwise the task itself can drive a joint into its limit (a reference whose nearest joint
+  // configuration lies past it), which the projected spring cannot stop either: the torque
+  // toward the limit is bounded instead, from the joint's bound at the margin down to zero
+  // halfway to the limit, less a critical damping of the motion toward it. The task keeps its
+  // pull on the other joints, and the arm is held off the limit instead of pressing it until the
+  // robot's reflex stops it.
   const ControllerState& state = controller_.state();
-  const bool teaching = avoidance.margin > 0.0 && state.commanded.stiffness.isZero(0.0);
-  if (teaching) {
+  const bool margin = avoidance.margin > 0.0;
+  const bool teaching = margin && state.commanded.stiffness.isZero(0.0);
+  const bool bounded = margin && !teaching;
+  if (margin) {
     wall.setZero(num_joints());
   } else {
     wall.resize(0);
+  }
+  if (bounded) {
+    ceiling.setConstant(num_joints(), std::numeric_limits<double>::infinity());
+    floor.setConstant(num_joints(), -std::numeric_limits<double>::infinity());
+  } else {
+    ceiling.resize(0);
+    floor.resize(0);
   }
   const bool with_mass = robot_.mass.rows() == num_joints();
   for (int i = 0; i < num_joints(); ++i) {
@@ -509,10 +530,29 @@ void ControlLoop::joint_limit_torque() noexcept {
     const double depth = q > upper ? q - upper : (q < lower ? q - lower : 0.0);
     if (depth == 0.0) continue;
     torque[i] = -avoidance.stiffness * depth;
-    if (!teaching) continue;
-    const double stiffness = state.joint_torque_limit[i] / avoidance.margin;
+    if (!margin) continue;
+    const double bound = state.joint_torque_limit[i];
     const double inertia = with_mass ? robot_.mass(i, i) : 1.0;
     const double dq = robot_.dq[i];
+    if (bounded) {
+      // The bound takes only the drive, never the damping and the speed caps' brake, so a joint
+      // that arrives fast can still pass the halfway point: from there a wall (added torque,
+      // under the caps like the teaching wall) pushes it back and brakes it.
+      const double half = 0.5 * avoidance.margin;
+      const double stiffness = bound / half;
+      const double damping = 2.0 * std::sqrt(stiffness * inertia);
+      if (depth > 0.0) {
+        ceiling[i] = bound - stiffness * depth - damping * std::max(dq, 0.0);
+      } else {
+        floor[i] = -bound - stiffness * depth - damping * std::min(dq, 0.0);
+      }
+      const double past = depth > half ? depth - half : (depth < -half ? depth + half : 0.0);
+      if (past == 0.0) continue;
+      wall[i] = -stiffness * past;
+      if (dq * past > 0.0) wall[i] -= damping * dq;
+      continue;
+    }
+    const double stiffness = bound / avoidance.margin;
     wall[i] = -stiffness * depth;
     if (dq * depth > 0.0) wall[i] -= 2.0 * std::sqrt(stiffness * inertia) * dq;
   }

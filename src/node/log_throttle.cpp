@@ -5,6 +5,16 @@
 
 namespace cartesian_impedance::node {
 
+std::string quoted(std::string_view text, std::size_t shown) {
+  std::string out = "'";
+  for (std::size_t i = 0; i < text.size() && i < shown; ++i) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    out += (c < 0x20 || c == 0x7f) ? '?' : text[i];
+  }
+  out += text.size() > shown ? "...' (" + std::to_string(text.size()) + " characters)" : "'";
+  return out;
+}
+
 LogThrottle::LogThrottle(Clock::duration interval, std::size_t max_keys)
     : interval_(interval), max_keys_(std::max<std::size_t>(1, max_keys)) {}
 

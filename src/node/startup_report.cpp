@@ -1,6 +1,7 @@
 #include "cartesian_impedance/node/startup_report.hpp"
 
 #include <string>
+#include <utility>
 
 #include "cartesian_impedance/core/error.hpp"
 #include "cartesian_impedance/model/rate_check.hpp"
@@ -47,16 +48,24 @@ std::vector<ReportLine> startup_report(const Parameters& parameters, const Robot
            " Nm, plausible joint speed " +
            per_joint(in_force.plausibility.joint_velocity, speed_unit(model))});
   if (start_q == nullptr) return lines;
+  for (ReportLine& line :
+       rate_check_report(parameters, model, *start_q, "the start configuration")) {
+    lines.push_back(std::move(line));
+  }
+  return lines;
+}
+
+std::vector<ReportLine> rate_check_report(const Parameters& parameters, const RobotModel& model,
+                                          const JointVector& q, const std::string& where) {
+  std::vector<ReportLine> lines;
   try {
-    const RateCheck check = check_rate_limit(model, *start_q, in_force);
+    const RateCheck check = check_rate_limit(model, q, with_robot_limits(parameters, model));
     for (const std::string& warning : check.warnings) {
-      lines.push_back({ReportLine::Level::warning, "at the start configuration: " + warning});
+      lines.push_back({ReportLine::Level::warning, "at " + where + ": " + warning});
     }
   } catch (const Error& error) {
     lines.push_back({ReportLine::Level::warning,
-                     std::string("the torque-rate check cannot be made at the start "
-                                 "configuration: ") +
-                         error.what()});
+                     "the torque-rate check cannot be made at " + where + ": " + error.what()});
   }
   return lines;
 }

@@ -5,10 +5,13 @@
 // joint that has none, arm geoms that do not collide with each other, a floor, lights and a sky.
 
 #include <mujoco/mujoco.h>
+#include <stdlib.h>
 #include <tinyxml2.h>
+#include <unistd.h>
 
-#include <cstdint>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -46,6 +49,30 @@ std::string print(tinyxml2::XMLDocument& document) {
   document.Print(&printer);
   return printer.CStr();
 }
+
+/// An empty file of a unique name in the temporary folder, removed when this goes (also when
+/// the conversion throws).
+struct TemporaryPath {
+  explicit TemporaryPath(const std::string& urdf_path) {
+    std::error_code ignored;
+    path =
+        (std::filesystem::temp_directory_path(ignored) / "cartesian_impedance_XXXXXX.xml").string();
+    const int fd = ::mkstemps(path.data(), 4);
+    if (fd < 0) {
+      throw Error("cannot convert URDF file '" + urdf_path +
+                  "' to MJCF: cannot create a temporary file '" + path +
+                  "': " + std::strerror(errno));
+    }
+    ::close(fd);
+  }
+  TemporaryPath(const TemporaryPath&) = delete;
+  TemporaryPath& operator=(const TemporaryPath&) = delete;
+  ~TemporaryPath() {
+    std::error_code ignored;
+    std::filesystem::remove(path, ignored);
+  }
+  std::string path;
+};
 
 }  // namespace
 
@@ -91,15 +118,15 @@ std::string mjcf_from_urdf(const std::string& urdf_path, const UrdfImportOptions
   }
   if (!model) throw Error("cannot load URDF file '" + urdf_path + "': " + error);
 
-  const std::filesystem::path saved =
-      std::filesystem::temp_directory_path() /
-      ("cartesian_impedance_" + std::to_string(reinterpret_cast<std::uintptr_t>(model.get())) +
-       ".xml");
-  if (mj_saveLastXML(saved.c_str(), model.get(), error, sizeof(error)) == 0) {
+  // MuJoCo 2.2 writes MJCF only to a file. Its name comes from mkstemps (created with O_EXCL):
+  // a name made from this process's state (it was the model's address) is the same in every
+  // process forked from one parent, as vector environments' workers are, and one of them
+  // removed the file another was reading.
+  const TemporaryPath saved(urdf_path);
+  if (mj_saveLastXML(saved.path.c_str(), model.get(), error, sizeof(error)) == 0) {
     throw Error("cannot convert URDF file '" + urdf_path + "' to MJCF: " + error);
   }
-  const std::string saved_text = read_file(saved.string());
-  std::filesystem::remove(saved);
+  const std::string saved_text = read_file(saved.path);
 
   tinyxml2::XMLDocument mjcf;
   if (mjcf.Parse(saved_text.c_str()) != tinyxml2::XML_SUCCESS) {

@@ -416,7 +416,7 @@ class Controller {
   double filter_params_wrench_{1.0};
 
   // Quirk: the default rate limit is 100 (Nm per call), effectively no limit.
-  double delta_tau_max_{100.0};
+  double delta_tau_max_{1.0};
 };
 
 }  // namespace published_reference

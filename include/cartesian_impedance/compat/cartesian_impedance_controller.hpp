@@ -32,14 +32,26 @@
 ///
 /// The published signature of calculateCommandedTorques() returns an Eigen::VectorXd, which
 /// allocates once per call; the overload that writes into a caller's vector allocates nothing.
+///
+/// Threads, as the published ROS wrapper uses the class: one thread may call the setters while
+/// another (the control thread) calls calculateCommandedTorques() and the getters. A setter
+/// works on its own copy of the settings and hands the result over through a lock-free buffer;
+/// the control thread takes up the newest settings at the start of its next call (or getter),
+/// never waits for a setter and never sees a half-made change. setNumberOfJoints() builds the
+/// controller for the new count on the setter's thread and the control thread swaps it in.
+/// More than one setter thread, or getters on the setter thread while the control thread runs,
+/// is not supported (docs/switching.md, "Threads").
 
 #include <Eigen/Dense>
+#include <atomic>
 #include <cassert>
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 
 #include "cartesian_impedance/core/controller.hpp"
+#include "cartesian_impedance/core/mailbox.hpp"
 
 namespace cartesian_impedance_controller {
 
@@ -76,10 +88,13 @@ class CartesianImpedanceController {
   };
 
   /// Ready for 7 joints, stiffness (200, 200, 200, 20, 20, 20), nullspace stiffness 0, damping
-  /// factors 1, no filtering at 1000 Hz, torque delta 100 Nm per call.
+  /// factors 1, no filtering at 1000 Hz, torque delta 1 Nm per call (the published defaults).
   CartesianImpedanceController() : CartesianImpedanceController(Checking::published) {}
   /// The same, with `checking` for bad input.
   explicit CartesianImpedanceController(Checking checking);
+  /// Copies need both threads of `other` to be quiet, as copying any object does.
+  CartesianImpedanceController(const CartesianImpedanceController& other) { *this = other; }
+  CartesianImpedanceController& operator=(const CartesianImpedanceController& other);
 
   /// Sets the reference pose, also as the filtered one (no filtering).
   void initDesiredPose(const Eigen::Vector3d& position_d_target,
@@ -89,7 +104,9 @@ class CartesianImpedanceController {
     assert_nullspace_size(q_d_nullspace_target);
     set_nullspace_config(q_d_nullspace_target, true);
   }
-  /// Resets the joint state, the nullspace configuration and the last torques to zero.
+  /// Resets the joint state and the nullspace configuration to zero, and the last torques too
+  /// when the count changes (with the same count the next call moves from the torque the robot
+  /// receives by at most the torque delta). Takes effect at the control thread's next call.
   /// @throws cartesian_impedance::Error unless 1 <= n_joints <= kMaxJoints (in either mode: the
   /// published library throws for a negative count too).
   void setNumberOfJoints(size_t n_joints);
@@ -98,7 +115,7 @@ class CartesianImpedanceController {
   /// targets become factor * 2 sqrt(stiffness).
   void setStiffness(const Eigen::Matrix<double, 7, 1>& stiffness, bool auto_damping = true) {
 #ifndef NDEBUG
-    if (checking_ == Checking::published) {
+    if (set_.checking == Checking::published) {
       for (int i = 0; i < 7; ++i) {
         // As published, only inside the test for a negative value: NaN passes the assertion.
         if (stiffness(i) < 0.0) {
@@ -117,7 +134,8 @@ class CartesianImpedanceController {
   /// As above, keeping the nullspace stiffness target.
   void setStiffness(double t_x, double t_y, double t_z, double r_x, double r_y, double r_z,
                     bool auto_damping = true) {
-    setStiffness(t_x, t_y, t_z, r_x, r_y, r_z, targets_.nullspace_stiffness, auto_damping);
+    setStiffness(t_x, t_y, t_z, r_x, r_y, r_z, set_.settings.targets.nullspace_stiffness,
+                 auto_damping);
   }
   /// Damping factors (1 is "critical" for a unit mass); applies the damping rule at once.
   void setDampingFactors(double d_x, double d_y, double d_z, double d_a, double d_b, double d_c,
@@ -125,7 +143,7 @@ class CartesianImpedanceController {
     const Eigen::Matrix<double, 7, 1> factors =
         (Eigen::Matrix<double, 7, 1>() << d_x, d_y, d_z, d_a, d_b, d_c, d_n).finished();
 #ifndef NDEBUG
-    if (checking_ == Checking::published) {
+    if (set_.checking == Checking::published) {
       // The published order: the negative factors first, then the rule meets the NaN ones.
       for (int i = 0; i < 7; ++i) {
         if (factors(i) < 0) {
@@ -154,7 +172,7 @@ class CartesianImpedanceController {
                     double filter_params_stiffness, double filter_params_pose,
                     double filter_params_wrench) {
 #ifndef NDEBUG
-    if (checking_ == Checking::published) {
+    if (set_.checking == Checking::published) {
       // The fractions before the frequency (the published code checks the frequency first): a
       // call with both wrong stops at the fraction, as the published tests expect.
       for (const double p : {filter_params_nullspace_config, filter_params_stiffness,
@@ -171,16 +189,16 @@ class CartesianImpedanceController {
   /// as far as this library's largest torque rate, 1e6 Nm/s, allows).
   void setMaxTorqueDelta(double d) {
 #ifndef NDEBUG
-    if (checking_ == Checking::published) {
+    if (set_.checking == Checking::published) {
       assert(d >= 0.0 && "Allowed torque change must be positive");
     }
 #endif
-    set_max_torque_delta(d, update_frequency_, false);
+    set_max_torque_delta(d, set_.settings.update_frequency, false);
   }
   /// As above, and the update frequency [Hz].
   void setMaxTorqueDelta(double d, double update_frequency) {
 #ifndef NDEBUG
-    if (checking_ == Checking::published) {
+    if (set_.checking == Checking::published) {
       assert(d >= 0.0 && "Allowed torque change must be positive");
       assert(update_frequency >= 0.0 && "Update frequency needs to be greater or equal to zero");
     }
@@ -189,6 +207,9 @@ class CartesianImpedanceController {
   }
   /// Wrench target [N; Nm] in the root frame, approached through the wrench filter.
   void applyWrench(const Eigen::Matrix<double, 6, 1>& cartesian_wrench);
+
+  // The control thread's calls: these and the getters below take up the setters' newest settings
+  // first.
 
   /// One control step at the last measured state.
   Eigen::VectorXd calculateCommandedTorques();
@@ -217,53 +238,70 @@ class CartesianImpedanceController {
                 Eigen::VectorXd* q_d_nullspace,
                 Eigen::Matrix<double, 6, 6>* cartesian_damping) const;
   /// The torques of the last step [Nm].
-  Eigen::VectorXd getLastCommands() const;
+  Eigen::VectorXd getLastCommands() const {
+    take_settings();
+    return cycle_.tau;
+  }
   /// The filtered wrench of the last step [N; Nm].
-  Eigen::Matrix<double, 6, 1> getAppliedWrench() const;
+  Eigen::Matrix<double, 6, 1> getAppliedWrench() const {
+    take_settings();
+    return cycle_.filtered.wrench;
+  }
   /// [p - p_d; rotation vector of R R_d^T] of the last step [m; rad].
-  Eigen::Matrix<double, 6, 1> getPoseError() const;
+  Eigen::Matrix<double, 6, 1> getPoseError() const {
+    take_settings();
+    return cycle_.controller.state().pose_error;
+  }
 
   // Beyond the published API.
 
-  /// Outcome of the last step: ok, or why it failed closed.
+  /// Outcome of the last step: ok, or why it failed closed (not_started after
+  /// setNumberOfJoints() until the next step).
   cartesian_impedance::Status status() const noexcept {
-    return status_;
+    take_settings();
+    return cycle_.status;
   }
   /// Which input made the last step fail closed (empty input if it did not).
   const cartesian_impedance::Fault& fault() const noexcept {
-    return fault_;
+    take_settings();
+    return cycle_.fault;
   }
+  /// The library controller that evaluates the law (its state() has every torque component;
+  /// its torque() is before the published torque delta, which this class applies).
+  const cartesian_impedance::CartesianImpedanceController& controller() const noexcept {
+    take_settings();
+    return cycle_.controller;
+  }
+
+  // The setter thread's calls.
+
   /// What the last setter call did with its arguments (Checking::published; a strict call that
   /// throws leaves it as it was).
   const InputReport& inputReport() const noexcept {
-    return report_;
+    return set_.report;
   }
   /// Arguments clamped or kept since construction.
   std::uint64_t adjustmentCount() const noexcept {
-    return adjustment_count_;
+    return set_.adjustment_count;
   }
   /// Each adjustment is also written to stderr as one line, at most one per `seconds` [s]
   /// (default 1; the next line says how many were left out): 0 writes every one, infinity only
   /// the first. @throws cartesian_impedance::Error if `seconds` is negative or NaN.
   void setWarningInterval(double seconds);
   Checking checking() const noexcept {
-    return checking_;
+    return set_.checking;
   }
   void setChecking(Checking checking) noexcept {
-    checking_ = checking;
+    set_.checking = checking;
   }
   /// The torque delta in effect [Nm per call]: the one asked for, clamped to this library's
   /// torque rate range at the update frequency.
   double maxTorqueDelta() const noexcept {
-    return max_torque_delta_;
+    return set_.settings.max_torque_delta;
   }
   /// The update frequency in effect [Hz].
   double updateFrequency() const noexcept {
-    return update_frequency_;
-  }
-  /// The library controller that evaluates the law (its state() has every torque component).
-  const cartesian_impedance::CartesianImpedanceController& controller() const noexcept {
-    return controller_;
+    return set_.settings.update_frequency;
   }
 
  private:
@@ -282,11 +320,69 @@ class CartesianImpedanceController {
     cartesian_impedance::Vector6d wrench = cartesian_impedance::Vector6d::Zero();
   };
 
+  // Everything the setters decide and the cycle needs, handed over whole. Fixed-size (JointVector
+  // has a compile-time maximum), so copying it allocates nothing.
+  struct Settings {
+    Impedance targets;
+    // initDesiredPose() and initNullspaceConfig() (and setNumberOfJoints(), which zeroes the
+    // nullspace configuration) also set the filtered value: the newest such value, and how many
+    // there were, so that the cycle applies each one once.
+    Eigen::Vector3d init_position_d = Eigen::Vector3d::Zero();
+    Eigen::Quaterniond init_orientation_d = Eigen::Quaterniond::Identity();
+    std::uint64_t pose_inits = 0;
+    cartesian_impedance::JointVector init_q_d_nullspace;
+    std::uint64_t nullspace_inits = 0;
+    // setNumberOfJoints() calls so far: each starts the controller over (a new count with the
+    // controller built for it).
+    std::uint64_t joint_count_changes = 0;
+    int n_joints = 7;
+    double update_frequency = 1000.0;  // [Hz]
+    double max_torque_delta = 1.0;     // [Nm] per call, in effect
+    // Filter parameters (1 = off) and the per-call steps derived from them.
+    double filter_nullspace = 1.0, filter_stiffness = 1.0, filter_pose = 1.0, filter_wrench = 1.0;
+    double step_nullspace = 1.0, step_stiffness = 1.0, step_pose = 1.0, step_wrench = 1.0;
+  };
+
+  // The setter thread's state.
+  struct SetterState {
+    Checking checking = Checking::published;
+    int n_joints = 7;
+    Settings settings;
+    Eigen::Matrix<double, 7, 1> damping_factors = Eigen::Matrix<double, 7, 1>::Ones();
+    double requested_torque_delta = 1.0;  // [Nm] per call, as asked for
+    InputReport report;
+    std::uint64_t adjustment_count = 0;
+    double warning_interval = 1.0;  // [s]
+    bool warned = false;
+    std::chrono::steady_clock::time_point last_warning;
+    std::uint64_t warnings_left_out = 0;
+  };
+
+  // The control thread's state.
+  struct CycleState {
+    CycleState();
+    cartesian_impedance::CartesianImpedanceController controller;
+    cartesian_impedance::ScheduledImpedance schedule;
+    cartesian_impedance::RobotState measured;  // last valid measurement
+    cartesian_impedance::RobotState input;     // this call's measurement, until it is checked
+    cartesian_impedance::Status status = cartesian_impedance::Status::not_started;
+    cartesian_impedance::Fault fault;
+    Settings settings;  // in force
+    Settings incoming;  // the newest handed over, while it is taken up
+    Impedance filtered;
+    Impedance next;
+    // The torque commanded: the published tau_c, which the torque delta limits per joint.
+    cartesian_impedance::JointVector tau;
+    int n_joints = 7;
+    // What of the setters' hand-over has been taken up.
+    std::uint64_t version = 0, pose_inits = 0, nullspace_inits = 0, joint_count_changes = 0;
+  };
+
   // The published assertion of the nullspace setters, in the caller's translation unit.
   void assert_nullspace_size(const Eigen::VectorXd& q_d_nullspace_target) const {
 #ifndef NDEBUG
-    if (checking_ == Checking::published) {
-      assert(q_d_nullspace_target.size() == static_cast<Eigen::Index>(n_joints_) &&
+    if (set_.checking == Checking::published) {
+      assert(q_d_nullspace_target.size() == static_cast<Eigen::Index>(set_.n_joints) &&
              "Nullspace target needs to same size as n_joints_");
     }
 #else
@@ -303,7 +399,7 @@ class CartesianImpedanceController {
   void set_reference_pose(const Eigen::Vector3d& position_d,
                           const Eigen::Quaterniond& orientation_d);
 
-  // Reporting of adjusted arguments (compat_input.cpp).
+  // Reporting of adjusted arguments.
   void begin_call() noexcept;
   void report(InputReport::Action action, const cartesian_impedance::Fault& fault, double applied);
   // `value` against the published domain [published_min, inf) (below it, or NaN: the last
@@ -316,39 +412,44 @@ class CartesianImpedanceController {
   void reconfigure(const char* input, double requested, double update_frequency);
   void apply_damping_rule();
   void update_filter_steps();
+  // Hands the setter thread's settings to the control thread.
+  void publish() noexcept;
+
+  // Control thread: takes up the newest settings (and a new joint count's controller) if the
+  // setters changed them. Const because the getters call it: what they return is the control
+  // thread's state, with the setters' last changes.
+  void take_settings() const noexcept;
+  // Applies a setNumberOfJoints(): false if the controller for a new count is not here yet.
+  bool reset_joints(const Settings& incoming) const noexcept;
+  bool take_controller(int n) const noexcept;
   void filter_step(Impedance& next) const noexcept;
   // One cycle at `measured`; `measurement_checked`: q and dq were checked already.
   cartesian_impedance::Status step(const cartesian_impedance::RobotState& measured,
                                    bool measurement_checked = false) noexcept;
+  // The published rate limit on the native controller's torque: each joint moves from the last
+  // commanded torque by at most the torque delta, on its own.
+  void limit_torque_change() noexcept;
+  cartesian_impedance::Status compute(const Eigen::Ref<const Eigen::VectorXd>& q,
+                                      const Eigen::Ref<const Eigen::VectorXd>& dq,
+                                      const Eigen::Vector3d& position,
+                                      const Eigen::Quaterniond& orientation,
+                                      const Eigen::Ref<const Eigen::MatrixXd>& jacobian,
+                                      Eigen::Ref<Eigen::VectorXd> tau) noexcept;
 
-  Checking checking_ = Checking::published;
-  int n_joints_ = 7;
-  cartesian_impedance::CartesianImpedanceController controller_;
-  cartesian_impedance::ScheduledImpedance schedule_;
-  cartesian_impedance::RobotState measured_;  // last valid measurement
-  cartesian_impedance::RobotState input_;     // this call's measurement, until it is checked
-  cartesian_impedance::Status status_ = cartesian_impedance::Status::not_started;
-  cartesian_impedance::Fault fault_;
+  SetterState set_;
+  // mutable: the getters take up the setters' last changes (take_settings()).
+  mutable CycleState cycle_;
 
-  Impedance targets_;
-  Impedance filtered_;
-  Impedance next_;
-  Eigen::Matrix<double, 7, 1> damping_factors_ = Eigen::Matrix<double, 7, 1>::Ones();
-
-  double update_frequency_ = 1000.0;       // [Hz]
-  double requested_torque_delta_ = 100.0;  // [Nm] per call, as asked for
-  double max_torque_delta_ = 100.0;        // [Nm] per call, in effect
-  double torque_rate_ = 1e5;               // [Nm/s] the same, as the native rate limit
-  // Filter parameters (1 = off) and the per-call steps derived from them.
-  double filter_nullspace_ = 1.0, filter_stiffness_ = 1.0, filter_pose_ = 1.0, filter_wrench_ = 1.0;
-  double step_nullspace_ = 1.0, step_stiffness_ = 1.0, step_pose_ = 1.0, step_wrench_ = 1.0;
-
-  InputReport report_;
-  std::uint64_t adjustment_count_ = 0;
-  double warning_interval_ = 1.0;  // [s]
-  bool warned_ = false;
-  std::chrono::steady_clock::time_point last_warning_;
-  std::uint64_t warnings_left_out_ = 0;
+  // The hand-over between the two threads: the newest settings, and a counter the setters raise
+  // after each publication, so that the cycle reads the buffer only when something changed.
+  cartesian_impedance::SnapshotBuffer<Settings, 3> settings_buffer_;
+  std::atomic<std::uint64_t> settings_version_{0};
+  // The controller for a new joint count: built by the setter thread (constructing it
+  // allocates), swapped in by the cycle, which leaves the old one in its place for the setter
+  // thread to free. handoff_state_ says who may touch handoff_.
+  enum HandoffState : int { kSetterOwns, kReady, kTaking };
+  mutable std::optional<cartesian_impedance::CartesianImpedanceController> handoff_;
+  mutable std::atomic<int> handoff_state_{kSetterOwns};
 };
 
 }  // namespace cartesian_impedance_controller

@@ -110,7 +110,18 @@ struct ActiveLimits {
   /// (reference pose and nullspace target reset to the measured ones, a trajectory aborted)
   /// instead of pulling it back into the motion. Cleared by the next reference pose command.
   bool holding = false;
+  /// The first joint (-1: none) whose torque toward a position limit the joint-limit bounds
+  /// (RobotState::joint_limit_ceiling, filled by the control loop) cut by more than
+  /// kLimitHoldShare of its torque bound this cycle. The law resolves the pose error locally: a
+  /// reference whose nearest joint configuration lies past a limit (a far reorientation the wrist
+  /// would have to make the other way round) leaves the arm held off that limit, short of the
+  /// reference, until a nullspace target or a joint trajectory takes it around.
+  int joint_limit_held = -1;
 };
+
+/// ActiveLimits::joint_limit_held: the share of a joint's torque bound the joint-limit bounds
+/// must cut before the arm counts as held off a limit, well above a settling arm's residue.
+inline constexpr double kLimitHoldShare = 0.1;
 
 /// What the safety layer (parameters safety.*, payload.*) did in the last cycle. A scale is the
 /// fraction of a quantity that was kept (1: untouched).
@@ -432,6 +443,7 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   void estimate_payload(double dt) noexcept;
   void limit_torque(double dt, const RobotState* law_robot = nullptr) noexcept;
   void shape_torque(const RobotState& robot, const JointVector& bound) noexcept;
+  void bound_joint_drive(const RobotState& robot) noexcept;
 
   int num_joints_;
   Parameters parameters_;

@@ -59,6 +59,14 @@ struct RobotState {
   /// that hold a joint off its limit while teaching (the control loop fills it; see
   /// joint_limit_avoidance). It joins the damping in the torque shaping.
   JointVector joint_wall_torque;
+  /// Per-joint bounds on the drive's torque [Nm], J^T (spring + wrench) + the nullspace torque
+  /// (-inf, +inf where a joint is free): the control loop lowers the ceiling of a joint inside
+  /// joint_limit_avoidance.margin of its upper limit (the floor of one near its lower limit), so
+  /// that what the task asks cannot drive the joint into the limit. What a bound takes joins
+  /// joint_wall_torque, under the safety caps; a bound never pushes (below zero it counts as
+  /// zero). Empty: no bounds.
+  JointVector joint_limit_ceiling;
+  JointVector joint_limit_floor;
 };
 
 /// Returns a RobotState sized for `num_joints` with every value zero and an identity pose.

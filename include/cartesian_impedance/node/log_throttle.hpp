@@ -21,6 +21,12 @@
 
 namespace cartesian_impedance::node {
 
+/// A peer's text (a frame_id, a name) as a log line or a reply names it: quoted as given if it has
+/// at most `shown` characters, else its first `shown` and its length ("'abc...' (8388608
+/// characters)"); control characters shown as '?', so that a newline in it cannot start a forged
+/// log line. A frame_id of megabytes would otherwise make a log line of megabytes.
+std::string quoted(std::string_view text, std::size_t shown = 64);
+
 class LogThrottle {
  public:
   using Clock = std::chrono::steady_clock;

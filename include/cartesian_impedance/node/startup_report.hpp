@@ -4,6 +4,7 @@
 /// most of them are derived from the URDF (apply_robot_defaults()), and a user should see what
 /// they came to, and hear when the torque-rate limit cannot follow the stiffest spring allowed.
 
+#include <string>
 #include <vector>
 
 #include "cartesian_impedance/core/parameters.hpp"
@@ -21,5 +22,12 @@ namespace cartesian_impedance::node {
 ///         would have refused them already).
 std::vector<ReportLine> startup_report(const Parameters& parameters, const RobotModel& model,
                                        const JointVector* start_q);
+
+/// The rate check's part of startup_report(): one warning per group the torque-rate limit cannot
+/// follow at `q` (the robot's limits filled in as the loop fills them), each starting with
+/// `where` ("at the start configuration"), or one saying why the check could not be made. The
+/// one check for the start and for a run-time change of the limits it reads.
+std::vector<ReportLine> rate_check_report(const Parameters& parameters, const RobotModel& model,
+                                          const JointVector& q, const std::string& where);
 
 }  // namespace cartesian_impedance::node

@@ -94,6 +94,16 @@ class ActionLimits:
     max_torque: float = 3.0
     reference_leash: Optional[tuple] = None
 
+    def __post_init__(self):
+        # The values themselves are checked by PolicyInterface; a value of the wrong type would
+        # get only pybind11's "incompatible constructor arguments" there, naming no field.
+        for name in ("max_translation_step", "max_rotation_step", "max_force", "max_torque"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer,
+                                                                 np.floating)):
+                raise TypeError("action limits: %s = %r must be a number, got %s" % (
+                    name, value, type(value).__name__))
+
 
 class ActionInterface:
     """Turns normalised actions into commands of a ControlLoop and robot states into the robot

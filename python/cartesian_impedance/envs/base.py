@@ -9,7 +9,6 @@ between policy steps, the action, the robot's observation, seeding, rendering) i
 from __future__ import annotations
 
 import os
-import shutil
 import tempfile
 import warnings
 from typing import Any
@@ -32,6 +31,40 @@ except ImportError:
     _EnvBase = object
 
 
+#: The slowest policy: a step of 10 s, 10,000 cycles of the 1 kHz loop.
+MIN_POLICY_RATE = 0.1
+
+
+def _integer(name, value, least):
+    """An option that counts: an int >= least (int() would turn 2.9 into 2 and accept '2')."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError("%s = %r must be an int, got %s" % (name, value, type(value).__name__))
+    if value < least:
+        raise ci.Error("%s = %d must be >= %d" % (name, value, least))
+    return int(value)
+
+
+def _number(name, value, unit, ok=lambda v: True, bound=None):
+    """An option that is one real number, finite and within `bound` (a task's options too)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError("%s = %r must be a number [%s], got %s" % (name, value, unit,
+                                                                  type(value).__name__))
+    value = float(value)
+    if not (np.isfinite(value) and ok(value)):
+        raise ci.Error("%s = %r %s must be finite%s" % (name, value, unit,
+                                                         " and " + bound if bound else ""))
+    return value
+
+
+def _render_size(size):
+    try:
+        height, width = size
+    except (TypeError, ValueError):
+        raise TypeError("render_size = %r must be (height, width) [px]" % (size,)) from None
+    return (_integer("render_size[0] (height)", height, 1),
+            _integer("render_size[1] (width)", width, 1))
+
+
 class CartesianImpedanceEnv(_EnvBase):
     """A simulated arm under the library's Cartesian impedance controller, with the Gymnasium
     API: reset(seed=None, options=None) -> (observation, info); step(action) -> (observation,
@@ -47,11 +80,13 @@ class CartesianImpedanceEnv(_EnvBase):
 
     Options: robot ('panda', 'iiwa14', 'ur5e', 'planar3', or a dict urdf/base_link/tip_link
     [/config/mjcf/start_q] for your own URDF), engine ('mujoco' or 'dart'), policy_rate [Hz]
-    (default 20), max_episode_steps (truncated after this many steps), wrench (the action
-    includes a commanded wrench), start_noise [rad] (each joint's start is drawn from
-    start +- this at reset), action_limits (ActionLimits or a dict of its fields), parameters
-    (a dict of parameters set on top of the robot's configuration), render_mode (None or
-    'rgb_array'), render_size (height, width) [px].
+    (default 20; from 0.1 up to the simulation's rate), max_episode_steps (truncated after
+    this many steps), wrench (the action includes a commanded wrench), start_noise [rad]
+    (each joint's start is drawn from start +- this at reset), action_limits (ActionLimits or
+    a dict of its fields), parameters (a dict of parameters set on top of the robot's
+    configuration), render_mode (None or 'rgb_array'), render_size (height, width) [px]. A
+    value of the wrong type raises TypeError, one out of range cartesian_impedance.Error, each
+    naming the option and the value.
 
     Observation: float32, the robot part (observe_robot: q, dq, flange pose and twist, external
     wrench estimate, reference pose, stiffness in force) then the task's goal.
@@ -70,17 +105,25 @@ class CartesianImpedanceEnv(_EnvBase):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ci.Error("render_mode = %r is not one of %s" %
                            (render_mode, self.metadata["render_modes"]))
-        if not (float(policy_rate) > 0 and np.isfinite(policy_rate)):
-            raise ci.Error("policy_rate = %r Hz must be finite and > 0" % (policy_rate,))
+        # Below 0.1 Hz a step would run the 1 kHz loop for over 10 s (policy_rate=0.001 for
+        # 1000 was a step of 17 simulated minutes).
+        self.policy_rate = _number("policy_rate", policy_rate, "Hz",
+                                   lambda v: v >= MIN_POLICY_RATE, ">= %g" % MIN_POLICY_RATE)
+        if not isinstance(engine, str):
+            raise TypeError("engine = %r must be 'mujoco' or 'dart'" % (engine,))
         self.render_mode = render_mode
-        self.render_size = (int(render_size[0]), int(render_size[1]))
-        self.metadata = dict(self.metadata, render_fps=float(policy_rate))
-        self.policy_rate = float(policy_rate)
-        self.max_episode_steps = int(max_episode_steps or self.default_max_episode_steps)
-        if self.max_episode_steps < 1:
-            raise ci.Error("max_episode_steps = %d must be >= 1" % self.max_episode_steps)
-        self.start_noise = float(self.default_start_noise if start_noise is None
-                                 else start_noise)
+        self.render_size = _render_size(render_size)
+        self.metadata = dict(self.metadata, render_fps=self.policy_rate)
+        # Not `max_episode_steps or default`: 0 would quietly become the default.
+        self.max_episode_steps = _integer(
+            "max_episode_steps",
+            self.default_max_episode_steps if max_episode_steps is None else max_episode_steps, 1)
+        self.start_noise = _number(
+            "start_noise", self.default_start_noise if start_noise is None else start_noise,
+            "rad", lambda v: v >= 0, ">= 0")
+        if wrench is not None and not isinstance(wrench, (bool, np.bool_)):
+            # bool('no') is True: a flag given as anything else is a mistake to name.
+            raise TypeError("wrench = %r must be True, False or None" % (wrench,))
         self.robot = robot_spec(robot)
         self.engine = engine
         self.model = self.robot.load_model()
@@ -96,6 +139,10 @@ class CartesianImpedanceEnv(_EnvBase):
         self.parameters["dynamics.armature"] = list(self.sim.armature)
         self.parameters.validate(self.model.num_joints)
         self.period = 1.0 / self.policy_rate
+        if self.period < 0.5 * self.sim.timestep:
+            # Simulation.run rounds to whole timesteps: such a step would not advance at all.
+            raise ci.Error("policy_rate = %g Hz is faster than the simulation's %g Hz: a step "
+                           "would not advance it" % (self.policy_rate, 1.0 / self.sim.timestep))
         if isinstance(action_limits, dict):
             action_limits = ActionLimits(**action_limits)
         self.actions = ActionInterface(self.model, self.parameters,
@@ -109,7 +156,6 @@ class CartesianImpedanceEnv(_EnvBase):
         self.steps = 0
         self._np_random = None
         self._np_random_seed = None
-        self._render_dir = None
 
     # ---- what a task defines ----
 
@@ -226,18 +272,21 @@ class CartesianImpedanceEnv(_EnvBase):
         except ImportError:
             raise ImportError("render() reads the offscreen renderer's PNG back with Pillow, "
                               "which is not installed (Debian: python3-pil)") from None
-        if self._render_dir is None:
-            self._render_dir = tempfile.mkdtemp(prefix="cartesian_impedance_render_")
-        path = os.path.join(self._render_dir, "frame.png")
-        height, width = self.render_size
-        self.sim.render_png(path, width=width, height=height)
-        with Image.open(path) as image:
-            return np.array(image.convert("RGB"), dtype=np.uint8)
+        # A file of its own for each frame, gone when it is read: a folder kept across frames
+        # was shared with every process forked from this one (the first to close() removed it
+        # under the others), and stayed behind a process that was killed.
+        descriptor, path = tempfile.mkstemp(prefix="cartesian_impedance_frame_", suffix=".png")
+        os.close(descriptor)
+        try:
+            height, width = self.render_size
+            self.sim.render_png(path, width=width, height=height)
+            with Image.open(path) as image:
+                return np.array(image.convert("RGB"), dtype=np.uint8)
+        finally:
+            os.remove(path)
 
     def close(self):
-        if self._render_dir is not None:
-            shutil.rmtree(self._render_dir, ignore_errors=True)
-            self._render_dir = None
+        """Nothing to release (render() keeps no files); for the Gymnasium API."""
 
     def __del__(self):
         try:

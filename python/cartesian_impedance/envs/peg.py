@@ -10,7 +10,7 @@ import cartesian_impedance as ci
 
 from . import spaces
 from .actions import matrix_to_quaternion, quaternion_to_matrix
-from .base import CartesianImpedanceEnv
+from .base import CartesianImpedanceEnv, _number
 from .robots import robot_spec
 
 __all__ = ["PegInsertion"]
@@ -47,15 +47,16 @@ class PegInsertion(CartesianImpedanceEnv):
     def __init__(self, robot="panda", peg_half_width=0.0125, peg_length=0.1, peg_mass=0.2,
                  clearance=0.001, depth=0.03, gap=0.03, hole_noise=0.004, goal_noise=0.0,
                  success_depth=0.02, **options):
-        self.peg_half_width = float(peg_half_width)
-        self.peg_length = float(peg_length)
-        self.peg_mass = float(peg_mass)
-        self.clearance = float(clearance)
-        self.depth = float(depth)
-        self.gap = float(gap)
-        self.hole_noise = float(hole_noise)
-        self.goal_noise = float(goal_noise)
-        self.success_depth = float(success_depth)
+        # float() would take '0.01' and a bool; each is named as the mistake it is.
+        self.peg_half_width = _number("peg_half_width", peg_half_width, "m")
+        self.peg_length = _number("peg_length", peg_length, "m")
+        self.peg_mass = _number("peg_mass", peg_mass, "kg")
+        self.clearance = _number("clearance", clearance, "m")
+        self.depth = _number("depth", depth, "m")
+        self.gap = _number("gap", gap, "m")
+        self.hole_noise = _number("hole_noise", hole_noise, "m")
+        self.goal_noise = _number("goal_noise", goal_noise, "m")
+        self.success_depth = _number("success_depth", success_depth, "m")
         checks = [("peg_half_width", self.peg_half_width, self.peg_half_width > 0, "> 0"),
                   ("peg_length", self.peg_length, self.peg_length > 0, "> 0"),
                   ("peg_mass", self.peg_mass, self.peg_mass > 0, "> 0"),

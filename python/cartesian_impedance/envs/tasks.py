@@ -8,7 +8,7 @@ import numpy as np
 
 import cartesian_impedance as ci
 
-from .base import CartesianImpedanceEnv
+from .base import CartesianImpedanceEnv, _number
 
 __all__ = ["Reach", "Wipe"]
 
@@ -26,8 +26,9 @@ class Reach(CartesianImpedanceEnv):
     goal_size = 3
 
     def __init__(self, goal_range=0.15, tolerance=0.02, terminate_on_success=True, **options):
-        self.goal_range = float(goal_range)
-        self.tolerance = float(tolerance)
+        # Unchecked, a NaN range made NaN goals and observations, a tolerance <= 0 no success.
+        self.goal_range = _number("goal_range", goal_range, "m", lambda v: v >= 0, ">= 0")
+        self.tolerance = _number("tolerance", tolerance, "m", lambda v: v > 0, "> 0")
         self.terminate_on_success = bool(terminate_on_success)
         super().__init__(**options)
 
@@ -70,10 +71,17 @@ class Wipe(CartesianImpedanceEnv):
 
     def __init__(self, wipe_length=0.15, gap=0.04, force_range=(8.0, 15.0), band=5.0,
                  **options):
-        self.wipe_length = float(wipe_length)
-        self.gap = float(gap)
-        self.force_range = (float(force_range[0]), float(force_range[1]))
-        self.band = float(band)
+        # Unchecked, band = 0 divided the reward by zero and a NaN made NaN rewards.
+        self.wipe_length = _number("wipe_length", wipe_length, "m", lambda v: v > 0, "> 0")
+        self.gap = _number("gap", gap, "m", lambda v: v >= 0, ">= 0")
+        try:
+            low, high = force_range
+        except (TypeError, ValueError):
+            raise TypeError("force_range = %r must be (low, high) [N]" % (force_range,)) from None
+        self.force_range = (_number("force_range[0]", low, "N", lambda v: v > 0, "> 0"),
+                            _number("force_range[1]", high, "N", lambda v: v >= low,
+                                    ">= force_range[0]"))
+        self.band = _number("band", band, "N", lambda v: v > 0, "> 0")
         super().__init__(**options)
 
     def scene_boxes(self):

@@ -3,6 +3,7 @@ advanced together on threads (sim.BatchRunner, GIL released), with Gymnasium's v
 
 from __future__ import annotations
 
+import os
 from typing import Any
 
 import numpy as np
@@ -33,17 +34,42 @@ def _batch_box(box, n):
     return spaces.Box(np.stack([box.low] * n), np.stack([box.high] * n), dtype=box.dtype)
 
 
+def _is_int(value):
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
+def _count(value, name, least, note=""):
+    """`value` as an int >= least: TypeError for anything but an int (int() would make 2.9
+    environments 2 and accept '2'), cartesian_impedance.Error below `least`."""
+    if not _is_int(value):
+        raise TypeError("%s = %r must be an int, got %s" % (name, value, type(value).__name__))
+    if value < least:
+        raise ci.Error("%s = %d must be >= %d%s" % (name, value, least, note))
+    return int(value)
+
+
 def _seeds(seed, n, name):
-    """Per-environment seeds from None, an int (seed, seed + 1, ...) or a sequence of n."""
+    """Per-environment seeds from None, an int (seed, seed + 1, ...) or a sequence of n (ints
+    >= 0 or None), checked here so that a bad one fails before any environment is reset."""
     if seed is None:
         return [None] * n
-    if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
-        return [int(seed) + i for i in range(n)]
-    seeds = list(seed)
-    if len(seeds) != n:
-        raise ci.Error("%s has %d seeds, expected %d (one per environment) or one int" %
-                       (name, len(seeds), n))
-    return seeds
+    if _is_int(seed):
+        seeds = [int(seed) + i for i in range(n)]
+    else:
+        if isinstance(seed, (str, bytes, float)) or not hasattr(seed, "__iter__"):
+            raise TypeError("%s = %r must be an int, a sequence of %d ints or None" %
+                            (name, seed, n))
+        seeds = list(seed)
+        if len(seeds) != n:
+            raise ci.Error("%s has %d seeds, expected %d (one per environment) or one int" %
+                           (name, len(seeds), n))
+    for i, value in enumerate(seeds):
+        if value is not None and not _is_int(value):
+            raise TypeError("%s[%d] = %r must be an int or None" % (name, i, value))
+        if value is not None and value < 0:
+            # SeedSequence takes no negative entropy.
+            raise ci.Error("%s[%d] = %d must be >= 0" % (name, i, value))
+    return [None if value is None else int(value) for value in seeds]
 
 
 class VectorEnv(_VectorEnvBase):
@@ -81,14 +107,14 @@ class VectorEnv(_VectorEnvBase):
         envs = list(envs)
         if not envs:
             raise ci.Error("num_envs = 0: a vector environment needs at least one environment")
-        if int(threads) < 0:
-            raise ci.Error("threads = %d must be >= 0 (0 = one per core)" % int(threads))
-        self.envs = envs
-        self.num_envs = len(envs)
-        self.threads = int(threads)
+        self.threads = _count(threads, "threads", 0, " (0 = one per core)")
+        if isinstance(spin, bool) or not isinstance(spin, (int, float, np.integer, np.floating)):
+            raise TypeError("spin = %r must be a number of seconds" % (spin,))
         self.spin = float(spin)
         if not 0.0 <= self.spin <= 1.0:
             raise ci.Error("spin = %r s is outside [0, 1] s" % (spin,))
+        self.envs = envs
+        self.num_envs = len(envs)
         first = envs[0]
         for i, env in enumerate(envs):
             if env.action_space.shape != first.action_space.shape or \
@@ -113,6 +139,7 @@ class VectorEnv(_VectorEnvBase):
                          if type(env).advance is CartesianImpedanceEnv.advance]
         self._runner = None
         self._runner_loops = ()
+        self._runner_process = None
 
     @property
     def unwrapped(self):
@@ -139,6 +166,9 @@ class VectorEnv(_VectorEnvBase):
     def step(self, actions):
         if not self._started:
             raise RuntimeError("call reset() before step()")
+        if not hasattr(actions, "__len__") or isinstance(actions, (str, bytes)):
+            raise TypeError("actions = %r must be an array of num_envs = %d rows" %
+                            (actions, self.num_envs))
         if len(actions) != self.num_envs:
             raise ci.Error("actions has %d rows, expected num_envs = %d (one per environment)" %
                            (len(actions), self.num_envs))
@@ -147,8 +177,8 @@ class VectorEnv(_VectorEnvBase):
         for i, env in enumerate(self.envs):
             try:
                 checked.append(env.actions.check(actions[i]))
-            except ci.Error as error:
-                raise ci.Error("env %d: %s" % (i, error)) from None
+            except (ci.Error, TypeError) as error:
+                raise type(error)("env %d: %s" % (i, error)) from None
         n = self.num_envs
         observations = [None] * n
         rewards = np.zeros(n, dtype=np.float64)
@@ -187,10 +217,14 @@ class VectorEnv(_VectorEnvBase):
             # Some are being reset this step: a one-off batch of the others.
             ci.sim.run_many(sims, loops, period, self.threads)
             return
-        # reset() makes a new loop, so the kept runner (its threads) is renewed after resets.
-        if self._runner is None or any(a is not b for a, b in zip(loops, self._runner_loops)):
+        # reset() makes a new loop, so the kept runner (its threads) is renewed after resets;
+        # and in a process forked from the one that made it: fork copies no thread, the runner's
+        # pool stayed in the parent (a step there waited for it forever).
+        if self._runner is None or self._runner_process != os.getpid() or \
+                any(a is not b for a, b in zip(loops, self._runner_loops)):
             self._runner = ci.sim.BatchRunner(sims, loops, self.threads, self.spin)
             self._runner_loops = tuple(loops)
+            self._runner_process = os.getpid()
         self._runner.run(period)
 
     def _add_info(self, infos, info, i):
@@ -242,10 +276,10 @@ def make_vector(env_id, n, seeds=None, threads=0, spin=0.002, **options):
     threads: C++ threads that run the simulations (0 = one per core, at most one per
     environment); spin [s]: how long those threads look for the next step before they sleep
     (sim.BatchRunner; 0 uses no CPU between steps, for processes that share their cores, at the
-    cost of a thread wake-up per step). Raises cartesian_impedance.Error for an unknown id, n < 1 or a wrong number of
-    seeds."""
-    if int(n) < 1:
-        raise ci.Error("n = %d environments must be >= 1" % int(n))
-    if seeds is not None:
-        _seeds(seeds, int(n), "seeds")  # a wrong count fails before n environments are built
-    return VectorEnv([make(env_id, **options) for _ in range(int(n))], seeds, threads, spin)
+    cost of a thread wake-up per step). Raises cartesian_impedance.Error for an unknown id, n < 1
+    or a wrong number of seeds, TypeError for an n, threads or seed that is not an int."""
+    n = _count(n, "n", 1, " (environments)")
+    # Checked before n environments are built.
+    _seeds(seeds, n, "seeds")
+    _count(threads, "threads", 0, " (0 = one per core)")
+    return VectorEnv([make(env_id, **options) for _ in range(n)], seeds, threads, spin)

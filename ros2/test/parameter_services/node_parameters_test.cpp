@@ -13,6 +13,7 @@
 #include <cartesian_impedance/core/parameter_tree.hpp>
 #include <cartesian_impedance/loop/control_loop.hpp>
 #include <cartesian_impedance/model/robot_model.hpp>
+#include <cartesian_impedance/node/startup_report.hpp>
 
 #include "node_parameters.hpp"
 
@@ -365,6 +366,115 @@ TEST_F(RunningNodeParameters, UnlockedSafetyChangesAreLoggedAndThePeriodStillFit
   settle();
   EXPECT_EQ(loop_->latest_parameters().plausibility.dt.max, 0.002);
   EXPECT_EQ(loop_->latest_state().safety_changes, 2u);
+}
+
+// Issue 41, what was left: a change that did not come through a set (the command thread's topics)
+// reaches /parameter_events. changes() names the rows whose values in force differ from what the
+// events showed, with the value get() shows (a full matrix: its diagonal), once; a set's own rows
+// are not reported again.
+TEST_F(RunningNodeParameters, ChangesShowWhatTopicsCommandedOnce) {
+  run(false);
+  const auto named = [](const std::vector<NamedValue>& values, const std::string& name) {
+    const auto found = std::find_if(values.begin(), values.end(),
+                                    [&](const NamedValue& v) { return v.first == name; });
+    return found == values.end() ? std::optional<RosValue>() : found->second;
+  };
+  parameters_->all();  // the first event: what changes() compares with
+  EXPECT_TRUE(parameters_->changes().empty());
+
+  ci::Matrix6d full = ci::Vector6d(350, 360, 370, 30, 31, 32).asDiagonal();
+  full(0, 2) = full(2, 0) = 20.0;
+  loop_->set_stiffness_matrix(full);
+  loop_->set_damping_ratio(ci::Vector6d::Constant(0.8));
+  loop_->set_wrench((ci::Vector6d() << 1, 2, 3, 0, 0, 0).finished());
+  loop_->set_nullspace_stiffness(ci::JointVector::Constant(1, 12.0));
+  settle();
+  const std::vector<NamedValue> changes = parameters_->changes();
+  std::vector<std::string> names;
+  for (const auto& [name, value] : changes) names.push_back(name);
+  EXPECT_EQ(names,
+            (Names{"stiffness.translation", "stiffness.rotation", "damping_ratio.translation",
+                   "damping_ratio.rotation", "nullspace.stiffness", "wrench.force"}));
+  EXPECT_EQ(named(changes, "stiffness.translation")->numbers, (std::vector<double>{350, 360, 370}));
+  EXPECT_EQ(named(changes, "wrench.force")->numbers, (std::vector<double>{1, 2, 3}));
+  EXPECT_EQ(named(changes, "nullspace.stiffness")->numbers, (std::vector<double>{12}));
+  // get() shows the same values in force.
+  const auto got = parameters_->get({"stiffness.translation"});
+  ASSERT_TRUE(got && got->size() == 1u);
+  EXPECT_EQ((*got)[0].numbers, (std::vector<double>{350, 360, 370}));
+  EXPECT_TRUE(parameters_->changes().empty()) << "reported twice";
+
+  // A set is reported by its own event only; a topic's change after it is reported.
+  std::vector<NamedValue> set_event;
+  ASSERT_TRUE(parameters_->set({{"filter.pose.time", number(0.3)}}, &set_event).successful);
+  ASSERT_EQ(set_event.size(), 1u);
+  settle();
+  EXPECT_TRUE(parameters_->changes().empty());
+  loop_->set_stiffness(ci::Vector6d::Constant(400.0));
+  settle();
+  const std::vector<NamedValue> after = parameters_->changes();
+  ASSERT_TRUE(named(after, "stiffness.translation"));
+  EXPECT_FALSE(named(after, "filter.pose.time"));
+}
+
+// Issue 11: a value set at run time meets the rules it meets at start, by the same checks. At
+// start the loop refuses a per-joint field whose length is neither 1 nor the chain's joint count,
+// and the decoder a value out of range; a set at run time is refused with the same messages, and
+// the values in force stay.
+TEST_F(RunningNodeParameters, RunTimeSetsMeetTheStartTimeRules) {
+  run(false);
+  const auto numbers = [](std::vector<double> v) {
+    RosValue value;
+    value.type = cartesian_impedance_ros2::ros_type::kDoubleArray;
+    value.numbers = std::move(v);
+    return value;
+  };
+  const ci::Parameters before = loop_->latest_parameters();
+  ci::Parameters at_start;
+  at_start.nullspace.stiffness = ci::JointVector::Constant(3, 10.0);
+  std::string start_message;
+  try {
+    ci::ControlLoop refused(*model_, at_start);
+  } catch (const ci::Error& error) {
+    start_message = error.what();
+  }
+  ASSERT_FALSE(start_message.empty()) << "three nullspace stiffnesses accepted at start";
+  const auto result = parameters_->set({{"nullspace.stiffness", numbers({10, 10, 10})}}, nullptr);
+  EXPECT_FALSE(result.successful);
+  EXPECT_NE(result.reason.find("nullspace.stiffness"), std::string::npos) << result.reason;
+  EXPECT_NE(result.reason.find("3"), std::string::npos) << result.reason;
+  const auto negative = parameters_->set({{"damping_ratio.translation", number(-1.0)}}, nullptr);
+  EXPECT_FALSE(negative.successful);
+  EXPECT_NE(negative.reason.find("damping_ratio.translation"), std::string::npos)
+      << negative.reason;
+  settle();
+  EXPECT_TRUE(ci::changed_parameters(before, loop_->latest_parameters()).none());
+}
+
+// Issue 11: the torque-rate check the node makes at start (startup_report(): the stiffest spring
+// the limits allow against the torque-rate limit) is made again, by the same function, when an
+// unlocked set changes the limits at run time. Before, a set of limits.stiffness.translation.max
+// to 30,000 N/m on the Panda was logged only as the change itself.
+TEST_F(RunningNodeParameters, ARunTimeLimitChangeGetsTheStartsRateCheck) {
+  run(true);
+  settle();
+  ci::Parameters raised = loop_->latest_parameters();
+  raised.limits.stiffness.translation.max = 30000.0;
+  const std::vector<ci::node::ReportLine> expected = ci::node::rate_check_report(
+      raised, *model_, loop_->latest_state().q, "the current configuration");
+  ASSERT_FALSE(expected.empty()) << "30,000 N/m passes the rate check: no case";
+  ::testing::internal::CaptureStderr();
+  const auto result =
+      parameters_->set({{"limits.stiffness.translation.max", number(30000.0)}}, nullptr);
+  const std::string log = ::testing::internal::GetCapturedStderr();
+  ASSERT_TRUE(result.successful) << result.reason;
+  for (const ci::node::ReportLine& line : expected) {
+    EXPECT_NE(log.find(line.text), std::string::npos) << line.text << "\nnot in\n" << log;
+  }
+  // At start the same check says the same about the same configuration.
+  const ci::JointVector q = loop_->latest_state().q;
+  const auto start = ci::node::startup_report(raised, *model_, &q);
+  EXPECT_EQ(start.size(), expected.size() + 1);  // the limits line, then the check's
 }
 
 }  // namespace
