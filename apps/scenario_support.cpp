@@ -98,6 +98,26 @@ FrictionBand friction_band(Rig& rig) {
   return band;
 }
 
+// The nullspace torque's projector uses a damped pseudo-inverse
+// (nullspace.pseudo_inverse_damping), so on an arm with no nullspace (or where the Jacobian
+// is poorly conditioned) part of tau_0 = K_ns (q_ns - q) reaches the flange. It is small
+// (about 0.1 % of a 1 kg payload's weight on a 6-joint arm whose sag moved q off q_ns) and hidden
+// in the friction band on arms with friction; a frictionless arm measures it.
+Vector6d nullspace_wrench(Rig& rig) {
+  const Eigen::MatrixXd map =
+      Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(jacobian_now(rig).transpose())
+          .pseudoInverse();
+  return map * rig.loop().state().controller.tau_nullspace;
+}
+
+std::string flange_without_geometry(Rig& rig, const RobotSetup& robot) {
+  const std::string& tip = robot.tip_link;
+  if (rig.sim().has_collision_geometry(tip)) return "";
+  return "the flange ('" + tip +
+         "') and the links welded to it have no collision geometry: nothing can press on it "
+         "(give its URDF link a <collision>)";
+}
+
 Eigen::MatrixXd jacobian_now(Rig& rig) {
   ModelWorkspace workspace(rig.model());
   Kinematics kinematics = workspace.make_kinematics();

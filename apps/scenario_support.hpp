@@ -73,6 +73,12 @@ struct FrictionBand {
 };
 FrictionBand friction_band(Rig& rig);
 
+/// The wrench [N; Nm] at the flange, least-norm with J^T F = tau, of the controller's nullspace
+/// torque now: zero where the nullspace is exact, what the damped pseudo-inverse of the
+/// projector lets through otherwise. A static check's tolerance includes it: a frictionless arm
+/// has no friction band to hide it in.
+Vector6d nullspace_wrench(Rig& rig);
+
 /// What the arm can do at the rig's current configuration, from its URDF (efforts, position
 /// limits) and the parameters in force (limits.joint_torque): the scenarios size their pushes,
 /// steps, table and trajectory by it, so that they fit an arm nobody tuned them for.
@@ -113,6 +119,10 @@ double fitted_load(double tuned, double capacity, double stiffness, double trave
 /// "20 N is more than 30 % of the 45 N its joints can hold along x at the start": why a load was
 /// reduced, for the result's note; "" if it was not.
 std::string load_note(double tuned, double used, const char* unit);
+
+/// "the flange (tool0) has no collision geometry ..." if nothing of the flange's body can touch a
+/// table (contact checks are then n/a, not FAIL); "" if it can.
+std::string flange_without_geometry(Rig& rig, const RobotSetup& robot);
 
 /// Whether a link of the chain other than the flange's body touches the environment now.
 bool other_link_touches(Rig& rig);

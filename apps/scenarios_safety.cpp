@@ -63,6 +63,7 @@ struct TableRun {
   double impact_speed = 0.0;  // [m/s] over the cycle before the first contact
   double impact_mass = 0.0;   // [kg] the most mass the table can meet then (mass_along)
   std::vector<double> force;  // every cycle [N]
+  double leak = 0.0;          // [N] the nullspace torque's force at the flange at the end
 };
 
 // ---- 1. Table: the force cap (with the speed cap) ----------------------------------------------
@@ -82,6 +83,10 @@ void table_contact(const RobotSetup& robot, Outcome& outcome, const MomentCallba
     return;
   }
   probe.run(0.2);
+  if (const std::string reason = flange_without_geometry(probe, robot); !reason.empty()) {
+    outcome.results.push_back(not_applicable(kName, quantity_any, reason));
+    return;
+  }
   const Pose flange = probe.flange();
   if (flange.position.z() < 0.14) {
     outcome.results.push_back(not_applicable(
@@ -151,6 +156,7 @@ void table_contact(const RobotSetup& robot, Outcome& outcome, const MomentCallba
       }
     });
     run.settled = settled_sum / std::max(settled_count, 1);
+    run.leak = nullspace_wrench(rig).head<3>().norm();
     if (label != nullptr) {
       notify(
           moment, label, rig,
@@ -203,7 +209,7 @@ void table_contact(const RobotSetup& robot, Outcome& outcome, const MomentCallba
       "bound: the cap + 105/s x m x 1.1 c: the soft contact stopping the arm's mass m along z";
   const std::string note_settled =
       "bound: the cap + what the joints' friction holds along z (J^T (F + F_contact) = "
-      "tau_friction)";
+      "tau_friction) + what the nullspace torque pushes at the flange";
   const std::string rigid =
       "DART's rigid contact takes the arm's momentum in one step: its peak is m v / dt";
   const std::string vacuous = "at least the capped bound: the case the caps are for";
@@ -231,8 +237,11 @@ void table_contact(const RobotSetup& robot, Outcome& outcome, const MomentCallba
                                   ? at_most(kName, what + "peak force, " + caps, peak_bound(capped),
                                             capped.peak, "N", note_peak)
                                   : not_applicable(kName, what + "peak force, " + caps, rigid));
-    outcome.results.push_back(at_most(kName, what + "settled force, " + caps, settled_bound,
-                                      capped.settled, "N", note_settled));
+    // The force cap bounds the spring; the nullspace torque's leak (nullspace_wrench) presses
+    // on top, and with no friction band there is nothing else to cover it.
+    outcome.results.push_back(at_most(kName, what + "settled force, " + caps,
+                                      settled_bound + capped.leak, capped.settled, "N",
+                                      note_settled));
   }
 }
 
@@ -683,8 +692,14 @@ void payload(const RobotSetup& robot, Outcome& outcome, const MomentCallback& mo
       rig.loop().set_parameters(mutated(used, robot.mutation));
     }
     rig.phase(format("%.3g kg payload, %s", mass, declared ? "declared" : "not declared"));
-    rig.run(3.0);
+    // In two parts: the estimate averages the spring's force over the stillness
+    // (kPayloadSettleTime), so what the flange still sagged over its last part the estimate has
+    // not all seen yet.
+    rig.run(3.0 - CartesianImpedanceController::kPayloadSettleTime);
+    const double before = rig.flange().position.z();
+    rig.run(CartesianImpedanceController::kPayloadSettleTime);
     const double sag = (reference.position - rig.flange().position).z();
+    const double still_sagging = std::abs(rig.flange().position.z() - before);
     const SafetyState& safety = rig.loop().state().controller.safety;
     std::vector<std::string> details = {
         format("a %.3g kg payload %s: the flange sags %.1f mm (undeclared theory m g / K = "
@@ -698,27 +713,38 @@ void payload(const RobotSetup& robot, Outcome& outcome, const MomentCallback& mo
     }
     notify(moment, label, rig, details);
     return std::make_tuple(
-        sag, safety.payload_estimate_valid ? safety.payload_estimate_mass : std::nan(""));
+        sag, safety.payload_estimate_valid ? safety.payload_estimate_mass : std::nan(""),
+        nullspace_wrench(rig).head<3>().norm(), still_sagging);
   };
-  const auto [undeclared_sag, estimate] = hang(false, "payload not declared");
+  const auto [undeclared_sag, estimate, leak, lag] = hang(false, "payload not declared");
   const double declared_sag = std::get<0>(hang(true, "payload declared"));
+  // What the joints' friction holds at the flange, and what keeps a frictionless arm off m g / K
+  // once it has settled: the nullspace torque's leak (nullspace_wrench) and what the flange
+  // still sagged over the last 0.5 s (K x that). The projector's damping (0.01) lets through
+  // about 0.1 % of the load at a start chosen clear of singularities; more than 1 % means the
+  // arm is not at the equilibrium the theory describes (a broken law, thrown to a joint limit),
+  // and must not widen the check.
+  const double settling = std::min(leak + stiffness * lag, 0.01 * weight);
+  const double held = band + settling;
   outcome.overrides.push_back(format(
       "payload: payload.mass = %.3g kg sent with set_parameters as the payload is hung", mass));
   outcome.results.push_back(
       compare(kName, format("%.3g kg payload not declared: sag (m g / K)", mass),
-              1e3 * weight / stiffness, 1e3 * undeclared_sag, "mm", 1e3 * band / stiffness,
-              "tolerance: what joint friction can hold"));
+              1e3 * weight / stiffness, 1e3 * undeclared_sag, "mm", 1e3 * held / stiffness,
+              "tolerance: what joint friction holds, and the settling (nullspace torque, the "
+              "last 0.5 s's sag) up to 1 % of the load"));
   outcome.results.push_back(at_most(kName, format("%.3g kg payload declared: |sag|", mass),
                                     std::max(1.0, 1e3 * band / stiffness),
                                     1e3 * std::abs(declared_sag), "mm",
                                     "bound: 1 mm (the issue's), or what joint friction can hold "
                                     "where that is more"));
-  // At rest the spring holds the weight up to what the joints' friction holds along z.
-  outcome.results.push_back(
-      compare(kName, format("%.3g kg payload not declared: estimated mass", mass), mass,
-              std::isnan(estimate) ? 0.0 : estimate, "kg", band / kGravity,
-              std::isnan(estimate) ? "not valid: the flange was not still for 0.5 s"
-                                   : "tolerance: what joint friction can hold, / g"));
+  // At rest the spring holds the weight up to `held` (friction and settling, above).
+  outcome.results.push_back(compare(
+      kName, format("%.3g kg payload not declared: estimated mass", mass), mass,
+      std::isnan(estimate) ? 0.0 : estimate, "kg", held / kGravity,
+      std::isnan(estimate) ? "not valid: the flange was not still for 0.5 s"
+                           : "tolerance: what joint friction holds, and the settling (nullspace "
+                             "torque, the last 0.5 s's sag) up to 1 % of the load, / g"));
 }
 
 }  // namespace

@@ -233,4 +233,15 @@ Simulation make_peg_in_hole_scene(const PegInHole& scene, SimulationOptions opti
   return make_scene(scene.robot, boxes, {peg}, std::move(options));
 }
 
+// Here, beside the geometry a scene attaches to a flange: simulation.cpp is at the 800-line cap.
+bool Simulation::has_collision_geometry(const std::string& body) const {
+  const mjModel* m = impl_->model.get();
+  const int weld = m->body_weldid[impl_->find_body(body)];
+  for (int g = 0; g < m->ngeom; ++g) {
+    if (m->body_weldid[m->geom_bodyid[g]] == weld && (m->geom_contype[g] | m->geom_conaffinity[g]))
+      return true;
+  }
+  return false;
+}
+
 }  // namespace cartesian_impedance::sim

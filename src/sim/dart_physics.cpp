@@ -123,8 +123,9 @@ class CerrCapture {
   throw Error("engine 'dart': " + message);
 }
 
-// The URDF without its <visual> elements: they are not simulated, and DART would try to load
-// their meshes (MuJoCo's import drops them too).
+// The URDF without its <visual> elements (not simulated) and with its collision meshes at
+// absolute paths, found as for the MuJoCo scene: DART's own retrievers know no package://
+// without a registered package folder and do not look beside or above the URDF.
 std::string collision_only_urdf(const std::string& path) {
   std::ifstream file(path, std::ios::binary);
   std::stringstream content;
@@ -136,12 +137,7 @@ std::string collision_only_urdf(const std::string& path) {
   }
   tinyxml2::XMLElement* robot = document.FirstChildElement("robot");
   if (robot == nullptr) fail("URDF file '" + path + "' has no <robot> element");
-  for (tinyxml2::XMLElement* link = robot->FirstChildElement("link"); link != nullptr;
-       link = link->NextSiblingElement("link")) {
-    while (tinyxml2::XMLElement* visual = link->FirstChildElement("visual")) {
-      link->DeleteChild(visual);
-    }
-  }
+  resolve_collision_meshes(robot, path);
   tinyxml2::XMLPrinter printer;
   document.Print(&printer);
   return printer.CStr();

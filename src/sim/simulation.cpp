@@ -508,6 +508,13 @@ JointVector Simulation::friction_loss() const {
   }
   return values;
 }
+JointVector Simulation::joint_damping() const {
+  JointVector values(num_joints());
+  for (int i = 0; i < num_joints(); ++i) {
+    values[i] = impl_->model->dof_damping[impl_->dof_address[static_cast<std::size_t>(i)]];
+  }
+  return values;
+}
 const std::string& Simulation::model_name() const noexcept {
   return impl_->model_name;
 }

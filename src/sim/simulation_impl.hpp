@@ -13,6 +13,10 @@
 #include "cartesian_impedance/sim/simulation.hpp"
 #include "renderer.hpp"
 
+namespace tinyxml2 {
+class XMLElement;
+}
+
 namespace cartesian_impedance::sim {
 namespace detail {
 
@@ -83,6 +87,22 @@ struct UrdfImportOptions {
   double armature = 0.1;  ///< [kg m^2] reflected rotor inertia per joint
   double damping = 0.5;   ///< [N m s/rad] joint damping
 };
+
+/// The file a URDF <mesh filename> names, found as ROS tools find it: `package://NAME/rest` in
+/// each ROS_PACKAGE_PATH entry (NAME/rest, or rest if the entry is the package NAME itself), in
+/// each AMENT_PREFIX_PATH entry's share/NAME, then in a folder NAME beside or above the URDF's
+/// folder (or the URDF's folder or one above it named NAME); `file://PATH` and plain paths as
+/// they are if absolute, else against the URDF's folder. Returns the absolute path of a regular
+/// file that MuJoCo 2.2 reads (STL, OBJ, MSH); throws Error naming `link`, the URI and every
+/// place looked otherwise.
+std::string resolve_mesh_file(const std::string& uri, const std::string& urdf_path,
+                              const std::string& link);
+
+/// Removes every <visual> of the <robot> element `robot` (parsed from `urdf_path`; not simulated)
+/// and replaces every <collision> mesh's filename by its absolute path (resolve_mesh_file()), so
+/// that both engines load the meshes the URDF names. Throws one Error naming every mesh that
+/// cannot be used, before anything is loaded.
+void resolve_collision_meshes(tinyxml2::XMLElement* robot, const std::string& urdf_path);
 
 /// MJCF text of the robot in `urdf_path` with every link kept as a body (fixed joints too),
 /// armature and damping on each joint, non-colliding arm geoms, a floor, lights and a sky.

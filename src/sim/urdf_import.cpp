@@ -9,13 +9,16 @@
 #include <tinyxml2.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <cerrno>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "simulation_impl.hpp"
@@ -74,7 +77,134 @@ struct TemporaryPath {
   std::string path;
 };
 
+std::vector<std::string> split_path_list(const char* variable) {
+  std::vector<std::string> entries;
+  const char* value = std::getenv(variable);
+  if (value == nullptr) return entries;
+  std::stringstream stream(value);
+  std::string entry;
+  while (std::getline(stream, entry, ':')) {
+    if (!entry.empty()) entries.push_back(entry);
+  }
+  return entries;
+}
+
+std::string lowercase_extension(const std::filesystem::path& path) {
+  std::string extension = path.extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return extension;
+}
+
+// The places a package://NAME/rest URI may be, in the order ROS tools try them: the package
+// path variables first, then the folders around the URDF (a description package checked out
+// without a ROS workspace has its URDF in NAME/urdf/).
+std::vector<std::pair<std::filesystem::path, std::string>> package_candidates(
+    const std::string& package, const std::string& rest, const std::filesystem::path& urdf_folder) {
+  namespace fs = std::filesystem;
+  std::vector<std::pair<fs::path, std::string>> candidates;
+  for (const std::string& entry : split_path_list("ROS_PACKAGE_PATH")) {
+    candidates.emplace_back(fs::path(entry) / package / rest, "ROS_PACKAGE_PATH");
+    if (fs::path(entry).lexically_normal().filename() == package) {
+      candidates.emplace_back(fs::path(entry) / rest, "ROS_PACKAGE_PATH");
+    }
+  }
+  for (const std::string& entry : split_path_list("AMENT_PREFIX_PATH")) {
+    candidates.emplace_back(fs::path(entry) / "share" / package / rest, "AMENT_PREFIX_PATH");
+  }
+  for (fs::path folder = urdf_folder;; folder = folder.parent_path()) {
+    if (folder.filename() == package) candidates.emplace_back(folder / rest, "the URDF's folders");
+    candidates.emplace_back(folder / package / rest, "the URDF's folders");
+    if (folder == folder.parent_path()) break;
+  }
+  return candidates;
+}
+
 }  // namespace
+
+std::string resolve_mesh_file(const std::string& uri, const std::string& urdf_path,
+                              const std::string& link) {
+  namespace fs = std::filesystem;
+  const fs::path urdf_folder = fs::absolute(urdf_path).lexically_normal().parent_path();
+  const std::string what = "link '" + link + "': mesh '" + uri + "'";
+  std::vector<std::pair<fs::path, std::string>> candidates;
+  const std::string package_scheme = "package://", file_scheme = "file://";
+  if (uri.rfind(package_scheme, 0) == 0) {
+    const std::string rest = uri.substr(package_scheme.size());
+    const std::size_t slash = rest.find('/');
+    if (slash == std::string::npos || slash == 0 || slash + 1 == rest.size()) {
+      throw Error(what + " is not of the form package://NAME/PATH");
+    }
+    candidates = package_candidates(rest.substr(0, slash), rest.substr(slash + 1), urdf_folder);
+  } else {
+    const fs::path path = uri.rfind(file_scheme, 0) == 0 ? uri.substr(file_scheme.size()) : uri;
+    if (uri.find("://") != std::string::npos && uri.rfind(file_scheme, 0) != 0) {
+      throw Error(what + ": only package://, file:// and plain paths are supported");
+    }
+    candidates.emplace_back(path.is_absolute() ? path : urdf_folder / path,
+                            path.is_absolute() ? "absolute path" : "the URDF's folder");
+  }
+  std::string looked;
+  for (const auto& [candidate, source] : candidates) {
+    const fs::path normal = candidate.lexically_normal();
+    std::error_code ignored;
+    if (fs::is_regular_file(normal, ignored)) {
+      const std::string extension = lowercase_extension(normal);
+      if (extension == ".stl" || extension == ".obj" || extension == ".msh") {
+        if (!std::ifstream(normal, std::ios::binary)) {
+          throw Error(what + " found at '" + normal.string() + "' cannot be read");
+        }
+        return normal.string();
+      }
+      // MuJoCo 2.2 has no COLLADA reader (nor any other): it would fail later with only the
+      // file type; DART could read it, but both engines simulate the same scene.
+      throw Error(what + " found at '" + normal.string() + "' is a " +
+                  (extension.empty() ? std::string("file without extension") : extension) +
+                  " file; the simulation reads STL, OBJ and MSH meshes only (MuJoCo 2.2). Convert "
+                  "it (e.g. `assimp export " +
+                  normal.filename().string() + " " + normal.stem().string() +
+                  ".stl` from Debian's assimp-utils) and point the URDF at the copy, or replace "
+                  "the <collision> <mesh> by a <box> or <cylinder> of its size");
+    }
+    looked += "\n  " + normal.string() + " (" + source + ")";
+  }
+  throw Error(what + " not found; looked in:" + looked);
+}
+
+void resolve_collision_meshes(tinyxml2::XMLElement* robot, const std::string& urdf_path) {
+  std::string problems;
+  int count = 0;
+  for (tinyxml2::XMLElement* link = robot->FirstChildElement("link"); link != nullptr;
+       link = link->NextSiblingElement("link")) {
+    while (tinyxml2::XMLElement* visual = link->FirstChildElement("visual")) {
+      link->DeleteChild(visual);
+    }
+    const char* name = link->Attribute("name");
+    for (tinyxml2::XMLElement* collision = link->FirstChildElement("collision");
+         collision != nullptr; collision = collision->NextSiblingElement("collision")) {
+      tinyxml2::XMLElement* geometry = collision->FirstChildElement("geometry");
+      tinyxml2::XMLElement* mesh =
+          geometry != nullptr ? geometry->FirstChildElement("mesh") : nullptr;
+      if (mesh == nullptr) continue;
+      const char* filename = mesh->Attribute("filename");
+      try {
+        if (filename == nullptr) {
+          throw Error("link '" + std::string(name != nullptr ? name : "") +
+                      "': <collision> <mesh> has no filename");
+        }
+        mesh->SetAttribute(
+            "filename",
+            resolve_mesh_file(filename, urdf_path, name != nullptr ? name : "").c_str());
+      } catch (const Error& error) {
+        problems += std::string("\n") + error.what();
+        ++count;
+      }
+    }
+  }
+  if (count > 0) {
+    throw Error("URDF file '" + urdf_path + "': " + std::to_string(count) +
+                " collision mesh(es) cannot be used (visual meshes are not simulated):" + problems);
+  }
+}
 
 VirtualFile::VirtualFile(const std::string& name, const std::string& content)
     : vfs_(std::make_unique<mjVFS>()) {
@@ -99,13 +229,17 @@ std::string mjcf_from_urdf(const std::string& urdf_path, const UrdfImportOptions
   tinyxml2::XMLElement* robot = urdf.FirstChildElement("robot");
   if (robot == nullptr) throw Error("URDF file '" + urdf_path + "' has no <robot> element");
   // Keep every link as a body (a tool frame on a fixed joint stays addressable) and drop the
-  // visual meshes, which MuJoCo would otherwise need to find.
+  // visual meshes, which are not simulated. Collision meshes stay (the contact checks need the
+  // flange's geometry) with absolute paths: MuJoCo's URDF import strips the folders by default
+  // (strippath) and knows no package:// URIs.
+  resolve_collision_meshes(robot, urdf_path);
   tinyxml2::XMLElement* compiler = child(urdf, child(urdf, robot, "mujoco", true), "compiler");
   compiler->SetAttribute("fusestatic", "false");
   compiler->SetAttribute("discardvisual", "true");
+  compiler->SetAttribute("strippath", "false");
 
-  // The edited URDF goes through the virtual file system beside the original, so relative mesh
-  // paths resolve as for the original.
+  // The edited URDF goes through the virtual file system beside the original, so that a
+  // <mujoco> section's own relative paths (meshdir) resolve as for the original.
   const std::filesystem::path path = std::filesystem::absolute(urdf_path);
   const std::string name = path.stem().string() + "_cartesian_impedance_import.urdf";
   const std::string text = print(urdf);

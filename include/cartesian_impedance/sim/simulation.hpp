@@ -188,6 +188,12 @@ class Simulation {
   Pose site_pose(const std::string& site) const;
   Pose body_pose(const std::string& body) const;
 
+  /// Whether `body`, or a body welded to it, has geometry that can touch the environment. A
+  /// URDF link without <collision> (or whose meshes were stripped) has none: nothing presses on
+  /// it, and contact_wrench() stays zero.
+  /// @throw Error if the name is unknown.
+  bool has_collision_geometry(const std::string& body) const;
+
   /// Total contact wrench [N; Nm] that everything else exerts on `body` and on the bodies welded
   /// to it (bodies without joints move with their parent, so the massless flange body
   /// `panda_link8` reports the contacts of `panda_link7`'s geoms). World frame, torque about the
@@ -232,6 +238,9 @@ class Simulation {
   /// Coulomb friction (MuJoCo's frictionloss) per exchanged joint [Nm or N]: the torque below
   /// which a joint at rest does not move, so a spring holds it only up to this.
   JointVector friction_loss() const;
+  /// Viscous damping (MuJoCo's damping) per exchanged joint [Nm s/rad or N s/m]; DART uses the
+  /// same.
+  JointVector joint_damping() const;
 
   /// MuJoCo's model name (the `model` attribute of `<mujoco>` or the URDF robot name).
   const std::string& model_name() const noexcept;
