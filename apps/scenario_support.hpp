@@ -151,7 +151,6 @@ void run_measured(Rig& rig, double seconds, const std::function<void(double spee
 /// rotors' inertia. Holding fewer directions meets less mass.
 double mass_along(Rig& rig, const Eigen::Vector3d& direction);
 
-
 /// The joint positions [rad or m] that reach the flange pose `target` (base frame) from `q` by
 /// a few Gauss-Newton steps (J^+ e), every joint `margin` [rad or m] inside its limits on the
 /// way; none if they do not.
