@@ -173,8 +173,8 @@ std::vector<ParameterInfo> make_table() {
        [](Parameters& p) { return field_of(&p.dynamics.armature); }},
       {"joint_limit_avoidance.margin", "rad", 0, 1, false,
        "distance from a joint's position limit where the nullspace push away from it starts; "
-       "inside it the torque toward the limit is bounded (none at half the margin), and while "
-       "teaching a joint-space wall holds the joint; 0: neither",
+       "inside it the drive toward the limit is bounded (none at half the margin) and a wall "
+       "pushes back from there (while teaching, a wall over the whole margin); 0: neither",
        [](Parameters& p) { return field_of(&p.joint_limit_avoidance.margin); }},
       {"joint_limit_avoidance.stiffness", "Nm/rad", 0, kMaxJointStiffness, false,
        "stiffness of that push (inside the margin, in the nullspace); 0 switches it off",
