@@ -13,10 +13,13 @@
 #include "cartesian_impedance/core/controller.hpp"
 #include "cartesian_impedance/core/parameter_tree.hpp"
 #include "support/bare_law.hpp"
+#include "support/errors.hpp"
 
 namespace ci = cartesian_impedance;
 
 namespace {
+
+using test_errors::error_of;
 
 ci::Vector6d six(double a, double b, double c, double d, double e, double f) {
   return (ci::Vector6d() << a, b, c, d, e, f).finished();
@@ -34,15 +37,6 @@ using bare_law::cartesian_robot;
 constexpr double kDt = 0.001;
 constexpr double kG = ci::CartesianImpedanceController::kGravity;
 
-std::string message_of(const std::function<void()>& call) {
-  try {
-    call();
-  } catch (const ci::Error& error) {
-    return error.what();
-  }
-  return "";
-}
-
 }  // namespace
 
 // --- the payload under the force cap
@@ -53,7 +47,7 @@ TEST(PayloadEnvelope, APayloadTheForceCapCannotHoldIsRefused) {
   ci::Parameters p;
   p.safety.max_force = {40.0, 20.0};
   p.payload.mass = 10.0;
-  const std::string message = message_of([&] { ci::validate(p, 7); });
+  const std::string message = error_of([&] { ci::validate(p, 7); });
   EXPECT_NE(message.find("payload.mass = 10 kg"), std::string::npos) << message;
   EXPECT_NE(message.find("safety.max_force.force / g = 4.077471967 kg"), std::string::npos)
       << message;
@@ -61,7 +55,7 @@ TEST(PayloadEnvelope, APayloadTheForceCapCannotHoldIsRefused) {
   EXPECT_NO_THROW(ci::validate(p, 7));
   // Its moment under the torque cap, the same way.
   p.payload.center_of_mass = Eigen::Vector3d(0.6, 0.0, 0.0);
-  const std::string moment = message_of([&] { ci::validate(p, 7); });
+  const std::string moment = error_of([&] { ci::validate(p, 7); });
   EXPECT_NE(moment.find("payload.center_of_mass = 0.6 m"), std::string::npos) << moment;
   // With the caps off any payload in range goes.
   p.safety.max_force = {0.0, 0.0};
@@ -378,7 +372,7 @@ TEST(ParameterUpdate, OneThatNoLongerFitsIsRefused) {
   const ci::ParameterUpdate raise_min = ci::ParameterUpdate::of(values, {"safety.workspace.min"});
   p.safety.workspace.max.x() = 0.2;
   controller.set_parameters(p);
-  const std::string message = message_of([&] { controller.update_parameters(raise_min); });
+  const std::string message = error_of([&] { controller.update_parameters(raise_min); });
   EXPECT_NE(message.find("safety.workspace.min.x = 0.5 m is greater than safety.workspace.max.x"),
             std::string::npos)
       << message;
@@ -390,7 +384,7 @@ TEST(ParameterUpdate, OneThatNoLongerFitsIsRefused) {
 
 TEST(ParameterUpdate, NamesThatAreNoRowsAreRefused) {
   const std::string message =
-      message_of([] { ci::ParameterUpdate::of(ci::Parameters{}, {"safety.max_sped"}); });
+      error_of([] { ci::ParameterUpdate::of(ci::Parameters{}, {"safety.max_sped"}); });
   EXPECT_NE(message.find("unknown parameter 'safety.max_sped'"), std::string::npos) << message;
   EXPECT_EQ(ci::ParameterUpdate::of(ci::Parameters{}, {"safety.max_speed"}).row_names().size(), 2u);
 }

@@ -10,20 +10,14 @@
 #include "cartesian_impedance/core/error.hpp"
 #include "cartesian_impedance/core/parameter_tree.hpp"
 #include "cartesian_impedance/loop/control_loop.hpp"
+#include "support/errors.hpp"
 #include "support/robots.hpp"
 
 namespace ci = cartesian_impedance;
 
 namespace {
 
-std::string error_of(const std::function<void()>& call) {
-  try {
-    call();
-  } catch (const ci::Error& error) {
-    return error.what();
-  }
-  return "";
-}
+using test_errors::error_of;
 
 // The shipped configuration's caps, the way a robot runs them.
 ci::Parameters capped() {

@@ -19,12 +19,15 @@
 #include "cartesian_impedance/model/robot_model.hpp"
 #include "cartesian_impedance/sim/simulation.hpp"
 #include "src/sim/simulation_impl.hpp"
+#include "support/errors.hpp"
 
 namespace ci = cartesian_impedance;
 namespace sim = cartesian_impedance::sim;
 namespace fs = std::filesystem;
 
 namespace {
+
+using test_errors::error_of;
 
 const std::string kVendor = std::string(CARTESIAN_IMPEDANCE_SOURCE_DIR) + "/tests/vendor";
 const std::string kPackage = kVendor + "/acme_arm_description";
@@ -68,15 +71,6 @@ class ScopedEnvironment {
   std::string old_;
   bool had_ = false;
 };
-
-std::string thrown(const std::function<void()>& load) {
-  try {
-    load();
-  } catch (const ci::Error& error) {
-    return error.what();
-  }
-  return "(nothing thrown)";
-}
 
 class VendorPackage : public ::testing::TestWithParam<sim::Engine> {};
 
@@ -157,7 +151,7 @@ TEST(VendorMeshes, PackageUrisResolveThroughRosPackagePath) {
     EXPECT_NO_THROW(sim::Simulation::from_urdf_file(copy));
   }
   ScopedEnvironment no_ros("ROS_PACKAGE_PATH", "/nonexistent");
-  const std::string message = thrown([&] { sim::Simulation::from_urdf_file(copy); });
+  const std::string message = error_of([&] { sim::Simulation::from_urdf_file(copy); });
   EXPECT_NE(message.find("link 'base_link': mesh "
                          "'package://acme_arm_description/meshes/collision/base_link_0.stl' not "
                          "found; looked in:"),
@@ -190,15 +184,15 @@ TEST(VendorMeshes, RelativeFileAndUnreadableMeshes) {
                                            urdf, "tool"),
             (folder / "meshes" / "tool.stl").string());
   const std::string missing =
-      thrown([&] { sim::detail::resolve_mesh_file("meshes/gone.stl", urdf, "tool"); });
+      error_of([&] { sim::detail::resolve_mesh_file("meshes/gone.stl", urdf, "tool"); });
   EXPECT_EQ(missing, "link 'tool': mesh 'meshes/gone.stl' not found; looked in:\n  " +
                          (folder / "meshes" / "gone.stl").string() + " (the URDF's folder)");
   const std::string collada =
-      thrown([&] { sim::detail::resolve_mesh_file("meshes/tool.dae", urdf, "tool"); });
+      error_of([&] { sim::detail::resolve_mesh_file("meshes/tool.dae", urdf, "tool"); });
   EXPECT_NE(collada.find("is a .dae file; the simulation reads STL, OBJ and MSH meshes only"),
             std::string::npos)
       << collada;
-  EXPECT_NE(thrown([&] {
+  EXPECT_NE(error_of([&] {
               sim::detail::resolve_mesh_file("http://x/y.stl", urdf, "tool");
             }).find("only package://, file:// and plain paths"),
             std::string::npos);
@@ -213,7 +207,7 @@ TEST(VendorMeshes, RelativeFileAndUnreadableMeshes) {
     if (!sim::engine_available(engine)) continue;
     sim::SimulationOptions options;
     options.engine = engine;
-    const std::string message = thrown([&] { sim::Simulation::from_urdf_file(broken, options); });
+    const std::string message = error_of([&] { sim::Simulation::from_urdf_file(broken, options); });
     EXPECT_NE(message.find("1 collision mesh(es) cannot be used"), std::string::npos) << message;
     EXPECT_NE(message.find("link 'tool0': mesh "
                            "'package://acme_arm_description/meshes/collision/tool0_9.stl'"),
