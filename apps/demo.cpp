@@ -51,6 +51,10 @@ Options:
   --mjcf FILE              your robot's MJCF for the simulation (default: simulate the URDF)
   --base-link NAME         first link of the controlled chain (with --urdf)
   --tip-link NAME          end-effector link (with --urdf)
+  --package-path DIRS      folders (':'-separated) searched first for the URDF's package://NAME/
+                           meshes, as entries of ROS_PACKAGE_PATH: DIR/NAME, or DIR itself if it
+                           is named NAME (then ROS_PACKAGE_PATH, AMENT_PREFIX_PATH and the folders
+                           beside and above the URDF are searched)
   --flange NAME            site or body at the tip in the simulation (default: the tip link)
   --config FILE            controller parameters (YAML; default: config/<robot>.yaml)
   --start-q Q1,Q2,...      start configuration [rad or m], one value per joint (default: the
@@ -102,7 +106,7 @@ void require_file(const std::string& option, const std::string& path) {
 
 Options parse(int argc, char** argv) {
   Options options;
-  std::string robot = "panda", urdf, mjcf, base, tip, flange, config, start_q, engine;
+  std::string robot = "panda", urdf, mjcf, base, tip, flange, config, start_q, engine, package_path;
   for (int i = 1; i < argc; ++i) {
     const std::string argument = argv[i];
     auto value = [&]() -> std::string {
@@ -124,6 +128,8 @@ Options parse(int argc, char** argv) {
       tip = value();
     } else if (argument == "--flange") {
       flange = value();
+    } else if (argument == "--package-path") {
+      package_path = value();
     } else if (argument == "--config") {
       config = value();
     } else if (argument == "--start-q") {
@@ -140,9 +146,24 @@ Options parse(int argc, char** argv) {
       options.plots = false;
     } else {
       usage_error("unknown argument '" + argument +
-                  "' (valid: --robot, --urdf, --mjcf, --base-link, --tip-link, --flange, --config, "
-                  "--start-q, --engine, --scenario, --out, --no-render, --no-plots, --help)");
+                  "' (valid: --robot, --urdf, --mjcf, --base-link, --tip-link, --package-path, "
+                  "--flange, --config, --start-q, --engine, --scenario, --out, --no-render, "
+                  "--no-plots, --help)");
     }
+  }
+  if (!package_path.empty()) {
+    std::stringstream folders(package_path);
+    std::string folder;
+    while (std::getline(folders, folder, ':')) {
+      if (!folder.empty() && !fs::is_directory(folder)) {
+        usage_error("--package-path '" + package_path + "': '" + folder + "' is not a folder");
+      }
+    }
+    // The simulation finds package:// URIs as ROS tools do, through ROS_PACKAGE_PATH first.
+    const char* ros = std::getenv("ROS_PACKAGE_PATH");
+    const std::string joined =
+        package_path + (ros != nullptr && *ros != '\0' ? ":" + std::string(ros) : "");
+    ::setenv("ROS_PACKAGE_PATH", joined.c_str(), 1);
   }
   if (!urdf.empty()) {
     require_file("--urdf", urdf);
@@ -176,6 +197,9 @@ Options parse(int argc, char** argv) {
                                            options.robot.tip_link);
   } catch (const ci::Error& error) {
     usage_error(std::string("--urdf: ") + error.what());
+  }
+  for (const std::string& warning : model->warnings()) {
+    std::cout << "Warning: --urdf: " << warning << "\n";
   }
   const int joints = model->num_joints();
   try {

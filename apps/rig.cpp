@@ -144,7 +144,8 @@ Pose Rig::flange() const {
 }
 
 Eigen::Vector3d Rig::contact_force() const {
-  return sim_.contact_wrench(robot_.tip_link).head<3>();
+  // A hand's fingers (on joints of their own) press for the flange, as on a wrist sensor.
+  return sim_.contact_wrench_beyond(robot_.tip_link).head<3>();
 }
 
 namespace {

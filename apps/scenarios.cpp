@@ -441,7 +441,8 @@ const sim::Box* first_table_only_the_flange_meets(const RobotSetup& robot,
 }
 
 bool other_link_touches(Rig& rig) {
-  const Eigen::Vector3d flange_contact = rig.contact_force();
+  // The flange's own weld group (not the fingers beyond it, which Rig::contact_force counts).
+  const Eigen::Vector3d flange_contact = rig.sim().contact_wrench(rig.model().tip_link()).head<3>();
   for (const std::string& link : rig.model().joint_links()) {
     try {
       const Eigen::Vector3d contact = rig.sim().contact_wrench(link).head<3>();

@@ -183,6 +183,11 @@ void bind_robot_model(py::module_& m) {
       .def_property_readonly(
           "moving_mass", [](const Model& s) { return s.model.moving_mass(); },
           "Mass the dynamics include [kg].")
+      .def_property_readonly(
+          "warnings", [](const Model& s) { return s.model.warnings(); },
+          "What the loader repaired in the file (list of str, each naming the link, the values "
+          "and the repair; today: inertias that break the triangle inequality, repaired the same "
+          "way in the simulation). Empty for a file used as it is.")
       .def(
           "default_parameters", [](const Model& s) { return ci::default_parameters(s.model); },
           "The library's defaults made to suit this arm (a Parameters): limits.joint_torque the "

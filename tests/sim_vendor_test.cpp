@@ -8,6 +8,8 @@
 #include <stdlib.h>
 #include <unistd.h>
 
+#include <Eigen/Eigenvalues>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -16,6 +18,7 @@
 #include <string>
 
 #include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/model/link_inertia.hpp"
 #include "cartesian_impedance/model/robot_model.hpp"
 #include "cartesian_impedance/sim/simulation.hpp"
 #include "src/sim/simulation_impl.hpp"
@@ -170,8 +173,8 @@ TEST(VendorMeshes, PackageUrisResolveThroughRosPackagePath) {
   fs::remove_all(folder);
 }
 
-// Relative paths against the URDF's folder, file:// as it is; a missing file and a COLLADA file
-// are refused by both engines with the link, the URI and where it was looked for.
+// Relative paths against the URDF's folder, file:// as it is; a missing file and a broken COLLADA
+// file are refused by both engines with the link, the URI and where it was looked for.
 TEST(VendorMeshes, RelativeFileAndUnreadableMeshes) {
   const fs::path folder = scratch("relative");
   fs::create_directories(folder / "meshes");
@@ -187,9 +190,11 @@ TEST(VendorMeshes, RelativeFileAndUnreadableMeshes) {
       error_of([&] { sim::detail::resolve_mesh_file("meshes/gone.stl", urdf, "tool"); });
   EXPECT_EQ(missing, "link 'tool': mesh 'meshes/gone.stl' not found; looked in:\n  " +
                          (folder / "meshes" / "gone.stl").string() + " (the URDF's folder)");
+  // A file assimp cannot read is named with its path (the converter's words follow).
   const std::string collada =
       error_of([&] { sim::detail::resolve_mesh_file("meshes/tool.dae", urdf, "tool"); });
-  EXPECT_NE(collada.find("is a .dae file; the simulation reads STL, OBJ and MSH meshes only"),
+  EXPECT_NE(collada.find("link 'tool': mesh 'meshes/tool.dae' found at '" +
+                         (folder / "meshes" / "tool.dae").string() + "' cannot be read by assimp"),
             std::string::npos)
       << collada;
   EXPECT_NE(error_of([&] {
@@ -215,6 +220,180 @@ TEST(VendorMeshes, RelativeFileAndUnreadableMeshes) {
         << message;
   }
   fs::remove_all(folder);
+}
+
+// The package with link_2's <inertia> line replaced (the shipped one: ixx 0.00530397, iyy and
+// izz 0.01732135547), in a folder of its own beside which the package is found.
+std::string with_link_2_inertia(const fs::path& folder, const std::string& inertia) {
+  fs::copy(kPackage, folder / "acme_arm_description", fs::copy_options::recursive);
+  const std::string urdf = (folder / "acme_arm_description/urdf/acme6.urdf").string();
+  const std::string text = read(urdf);
+  const std::size_t link = text.find("<link name=\"link_2\">");
+  const std::size_t begin = text.find("<inertia ", link), end = text.find("/>", begin) + 2;
+  std::ofstream(urdf) << text.substr(0, begin) + inertia + text.substr(end);
+  return urdf;
+}
+
+// One notion of a valid arm (link_inertia.hpp). Before: the model loaded principal moments
+// that break A + B >= C without a word and both engines refused them (MuJoCo: "use
+// 'balanceinertia' to fix"). Now all three use the same repaired tensor, and the model says so.
+TEST(VendorInertia, TriangleInequalityIsRepairedAlikeByTheModelAndBothEngines) {
+  const fs::path folder = scratch("triangle");
+  // A + B = 0.0106079 < C = 0.0173214: a violation of 6.7e-3 kg m^2, 24 % of the sum.
+  const double a = 0.00530397, c = 0.01732135547;
+  const std::string urdf = with_link_2_inertia(
+      folder,
+      "<inertia ixx=\"0.00530397\" ixy=\"0\" ixz=\"0\" iyy=\"0.00530397\" iyz=\"0\" "
+      "izz=\"0.01732135547\"/>");
+  const ci::RobotModel model = ci::RobotModel::from_urdf_file(urdf, "base_link", "tool0");
+  ASSERT_EQ(model.warnings().size(), 1u);
+  const std::string& warning = model.warnings()[0];
+  EXPECT_NE(warning.find("link 'link_2': principal moments (0.00530397, 0.00530397, 0.0173214) "
+                         "kg m^2 break the triangle inequality"),
+            std::string::npos)
+      << warning;
+  // The projection along (1, 1, -1) onto A + B = C keeps the sum: each moves by the excess / 3.
+  // A and B up, C down twice as much (the sum stays), to 1e-5 of the sum inside the limit
+  // (MuJoCo's import rounds to 6 digits on the way).
+  const double shift = (c - 2.0 * a + 1e-5 * (2.0 * a + c)) / 4.0;
+  const double a_repaired = a + shift, c_repaired = c - 2.0 * shift;
+  // The model is the one of a file written with the repaired moments (its mass matrix agrees to
+  // rounding).
+  char repaired[200];
+  std::snprintf(
+      repaired, sizeof(repaired),
+      "<inertia ixx=\"%.17g\" ixy=\"0\" ixz=\"0\" iyy=\"%.17g\" iyz=\"0\" izz=\"%.17g\"/>",
+      a_repaired, a_repaired, c_repaired);
+  const fs::path by_hand_folder = scratch("triangle_by_hand");
+  const ci::RobotModel by_hand = ci::RobotModel::from_urdf_file(
+      with_link_2_inertia(by_hand_folder, repaired), "base_link", "tool0");
+  EXPECT_TRUE(by_hand.warnings().empty());
+  ci::ModelWorkspace w1(model), w2(by_hand);
+  ci::Kinematics k1 = w1.make_kinematics(), k2 = w2.make_kinematics();
+  ci::JointVector q(6);
+  q << 0.3, -0.7, 1.1, 0.4, -0.9, 0.2;
+  ASSERT_TRUE(w1.compute(q, ci::JointVector::Zero(6), k1, ci::ModelTerms::all));
+  ASSERT_TRUE(w2.compute(q, ci::JointVector::Zero(6), k2, ci::ModelTerms::all));
+  EXPECT_LT((k1.mass - k2.mass).cwiseAbs().maxCoeff(), 1e-10);
+  // MuJoCo compiles the same moments (its MJCF states them per body); DART loads the same text.
+  const std::string mjcf = sim::detail::mjcf_from_urdf(urdf, {});
+  const std::size_t body = mjcf.find("<body name=\"link_2\"");
+  const std::size_t diag = mjcf.find("diaginertia=\"", body) + 13;
+  std::istringstream moments(mjcf.substr(diag, mjcf.find('"', diag) - diag));
+  Eigen::Vector3d compiled;
+  moments >> compiled[0] >> compiled[1] >> compiled[2];
+  std::sort(compiled.data(), compiled.data() + 3);
+  // MuJoCo's MJCF has 6 significant digits.
+  EXPECT_LT((compiled - Eigen::Vector3d(a_repaired, a_repaired, c_repaired)).cwiseAbs().maxCoeff(),
+            1e-5 * c)
+      << compiled.transpose();
+  for (const sim::Engine engine : {sim::Engine::mujoco, sim::Engine::dart}) {
+    if (!sim::engine_available(engine)) continue;
+    sim::SimulationOptions options;
+    options.engine = engine;
+    EXPECT_NO_THROW(sim::Simulation::from_urdf_file(urdf, options));
+  }
+  fs::remove_all(folder);
+  fs::remove_all(by_hand_folder);
+}
+
+// What no repair can tell the meaning of is refused by all three, with the same words.
+TEST(VendorInertia, ImpossibleInertiasAreRefusedAlikeNamingTheLinkAndTheValue) {
+  struct Case {
+    std::string inertia, expected;
+  };
+  const Case cases[] = {
+      {"<inertia ixx=\"0.01\" ixy=\"0.02\" ixz=\"0\" iyy=\"0.01\" iyz=\"0\" izz=\"0.01\"/>",
+       "link 'link_2' has an inertia tensor that is not positive semi-definite (principal moments "
+       "(-0.01, 0.01, 0.03) kg m^2"},
+      {"<inertia ixx=\"0.01\" ixy=\"0\" ixz=\"0\" iyy=\"2e6\" iyz=\"0\" izz=\"0.01\"/>",
+       "link 'link_2' has inertia iyy = 2e+06 kg m^2; expected finite entries within +-1e+06"},
+  };
+  int index = 0;
+  for (const Case& c : cases) {
+    const fs::path folder = scratch("refused_" + std::to_string(index++));
+    const std::string urdf = with_link_2_inertia(folder, c.inertia);
+    const std::string from_model =
+        error_of([&] { ci::RobotModel::from_urdf_file(urdf, "base_link", "tool0"); });
+    EXPECT_NE(from_model.find(c.expected), std::string::npos) << from_model;
+    for (const sim::Engine engine : {sim::Engine::mujoco, sim::Engine::dart}) {
+      if (!sim::engine_available(engine)) continue;
+      sim::SimulationOptions options;
+      options.engine = engine;
+      const std::string from_engine =
+          error_of([&] { sim::Simulation::from_urdf_file(urdf, options); });
+      EXPECT_NE(from_engine.find(c.expected), std::string::npos) << from_engine;
+      EXPECT_NE(from_engine.find(urdf), std::string::npos) << from_engine;
+    }
+    fs::remove_all(folder);
+  }
+  // A negative mass: the same for all three.
+  EXPECT_NE(error_of([] {
+              ci::physical_link_inertia("l", -1.0, Eigen::Matrix3d::Identity());
+            }).find("link 'l' has mass = -1 kg; expected a finite value >= 0 kg"),
+            std::string::npos);
+  // A flat plate lies on the limit (A, B, A + B): moved 1e-5 of the sum inside, without a warning;
+  // a tensor well inside is used exactly as written.
+  const Eigen::Matrix3d plate = Eigen::Vector3d(0.02, 0.1, 0.12).asDiagonal();
+  const ci::LinkInertia plate_used = ci::physical_link_inertia("plate", 1.0, plate);
+  EXPECT_TRUE(plate_used.repair.empty());
+  EXPECT_LT((plate_used.inertia - plate).cwiseAbs().maxCoeff(), 1e-5 * 0.24);
+  EXPECT_GT((plate_used.inertia - plate).cwiseAbs().maxCoeff(), 0.0);
+  const Eigen::Matrix3d box = Eigen::Vector3d(0.05, 0.1, 0.12).asDiagonal();
+  EXPECT_EQ(ci::physical_link_inertia("box", 1.0, box).inertia, box);
+}
+
+// The corners of the box around a binary STL's vertices.
+std::pair<Eigen::Vector3d, Eigen::Vector3d> stl_bounds(const std::string& path) {
+  std::ifstream file(path, std::ios::binary);
+  char header[80];
+  std::uint32_t count = 0;
+  file.read(header, sizeof(header));
+  file.read(reinterpret_cast<char*>(&count), sizeof(count));
+  Eigen::Vector3d low = Eigen::Vector3d::Constant(1e300), high = -low;
+  for (std::uint32_t t = 0; t < count && file; ++t) {
+    float values[12];
+    std::uint16_t attribute = 0;
+    file.read(reinterpret_cast<char*>(values), sizeof(values));
+    file.read(reinterpret_cast<char*>(&attribute), sizeof(attribute));
+    for (int corner = 1; corner < 4; ++corner) {
+      const Eigen::Vector3d v(values[3 * corner], values[3 * corner + 1], values[3 * corner + 2]);
+      low = low.cwiseMin(v);
+      high = high.cwiseMax(v);
+    }
+  }
+  EXPECT_TRUE(file) << path;
+  return {low, high};
+}
+
+// COLLADA, as description packages ship it: converted with assimp to the same geometry as the
+// STL written beside it, in metres whether the file counts in metres (gamma_robot) or in
+// millimetres (beta_description, <unit meter="0.001">). Before: refused ("reads STL, OBJ and
+// MSH meshes only").
+TEST(VendorMeshes, ColladaMeshesAreConvertedWithTheirUnit) {
+  const std::string gamma = kVendor + "/gamma_robot";
+  const std::string beta = kVendor + "/beta_description";
+  const struct {
+    std::string urdf, dae, stl;
+  } pairs[] = {
+      {gamma + "/urdf/gamma6.urdf", "../meshes/collision/link_2_0.dae",
+       gamma + "/meshes/link_2.STL"},
+      {beta + "/urdf/beta7.urdf", "package://beta_description/meshes/visual/link_2_0.dae",
+       beta + "/meshes/collision/link_2_0.stl"},
+  };
+  ScopedEnvironment no_ros("ROS_PACKAGE_PATH", "");
+  for (const auto& pair : pairs) {
+    const std::string converted = sim::detail::resolve_mesh_file(pair.dae, pair.urdf, "link_2");
+    EXPECT_EQ(fs::path(converted).extension(), ".stl");
+    const auto [low, high] = stl_bounds(converted);
+    const auto [expected_low, expected_high] = stl_bounds(pair.stl);
+    // The DAE has 6 decimals of its unit (1e-9 m in millimetres), the STLs single precision.
+    EXPECT_LT((low - expected_low).cwiseAbs().maxCoeff(), 2e-6) << pair.dae;
+    EXPECT_LT((high - expected_high).cwiseAbs().maxCoeff(), 2e-6) << pair.dae;
+    EXPECT_GT((high - low).maxCoeff(), 0.05);  // a link, not a point
+    // A second load takes the cached copy.
+    EXPECT_EQ(sim::detail::resolve_mesh_file(pair.dae, pair.urdf, "link_2"), converted);
+  }
 }
 
 }  // namespace

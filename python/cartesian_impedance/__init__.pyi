@@ -544,6 +544,9 @@ class RobotModel:
     def moving_mass(self) -> float:
         """Mass the dynamics include [kg]."""
     @property
+    def warnings(self) -> List[str]:
+        """What the loader repaired in the file (each naming the link, the values and the repair)."""
+    @property
     def num_joints(self) -> int: ...
     @property
     def robot_name(self) -> str: ...

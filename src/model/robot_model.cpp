@@ -202,6 +202,9 @@ const std::vector<std::string>& RobotModel::joint_links() const noexcept {
 const std::vector<int>& RobotModel::massless_joints() const noexcept {
   return data_->urdf.massless_joints;
 }
+const std::vector<std::string>& RobotModel::warnings() const noexcept {
+  return data_->urdf.warnings;
+}
 
 void check_dynamics(const RobotModel& model, const DynamicsParameters& dynamics) {
   std::string options;

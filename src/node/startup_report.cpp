@@ -36,6 +36,9 @@ std::vector<ReportLine> startup_report(const Parameters& parameters, const Robot
   const Parameters in_force = with_robot_limits(parameters, model);
   const LimitParameters& limits = in_force.limits;
   std::vector<ReportLine> lines;
+  for (const std::string& warning : model.warnings()) {
+    lines.push_back({ReportLine::Level::warning, "the URDF: " + warning});
+  }
   lines.push_back(
       {ReportLine::Level::info,
        "limits in force (those the configuration leaves out are derived from the URDF): joint "

@@ -138,6 +138,7 @@ std::string collision_only_urdf(const std::string& path) {
   tinyxml2::XMLElement* robot = document.FirstChildElement("robot");
   if (robot == nullptr) fail("URDF file '" + path + "' has no <robot> element");
   resolve_collision_meshes(robot, path);
+  apply_physical_inertias(robot, path);
   tinyxml2::XMLPrinter printer;
   document.Print(&printer);
   return printer.CStr();
@@ -165,15 +166,26 @@ dd::SkeletonPtr load_robot(const SceneRobot& robot) {
     joint->setName(robot.prefix + joint->getName());
   }
   // Give every moving joint its armature slot. changeParentJointType keeps the joint's
-  // properties (name, frames, axis, limits, damping, friction) and the subtree.
+  // properties (name, frames, axis, limits, damping, friction) and the subtree, but may reorder
+  // the skeleton's bodies, so they are listed first.
+  std::vector<dd::BodyNode*> bodies;
   for (std::size_t i = 0; i < skeleton->getNumBodyNodes(); ++i) {
-    dd::BodyNode* body = skeleton->getBodyNode(i);
+    bodies.push_back(skeleton->getBodyNode(i));
+  }
+  for (dd::BodyNode* body : bodies) {
     dd::Joint* joint = body->getParentJoint();
+    dd::Joint* changed = nullptr;
     if (auto* revolute = dynamic_cast<dd::RevoluteJoint*>(joint)) {
-      body->changeParentJointType<ArmatureRevoluteJoint>(revolute->getRevoluteJointProperties());
+      changed = body->changeParentJointType<ArmatureRevoluteJoint>(
+          revolute->getRevoluteJointProperties());
     } else if (auto* prismatic = dynamic_cast<dd::PrismaticJoint*>(joint)) {
-      body->changeParentJointType<ArmaturePrismaticJoint>(prismatic->getPrismaticJointProperties());
+      changed = body->changeParentJointType<ArmaturePrismaticJoint>(
+          prismatic->getPrismaticJointProperties());
     }
+    // A URDF <mimic> (a hand's second finger) would keep a pointer to the joint it follows,
+    // which the change above replaces; and MuJoCo 2.2's import ignores <mimic>. Both engines
+    // simulate it as a joint of its own.
+    if (changed != nullptr) changed->setActuatorType(dd::Joint::FORCE);
   }
   // Attached boxes: welded bodies with the box's inertia and shape, as in the MuJoCo scene.
   for (std::size_t i = 0; i < robot.attached.size(); ++i) {
@@ -234,7 +246,7 @@ class DartPhysics final : public Physics {
   void set_state(const Simulation::Impl& impl) override;
   void step(Simulation::Impl& impl) noexcept override;
   Pose body_pose(int body) const override;
-  Vector6d contact_wrench(int weld, const Eigen::Vector3d& origin) const override;
+  Vector6d contact_wrench(int weld, const Eigen::Vector3d& origin, bool beyond) const override;
 
  private:
   struct JointLink {  // a MuJoCo joint and its DART degree of freedom
@@ -245,10 +257,11 @@ class DartPhysics final : public Physics {
   };
   dart::simulation::WorldPtr world_;
   std::vector<dd::SkeletonPtr> robots_;
-  std::vector<JointLink> joints_;                         // every MuJoCo hinge and slide joint
-  std::vector<JointLink> exchanged_;                      // in Impl::joint_ids order
-  std::vector<dd::BodyNode*> bodies_;                     // per MuJoCo body id; null for the world
-  std::unordered_map<const dd::BodyNode*, int> weld_of_;  // MuJoCo weld id per DART body
+  std::vector<JointLink> joints_;      // every MuJoCo hinge and slide joint
+  std::vector<JointLink> exchanged_;   // in Impl::joint_ids order
+  std::vector<dd::BodyNode*> bodies_;  // per MuJoCo body id; null for the world
+  // Per DART body: the MuJoCo weld ids of its body and of each body above it, in order.
+  std::unordered_map<const dd::BodyNode*, std::vector<int>> welds_up_;
   // (exchanged joint, attached body in its subtree): weight the firmware does not compensate.
   std::vector<std::pair<std::size_t, const dd::BodyNode*>> uncompensated_;
   bool contacts_valid_ = false;
@@ -292,7 +305,8 @@ DartPhysics::DartPhysics(const UrdfScene& scene, const Simulation::Impl& impl)
     if (bodies_[static_cast<std::size_t>(body)] == nullptr) {
       fail("body '" + std::string(name) + "' of the scene is not a link of DART's model");
     }
-    weld_of_[bodies_[static_cast<std::size_t>(body)]] = m->body_weldid[body];
+    std::vector<int>& welds = welds_up_[bodies_[static_cast<std::size_t>(body)]];
+    for (int up = body; up > 0; up = m->body_parentid[up]) welds.push_back(m->body_weldid[up]);
   }
 
   exchanged_.resize(impl.joint_ids.size());
@@ -429,16 +443,18 @@ Pose DartPhysics::body_pose(int body) const {
   return pose;
 }
 
-Vector6d DartPhysics::contact_wrench(int weld, const Eigen::Vector3d& origin) const {
+Vector6d DartPhysics::contact_wrench(int weld, const Eigen::Vector3d& origin, bool beyond) const {
   Vector6d wrench = Vector6d::Zero();
   if (!contacts_valid_) return wrench;
-  const auto weld_of = [this](const dart::collision::CollisionObject* object) {
-    const auto it = weld_of_.find(object->getShapeFrame()->asShapeNode()->getBodyNodePtr().get());
-    return it == weld_of_.end() ? -1 : it->second;
+  const auto on = [&](const dart::collision::CollisionObject* object) {
+    const auto it = welds_up_.find(object->getShapeFrame()->asShapeNode()->getBodyNodePtr().get());
+    if (it == welds_up_.end() || it->second.empty()) return false;
+    if (!beyond) return it->second.front() == weld;
+    return std::find(it->second.begin(), it->second.end(), weld) != it->second.end();
   };
   for (const dart::collision::Contact& contact : world_->getLastCollisionResult().getContacts()) {
-    const bool on_first = weld_of(contact.collisionObject1) == weld;
-    const bool on_second = weld_of(contact.collisionObject2) == weld;
+    const bool on_first = on(contact.collisionObject1);
+    const bool on_second = on(contact.collisionObject2);
     if (on_first == on_second) continue;
     // contact.force acts on the first object; the second gets its opposite.
     const Eigen::Vector3d force = on_first ? contact.force : Eigen::Vector3d(-contact.force);

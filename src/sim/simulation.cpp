@@ -672,6 +672,10 @@ Vector6d Simulation::contact_wrench(const std::string& body) const {
   return impl_->contact_wrench(impl_->find_body(body));
 }
 
+Vector6d Simulation::contact_wrench_beyond(const std::string& body) const {
+  return impl_->contact_wrench(impl_->find_body(body), true);
+}
+
 void Simulation::track_contact_wrench(const std::string& body) {
   Impl& s = *impl_;
   s.tracked_body = body.empty() ? -1 : s.find_body(body);
@@ -691,11 +695,18 @@ Vector6d Simulation::take_mean_contact_wrench() {
   return mean;
 }
 
-Vector6d Simulation::Impl::contact_wrench(int id) const noexcept {
+Vector6d Simulation::Impl::contact_wrench(int id, bool beyond) const noexcept {
   const mjModel* m = model.get();
   const mjData* d = data.get();
   const int weld = m->body_weldid[id];
-  if (physics) return physics->contact_wrench(weld, physics->body_pose(id).position);
+  if (physics) return physics->contact_wrench(weld, physics->body_pose(id).position, beyond);
+  const auto on = [&](int geom) {
+    for (int body = m->geom_bodyid[geom]; body > 0; body = m->body_parentid[body]) {
+      if (m->body_weldid[body] == weld) return true;
+      if (!beyond) return false;
+    }
+    return false;
+  };
   update_kinematics();
   const Eigen::Vector3d origin = Eigen::Map<const Eigen::Vector3d>(d->xpos + 3 * id);
 
@@ -703,8 +714,8 @@ Vector6d Simulation::Impl::contact_wrench(int id) const noexcept {
   for (int c = 0; c < d->ncon; ++c) {
     const mjContact& contact = d->contact[c];
     if (contact.efc_address < 0) continue;  // excluded from the constraint problem: no force
-    const bool on_first = m->body_weldid[m->geom_bodyid[contact.geom1]] == weld;
-    const bool on_second = m->body_weldid[m->geom_bodyid[contact.geom2]] == weld;
+    const bool on_first = on(contact.geom1);
+    const bool on_second = on(contact.geom2);
     if (on_first == on_second) continue;  // not touching this body, or internal to it
     // mj_contactForce: the force geom1 exerts on geom2, in the contact frame (rows of `frame`
     // are the frame's axes in world coordinates, the first one the normal from geom1 to geom2).

@@ -93,16 +93,29 @@ struct UrdfImportOptions {
 /// each AMENT_PREFIX_PATH entry's share/NAME, then in a folder NAME beside or above the URDF's
 /// folder (or the URDF's folder or one above it named NAME); `file://PATH` and plain paths as
 /// they are if absolute, else against the URDF's folder. Returns the absolute path of a regular
-/// file that MuJoCo 2.2 reads (STL, OBJ, MSH); throws Error naming `link`, the URI and every
+/// file that MuJoCo 2.2 reads: the file itself if STL, OBJ or MSH, else its converted_mesh()
+/// (COLLADA and the other formats assimp reads); throws Error naming `link`, the URI and every
 /// place looked otherwise.
 std::string resolve_mesh_file(const std::string& uri, const std::string& urdf_path,
                               const std::string& link);
+
+/// A binary STL copy of the mesh file `source` (any format assimp reads; COLLADA with its
+/// <unit> applied and its axes kept), in a cache folder under the temporary folder; `what`
+/// ("link 'l': mesh 'uri'") names it in errors.
+/// @throw Error if assimp cannot read the file or the copy cannot be written.
+std::string converted_mesh(const std::string& source, const std::string& what);
 
 /// Removes every <visual> of the <robot> element `robot` (parsed from `urdf_path`; not simulated)
 /// and replaces every <collision> mesh's filename by its absolute path (resolve_mesh_file()), so
 /// that both engines load the meshes the URDF names. Throws one Error naming every mesh that
 /// cannot be used, before anything is loaded.
 void resolve_collision_meshes(tinyxml2::XMLElement* robot, const std::string& urdf_path);
+
+/// Gives every <inertial> of the <robot> element `robot` (parsed from `urdf_path`) the tensor
+/// physical_link_inertia() makes of it, as the controller's RobotModel does (which reports the
+/// repairs in RobotModel::warnings()): the model and both engines simulate the same arm.
+/// @throw Error naming the URDF, the link and the value for an inertial it refuses.
+void apply_physical_inertias(tinyxml2::XMLElement* robot, const std::string& urdf_path);
 
 /// MJCF text of the robot in `urdf_path` with every link kept as a body (fixed joints too),
 /// armature and damping on each joint, non-colliding arm geoms, a floor, lights and a sky.
@@ -126,7 +139,8 @@ class Physics {
   /// Pose of MuJoCo body `body` (an id) in the world.
   virtual Pose body_pose(int body) const = 0;
   /// Contact wrench on the bodies whose MuJoCo weld id is `weld`, torque about `origin`.
-  virtual Vector6d contact_wrench(int weld, const Eigen::Vector3d& origin) const = 0;
+  // `beyond`: also the contacts of every body below the weld in the tree (a hand's fingers).
+  virtual Vector6d contact_wrench(int weld, const Eigen::Vector3d& origin, bool beyond) const = 0;
 };
 
 /// DART behind the scene of `impl` (whose joints, armature, damping and friction it copies).
@@ -186,7 +200,7 @@ struct Simulation::Impl {
   void expire_pushes() noexcept;  // drops the pushes that end before the next step
   void update_kinematics() const noexcept;
   int find_body(const std::string& name) const;  // throws Error naming the body
-  Vector6d contact_wrench(int body) const noexcept;
+  Vector6d contact_wrench(int body, bool beyond = false) const noexcept;
 };
 
 }  // namespace cartesian_impedance::sim

@@ -21,6 +21,7 @@
 #include <utility>
 #include <vector>
 
+#include "cartesian_impedance/model/link_inertia.hpp"
 #include "simulation_impl.hpp"
 
 namespace cartesian_impedance::sim::detail {
@@ -148,22 +149,13 @@ std::string resolve_mesh_file(const std::string& uri, const std::string& urdf_pa
     const fs::path normal = candidate.lexically_normal();
     std::error_code ignored;
     if (fs::is_regular_file(normal, ignored)) {
-      const std::string extension = lowercase_extension(normal);
-      if (extension == ".stl" || extension == ".obj" || extension == ".msh") {
-        if (!std::ifstream(normal, std::ios::binary)) {
-          throw Error(what + " found at '" + normal.string() + "' cannot be read");
-        }
-        return normal.string();
+      if (!std::ifstream(normal, std::ios::binary)) {
+        throw Error(what + " found at '" + normal.string() + "' cannot be read");
       }
-      // MuJoCo 2.2 has no COLLADA reader (nor any other): it would fail later with only the
-      // file type; DART could read it, but both engines simulate the same scene.
-      throw Error(what + " found at '" + normal.string() + "' is a " +
-                  (extension.empty() ? std::string("file without extension") : extension) +
-                  " file; the simulation reads STL, OBJ and MSH meshes only (MuJoCo 2.2). Convert "
-                  "it (e.g. `assimp export " +
-                  normal.filename().string() + " " + normal.stem().string() +
-                  ".stl` from Debian's assimp-utils) and point the URDF at the copy, or replace "
-                  "the <collision> <mesh> by a <box> or <cylinder> of its size");
+      const std::string extension = lowercase_extension(normal);
+      if (extension == ".stl" || extension == ".obj" || extension == ".msh") return normal.string();
+      // MuJoCo 2.2 reads no other format; assimp (as rviz and Gazebo) reads COLLADA and more.
+      return converted_mesh(normal.string(), what);
     }
     looked += "\n  " + normal.string() + " (" + source + ")";
   }
@@ -206,6 +198,43 @@ void resolve_collision_meshes(tinyxml2::XMLElement* robot, const std::string& ur
   }
 }
 
+void apply_physical_inertias(tinyxml2::XMLElement* robot, const std::string& urdf_path) {
+  for (tinyxml2::XMLElement* link = robot->FirstChildElement("link"); link != nullptr;
+       link = link->NextSiblingElement("link")) {
+    tinyxml2::XMLElement* inertial = link->FirstChildElement("inertial");
+    tinyxml2::XMLElement* mass = inertial ? inertial->FirstChildElement("mass") : nullptr;
+    tinyxml2::XMLElement* inertia = inertial ? inertial->FirstChildElement("inertia") : nullptr;
+    double m = 0.0, i[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+    const char* names[6] = {"ixx", "ixy", "ixz", "iyy", "iyz", "izz"};
+    // An element the engine's parser would refuse anyway is left to it (and to the model's
+    // stricter parser, which names it).
+    if (mass == nullptr || inertia == nullptr ||
+        mass->QueryDoubleAttribute("value", &m) != tinyxml2::XML_SUCCESS) {
+      continue;
+    }
+    bool complete = true;
+    for (int k = 0; k < 6; ++k) {
+      complete =
+          complete && inertia->QueryDoubleAttribute(names[k], &i[k]) == tinyxml2::XML_SUCCESS;
+    }
+    if (!complete) continue;
+    Eigen::Matrix3d tensor;
+    tensor << i[0], i[1], i[2], i[1], i[3], i[4], i[2], i[4], i[5];
+    const char* name = link->Attribute("name");
+    LinkInertia checked;
+    try {
+      checked = physical_link_inertia(name != nullptr ? name : "", m, tensor);
+    } catch (const Error& error) {
+      throw Error("URDF file '" + urdf_path + "': " + error.what());
+    }
+    if (checked.inertia == tensor) continue;
+    const double repaired[6] = {checked.inertia(0, 0), checked.inertia(0, 1),
+                                checked.inertia(0, 2), checked.inertia(1, 1),
+                                checked.inertia(1, 2), checked.inertia(2, 2)};
+    for (int k = 0; k < 6; ++k) inertia->SetAttribute(names[k], repaired[k]);
+  }
+}
+
 VirtualFile::VirtualFile(const std::string& name, const std::string& content)
     : vfs_(std::make_unique<mjVFS>()) {
   mj_defaultVFS(vfs_.get());
@@ -233,6 +262,7 @@ std::string mjcf_from_urdf(const std::string& urdf_path, const UrdfImportOptions
   // flange's geometry) with absolute paths: MuJoCo's URDF import strips the folders by default
   // (strippath) and knows no package:// URIs.
   resolve_collision_meshes(robot, urdf_path);
+  apply_physical_inertias(robot, urdf_path);
   tinyxml2::XMLElement* compiler = child(urdf, child(urdf, robot, "mujoco", true), "compiler");
   compiler->SetAttribute("fusestatic", "false");
   compiler->SetAttribute("discardvisual", "true");

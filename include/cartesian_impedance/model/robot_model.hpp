@@ -140,8 +140,9 @@ class RobotModel {
   ///        limits (a prismatic joint's beyond +-1000 m);
   ///        if a joint of the chain, or one that fixes a link to it, has an origin coordinate
   ///        outside +-1000 m or a non-finite rotation; if a link of the chain or one fixed to it
-  ///        has a mass outside [0, 1e6] kg, an inertia entry outside +-1e6 kg m^2 or not
-  ///        positive semi-definite, or an inertial origin outside +-1000 m;
+  ///        has an inertial origin outside +-1000 m; if any link of the file has an <inertial>
+  ///        that physical_link_inertia() refuses (mass outside [0, 1e6] kg, an inertia entry
+  ///        outside +-1e6 kg m^2, a negative principal moment);
   ///        and if the pose, Jacobian, mass matrix or gravity torques of the loaded model are not
   ///        finite at q = 0.
   static RobotModel from_urdf_string(
@@ -174,6 +175,10 @@ class RobotModel {
   /// links). M(q) has a zero row and column for each at every q: singular unless
   /// dynamics.armature gives each such joint a rotor inertia (see check_dynamics()).
   const std::vector<int>& massless_joints() const noexcept;
+  /// What the loader repaired in the file, one sentence each naming the link, the values and the
+  /// repair (today: inertias that break the triangle inequality; see link_inertia.hpp, which
+  /// the simulation applies the same way). Empty for a file used as it is.
+  const std::vector<std::string>& warnings() const noexcept;
 
   /// The implementation every ModelWorkspace (and so every ControlLoop) made from this model
   /// uses: ModelBackend::native unless chosen with with_backend().

@@ -202,6 +202,11 @@ class Simulation {
   /// right after set_state() or reset(), as DART solves contacts only while stepping).
   /// @throw Error if the body is unknown.
   Vector6d contact_wrench(const std::string& body) const;
+  /// What a force-torque sensor in `body` measures: as contact_wrench(), plus the contacts of
+  /// every body below it in the tree (a hand's fingers on their own joints). The demo presses
+  /// with the flange this way: a hand's fingertips touch first.
+  /// @throw Error if the body is unknown.
+  Vector6d contact_wrench_beyond(const std::string& body) const;
 
   /// Averages contact_wrench(body) over steps without a call per step (so that a batch of
   /// simulations run by BatchRunner can measure it): from now on each step() adds the body's

@@ -17,6 +17,7 @@
 #include <utility>
 
 #include "cartesian_impedance/core/error.hpp"
+#include "cartesian_impedance/model/link_inertia.hpp"
 #include "urdf_parse.hpp"
 
 namespace cartesian_impedance::detail {
@@ -31,10 +32,6 @@ constexpr double kInfinity = std::numeric_limits<double>::infinity();
 // A robot bigger than a kilometre is a unit mistake or garbage; the largest gantries span tens of
 // metres.
 constexpr double kMaxDistance = 1000.0;  // [m] every coordinate of an origin, a prismatic limit
-// 1000 t: more than any arm with its payload (the heaviest industrial robots lift 2.3 t).
-constexpr double kMaxMass = 1e6;  // [kg]
-// The largest mass 1 m from its centre of mass; the links of industrial arms have below 1e3.
-constexpr double kMaxInertia = 1e6;  // [kg m^2] every entry of an inertia tensor
 // An axis is a direction, which URDF writes with norm 1: a norm far from it is a typo for zero or
 // garbage, not a direction.
 constexpr double kMinAxisNorm = 1e-9;
@@ -118,6 +115,16 @@ MassProperties combined(const MassProperties& a, const MassProperties& b) {
   return result;
 }
 
+// A link's <inertial> as the model and both simulation engines take it (link_inertia.hpp).
+LinkInertia checked_inertial(const urdf::Link& link) {
+  const urdf::Inertial& inertial = *link.inertial;
+  Eigen::Matrix3d tensor;
+  tensor << inertial.ixx, inertial.ixy, inertial.ixz,  //
+      inertial.ixy, inertial.iyy, inertial.iyz,        //
+      inertial.ixz, inertial.iyz, inertial.izz;
+  return physical_link_inertia(link.name, inertial.mass, tensor);
+}
+
 // A link's own inertial, converted from the URDF inertial frame to the link frame: the centre of
 // mass is the inertial origin, the tensor (given in the axes of the inertial frame) is rotated
 // into the link axes, R I R^T.
@@ -125,44 +132,12 @@ MassProperties link_mass_properties(const urdf::Link& link) {
   MassProperties body;
   if (!link.inertial) return body;
   const urdf::Inertial& inertial = *link.inertial;
-  if (!(inertial.mass >= 0.0 && inertial.mass <= kMaxMass)) {
-    std::ostringstream message;
-    message << "link " << quoted(link.name) << " has mass = " << inertial.mass
-            << " kg; expected a finite value >= 0 kg and <= " << kMaxMass << " kg";
-    throw Error(message.str());
-  }
-  const std::pair<const char*, double> entries[] = {{"ixx", inertial.ixx}, {"ixy", inertial.ixy},
-                                                    {"ixz", inertial.ixz}, {"iyy", inertial.iyy},
-                                                    {"iyz", inertial.iyz}, {"izz", inertial.izz}};
-  for (const auto& [name, value] : entries) {
-    if (!(std::abs(value) <= kMaxInertia)) {
-      std::ostringstream message;
-      message << "link " << quoted(link.name) << " has inertia " << name << " = " << value
-              << " kg m^2; expected finite entries within +-" << kMaxInertia << " kg m^2";
-      throw Error(message.str());
-    }
-  }
-  Eigen::Matrix3d tensor;
-  tensor << inertial.ixx, inertial.ixy, inertial.ixz,  //
-      inertial.ixy, inertial.iyy, inertial.iyz,        //
-      inertial.ixz, inertial.iyz, inertial.izz;
-  // A tensor with a negative principal moment would make the mass matrix indefinite. Rounding in
-  // a file may leave a zero moment slightly negative, hence the tolerance relative to the trace.
-  const double smallest =
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(tensor, Eigen::EigenvaluesOnly)
-          .eigenvalues()
-          .minCoeff();
-  if (smallest < -1e-9 * std::max(tensor.trace(), 1e-300)) {
-    std::ostringstream message;
-    message << "link " << quoted(link.name) << " has an inertia tensor that is not positive "
-            << "semi-definite (smallest principal moment " << smallest << " kg m^2; expected >= 0)";
-    throw Error(message.str());
-  }
+  const LinkInertia checked = checked_inertial(link);
   const Eigen::Isometry3d T_link_inertial =
       checked_pose(inertial.origin, "link " + quoted(link.name) + " has inertial origin");
-  body.mass = inertial.mass;
+  body.mass = checked.mass;
   body.com = T_link_inertial.translation();
-  body.inertia = T_link_inertial.linear() * tensor * T_link_inertial.linear().transpose();
+  body.inertia = T_link_inertial.linear() * checked.inertia * T_link_inertial.linear().transpose();
   return body;
 }
 
@@ -367,6 +342,13 @@ UrdfChain urdf_to_kdl_chain(const std::string& xml, const std::string& source,
 
   UrdfChain result;
   result.robot_name = model.name_;
+  // Every link's inertial, not only the chain's: the simulation loads them all (fingers, side
+  // branches), and the model and the engines accept, repair and refuse the same files.
+  for (const auto& entry : model.links_) {
+    if (!entry.second || !entry.second->inertial) continue;
+    const LinkInertia checked = checked_inertial(*entry.second);
+    if (!checked.repair.empty()) result.warnings.push_back(checked.repair);
+  }
   std::vector<const urdf::Joint*> movable;
   for (const urdf::Link* link : links) {
     const urdf::Joint& joint = *link->parent_joint;

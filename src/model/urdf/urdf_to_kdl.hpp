@@ -27,6 +27,8 @@ struct UrdfChain {
   /// The movable joints (indices, base to tip) that move no mass: see
   /// RobotModel::massless_joints().
   std::vector<int> massless_joints;
+  /// What was repaired on loading (RobotModel::warnings()).
+  std::vector<std::string> warnings;
 };
 
 /// The same transform as a KDL frame.
