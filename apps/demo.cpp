@@ -51,6 +51,9 @@ Options:
   --mjcf FILE              your robot's MJCF for the simulation (default: simulate the URDF)
   --base-link NAME         first link of the controlled chain (with --urdf)
   --tip-link NAME          end-effector link (with --urdf)
+  --boxes-for-missing-meshes
+                           simulate a link whose collision mesh cannot be found or read as the
+                           box of its inertia (each named) instead of refusing the URDF
   --package-path DIRS      folders (':'-separated) searched first for the URDF's package://NAME/
                            meshes, as entries of ROS_PACKAGE_PATH: DIR/NAME, or DIR itself if it
                            is named NAME (then ROS_PACKAGE_PATH, AMENT_PREFIX_PATH and the folders
@@ -69,6 +72,7 @@ struct Options {
   scenarios::RobotSetup robot;
   std::vector<ci::sim::Engine> engines{ci::sim::Engine::mujoco};
   std::vector<std::string> scenarios;
+  bool boxes_for_missing_meshes = false;
   fs::path out = "demo_output";
   bool render = true;
   bool plots = true;
@@ -130,6 +134,8 @@ Options parse(int argc, char** argv) {
       flange = value();
     } else if (argument == "--package-path") {
       package_path = value();
+    } else if (argument == "--boxes-for-missing-meshes") {
+      options.boxes_for_missing_meshes = true;
     } else if (argument == "--config") {
       config = value();
     } else if (argument == "--start-q") {
@@ -147,7 +153,8 @@ Options parse(int argc, char** argv) {
     } else {
       usage_error("unknown argument '" + argument +
                   "' (valid: --robot, --urdf, --mjcf, --base-link, --tip-link, --package-path, "
-                  "--flange, --config, --start-q, --engine, --scenario, --out, --no-render, "
+                  "--boxes-for-missing-meshes, --flange, --config, --start-q, --engine, "
+                  "--scenario, --out, --no-render, "
                   "--no-plots, --help)");
     }
   }
@@ -170,6 +177,7 @@ Options parse(int argc, char** argv) {
     if (!mjcf.empty()) require_file("--mjcf", mjcf);
     if (base.empty() || tip.empty()) usage_error("--urdf needs --base-link and --tip-link");
     options.robot = {"custom", urdf, mjcf, base, tip, flange.empty() ? tip : flange, ""};
+    options.robot.boxes_for_missing_meshes = options.boxes_for_missing_meshes;
   } else {
     if (!mjcf.empty()) usage_error("--mjcf needs --urdf (the controller's model)");
     try {
@@ -200,6 +208,19 @@ Options parse(int argc, char** argv) {
   }
   for (const std::string& warning : model->warnings()) {
     std::cout << "Warning: --urdf: " << warning << "\n";
+  }
+  if (options.robot.boxes_for_missing_meshes && options.robot.mjcf.empty()) {
+    try {
+      ci::sim::SimulationOptions simulation;
+      simulation.boxes_for_missing_meshes = true;
+      const ci::sim::Simulation loaded =
+          ci::sim::Simulation::from_urdf_file(options.robot.urdf, simulation);
+      for (const std::string& warning : loaded.warnings()) {
+        std::cout << "Warning: --urdf: " << warning << "\n";
+      }
+    } catch (const ci::Error& error) {
+      usage_error(std::string("--urdf: ") + error.what());
+    }
   }
   const int joints = model->num_joints();
   try {

@@ -73,6 +73,14 @@ struct FrictionBand {
 };
 FrictionBand friction_band(Rig& rig);
 
+/// The largest value of `direction`.x over 4 s of the linear system the law makes of the arm
+/// now, Lambda x'' + D x' + K x = 0 with Lambda^-1 = J (M + armature)^-1 J^T, D and K as the law
+/// used them in the last cycle (base frame), started at rest from the error x0 = pose - target
+/// [m; rad]. Zero for one mode alone at damping ratio 1; positive where Lambda couples the axes
+/// (a step also turns the flange, and the turn then crosses its target although each mode is
+/// critically damped).
+double linear_overshoot(Rig& rig, const Vector6d& x0, const Vector6d& direction);
+
 /// The wrench [N; Nm] at the flange, least-norm with J^T F = tau, of the controller's nullspace
 /// torque now: zero where the nullspace is exact, what the damped pseudo-inverse of the
 /// projector lets through otherwise. A static check's tolerance includes it: a frictionless arm

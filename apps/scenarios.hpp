@@ -48,6 +48,8 @@ struct RobotSetup {
   Mutation mutation = Mutation::none;
   /// The physics engine of the simulation (with_engine() sets it and what it needs).
   sim::Engine engine = sim::Engine::mujoco;
+  /// sim::SimulationOptions::boxes_for_missing_meshes (the demo's --boxes-for-missing-meshes).
+  bool boxes_for_missing_meshes = false;
 };
 
 /// `robot` simulated by `engine`. DART simulates URDF files only: a robot with an MJCF is then

@@ -433,6 +433,7 @@ TwoArmRun run_two_arms(const ArmPair& pair, bool push_left, bool step_right,
   const int n_left = left_model.num_joints(), n_right = right_model.num_joints();
   sim::SimulationOptions options;
   options.engine = pair.left.engine;
+  options.boxes_for_missing_meshes = pair.left.boxes_for_missing_meshes;
   std::optional<sim::Simulation> scene;
   if (pair.sites) {
     options.joint_names = left_model.joint_names();

@@ -38,8 +38,10 @@ ci::sim::SimulationOptions simulation_options(py::handle timestep, bool gravity_
                                               const std::string& keyframe,
                                               const std::optional<std::vector<std::string>>& names,
                                               bool multi_point_contacts, py::handle start_q,
-                                              py::handle armature, const std::string& engine) {
+                                              py::handle armature, const std::string& engine,
+                                              bool boxes_for_missing_meshes) {
   ci::sim::SimulationOptions options;
+  options.boxes_for_missing_meshes = boxes_for_missing_meshes;
   options.engine = ci::sim::engine_from_name(engine);
   options.timestep = read_scalar(timestep, "timestep");
   options.gravity_compensation = gravity_compensation;
@@ -76,13 +78,14 @@ void bind_simulation(py::module_& m) {
 
   const ci::sim::SimulationOptions default_options;
   const auto option_args = [&default_options]() {
-    return std::make_tuple(py::arg("timestep") = default_options.timestep,
-                           py::arg("gravity_compensation") = default_options.gravity_compensation,
-                           py::arg("keyframe") = default_options.keyframe,
-                           py::arg("joint_names") = py::none(),
-                           py::arg("multi_point_contacts") = default_options.multi_point_contacts,
-                           py::arg("start_q") = py::none(), py::arg("armature") = py::none(),
-                           py::arg("engine") = ci::sim::engine_name(default_options.engine));
+    return std::make_tuple(
+        py::arg("timestep") = default_options.timestep,
+        py::arg("gravity_compensation") = default_options.gravity_compensation,
+        py::arg("keyframe") = default_options.keyframe, py::arg("joint_names") = py::none(),
+        py::arg("multi_point_contacts") = default_options.multi_point_contacts,
+        py::arg("start_q") = py::none(), py::arg("armature") = py::none(),
+        py::arg("engine") = ci::sim::engine_name(default_options.engine),
+        py::arg("boxes_for_missing_meshes") = default_options.boxes_for_missing_meshes);
   };
   const char* options_doc =
       " Options: timestep [s] (replaces the model's); gravity_compensation: each joint receives "
@@ -94,7 +97,9 @@ void bind_simulation(py::module_& m) {
       "its joint's range; armature: rotor inertia per joint (n,) or one value for all [kg m^2], "
       "replacing the model's (use the same for the controller's dynamics.armature); engine: the "
       "physics engine, 'mujoco' or 'dart' (DART needs the robot from URDF; see "
-      "engine_available()).";
+      "engine_available()); boxes_for_missing_meshes: a URDF link whose collision mesh cannot be "
+      "found or read is simulated as the box of its inertia (listed in warnings) instead of "
+      "refusing the URDF.";
 
   py::class_<ci::sim::Box>(sim, "Box",
                            "A static box (table, wall, step) that collides with the robot.")
@@ -260,11 +265,13 @@ void bind_simulation(py::module_& m) {
             "from_mjcf_file",
             [](PathLike path, Real timestep, bool gravity_compensation, const std::string& keyframe,
                std::optional<std::vector<std::string>> names, bool multi_point_contacts,
-               py::object start_q, py::object armature, const std::string& engine) {
+               py::object start_q, py::object armature, const std::string& engine,
+               bool boxes_for_missing_meshes) {
               return std::make_unique<Sim>(ci::sim::Simulation::from_mjcf_file(
                   read_path(path, "path"),
                   simulation_options(timestep, gravity_compensation, keyframe, names,
-                                     multi_point_contacts, start_q, armature, engine)));
+                                     multi_point_contacts, start_q, armature, engine,
+                                     boxes_for_missing_meshes)));
             },
             py::arg("path"), args...,
             (std::string("Loads an MJCF file (e.g. models/panda/panda.xml); each joint is "
@@ -276,10 +283,10 @@ void bind_simulation(py::module_& m) {
             [](PathLike path, Real timestep, bool gravity_compensation, const std::string& keyframe,
                std::optional<std::vector<std::string>> names, bool multi_point_contacts,
                py::object start_q, py::object armature, const std::string& engine,
-               const Model* model) {
-              ci::sim::SimulationOptions options =
-                  simulation_options(timestep, gravity_compensation, keyframe, names,
-                                     multi_point_contacts, start_q, armature, engine);
+               bool boxes_for_missing_meshes, const Model* model) {
+              ci::sim::SimulationOptions options = simulation_options(
+                  timestep, gravity_compensation, keyframe, names, multi_point_contacts, start_q,
+                  armature, engine, boxes_for_missing_meshes);
               // A URDF has no start of its own and q = 0 is singular on most arms: with the
               // controller's model, the library chooses one.
               if (model != nullptr) {
@@ -306,11 +313,12 @@ void bind_simulation(py::module_& m) {
                bool gravity_compensation, const std::string& keyframe,
                std::optional<std::vector<std::string>> names, bool multi_point_contacts,
                py::object start_q, py::object armature, const std::string& engine,
-               const std::vector<ci::sim::AttachedBox>& attached) {
+               bool boxes_for_missing_meshes, const std::vector<ci::sim::AttachedBox>& attached) {
               return std::make_unique<Sim>(ci::sim::make_scene(
                   read_path(path, "robot_mjcf"), boxes, attached,
                   simulation_options(timestep, gravity_compensation, keyframe, names,
-                                     multi_point_contacts, start_q, armature, engine)));
+                                     multi_point_contacts, start_q, armature, engine,
+                                     boxes_for_missing_meshes)));
             },
             py::arg("robot_mjcf"), py::arg("boxes"), args...,
             py::arg("attached") = std::vector<ci::sim::AttachedBox>{},
@@ -325,7 +333,8 @@ void bind_simulation(py::module_& m) {
                Real peg_length, Real peg_mass, const std::string& peg_name, Real timestep,
                bool gravity_compensation, const std::string& keyframe,
                std::optional<std::vector<std::string>> names, bool multi_point_contacts,
-               py::object start_q, py::object armature, const std::string& engine) {
+               py::object start_q, py::object armature, const std::string& engine,
+               bool boxes_for_missing_meshes) {
               ci::sim::PegInHole scene;
               scene.robot = read_path(robot, "robot");
               scene.flange = flange;
@@ -335,7 +344,8 @@ void bind_simulation(py::module_& m) {
               scene.peg_name = peg_name;
               return std::make_unique<Sim>(ci::sim::make_peg_in_hole_scene(
                   scene, simulation_options(timestep, gravity_compensation, keyframe, names,
-                                            multi_point_contacts, start_q, armature, engine)));
+                                            multi_point_contacts, start_q, armature, engine,
+                                            boxes_for_missing_meshes)));
             },
             py::arg("robot"), py::arg("flange"), py::arg("hole"),
             py::arg("peg_length") = default_peg_in_hole.peg_length,
@@ -358,6 +368,10 @@ void bind_simulation(py::module_& m) {
       .def_property_readonly(
           "joint_names", [](Sim& s) { return s.get().joint_names(); },
           "Joint names in the order q, dq and tau are exchanged.")
+      .def_property_readonly(
+          "warnings", [](Sim& s) { return s.get().warnings(); },
+          "What the loading changed in the robot's description (list of str; meshes replaced by "
+          "boxes). Inertias repaired alike in the model are in RobotModel.warnings.")
       .def_property_readonly(
           "time", [](Sim& s) { return s.get().time(); }, "Simulated time [s].")
       .def_property_readonly(

@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include <Eigen/Eigenvalues>
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
@@ -394,6 +395,45 @@ TEST(VendorMeshes, ColladaMeshesAreConvertedWithTheirUnit) {
     // A second load takes the cached copy.
     EXPECT_EQ(sim::detail::resolve_mesh_file(pair.dae, pair.urdf, "link_2"), converted);
   }
+}
+
+// A package whose meshes are not (yet) in place: refused, naming the way out; with
+// boxes_for_missing_meshes, each such link is simulated as the uniform box of its inertia by
+// both engines, and the simulation says which.
+TEST(VendorMeshes, MissingMeshesBecomeTheBoxOfTheLinksInertia) {
+  const fs::path folder = scratch("boxes");
+  fs::copy(kPackage, folder / "acme_arm_description", fs::copy_options::recursive);
+  const fs::path meshes = folder / "acme_arm_description/meshes/collision";
+  fs::remove(meshes / "link_2_0.obj");
+  fs::remove(meshes / "link_2_1.stl");
+  const std::string urdf = (folder / "acme_arm_description/urdf/acme6.urdf").string();
+  ScopedEnvironment no_ros("ROS_PACKAGE_PATH", "");
+  const std::string refused = error_of([&] { sim::Simulation::from_urdf_file(urdf); });
+  EXPECT_NE(refused.find("2 collision mesh(es) cannot be used"), std::string::npos) << refused;
+  EXPECT_NE(refused.find("--boxes-for-missing-meshes"), std::string::npos) << refused;
+  // link_2: 2.875920688 kg, moments (0.00530397, 0.01732135547, 0.01732135547) kg m^2; the box
+  // with them has sides sqrt(6 (B + C - A) / m): 0.2474 m along the tube, 0.1052 m across.
+  const double m = 2.875920688, a = 0.00530397, b = 0.01732135547;
+  char sides[64];
+  std::snprintf(sides, sizeof(sides), "a box of %.4g %.4g %.4g m", std::sqrt(6 * (2 * b - a) / m),
+                std::sqrt(6 * a / m), std::sqrt(6 * a / m));
+  for (const sim::Engine engine : {sim::Engine::mujoco, sim::Engine::dart}) {
+    if (!sim::engine_available(engine)) continue;
+    sim::SimulationOptions options;
+    options.engine = engine;
+    options.boxes_for_missing_meshes = true;
+    const sim::Simulation simulation = sim::Simulation::from_urdf_file(urdf, options);
+    ASSERT_EQ(simulation.warnings().size(), 1u);
+    const std::string& warning = simulation.warnings()[0];
+    EXPECT_NE(warning.find("link 'link_2': mesh "
+                           "'package://acme_arm_description/meshes/collision/link_2_0.obj' not "
+                           "found"),
+              std::string::npos)
+        << warning;
+    EXPECT_NE(warning.find(sides), std::string::npos) << warning << "\n" << sides;
+    EXPECT_TRUE(simulation.has_collision_geometry("link_2"));
+  }
+  fs::remove_all(folder);
 }
 
 }  // namespace

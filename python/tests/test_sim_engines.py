@@ -1,11 +1,14 @@
 """The simulation's two physics engines from Python: the engine= option of every loader,
 Simulation.engine and engine_available(); the Panda from its URDF behaves alike on both."""
 
+import shutil
+
 import numpy as np
 import pytest
 
 import cartesian_impedance as ci
-from conftest import PANDA_READY, PANDA_URDF, PANDA_XML, PANDA_YAML, requires_sim
+from cartesian_impedance import sim
+from conftest import PANDA_READY, PANDA_URDF, PANDA_XML, PANDA_YAML, SOURCE_DIR, requires_sim
 
 pytestmark = requires_sim
 
@@ -84,3 +87,40 @@ def test_dart_refuses_an_mjcf_file_naming_the_engine():
     table = ci.sim.Box.table([0.3, 0.0], [0.2, 0.2], 0.2)
     with pytest.raises(ci.Error, match="engine 'dart' cannot simulate"):
         ci.sim.make_scene(PANDA_XML, [table], engine="dart")
+
+
+VENDOR = SOURCE_DIR / "tests" / "vendor"
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_vendor_package_as_shipped_repairs_and_reports_alike_in_model_and_simulation(engine,
+                                                                                      monkeypatch):
+    skip_unless_available(engine)
+    # beta7: link_3's published moments break A + B >= C; the model says so, the simulation
+    # loads the same repaired arm (MuJoCo alone would refuse it), COLLADA visuals are dropped.
+    monkeypatch.setenv("ROS_PACKAGE_PATH", str(VENDOR))
+    urdf = VENDOR / "beta_description" / "urdf" / "beta7.urdf"
+    model = ci.RobotModel.from_urdf_file(urdf, "base_link", "hand_tcp")
+    assert len(model.warnings) == 1
+    assert "link 'link_3'" in model.warnings[0] and "triangle inequality" in model.warnings[0]
+    simulation = sim.Simulation.from_urdf_file(urdf, engine=engine, model=model)
+    assert simulation.warnings == []
+    assert simulation.num_joints == model.num_joints == 7
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_missing_meshes_are_refused_or_simulated_as_boxes_when_asked(engine, tmp_path,
+                                                                    monkeypatch):
+    skip_unless_available(engine)
+    monkeypatch.setenv("ROS_PACKAGE_PATH", "")
+    package = tmp_path / "acme_arm_description"
+    shutil.copytree(VENDOR / "acme_arm_description", package)
+    shutil.rmtree(package / "meshes")
+    urdf = package / "urdf" / "acme6.urdf"
+    with pytest.raises(ci.Error, match="14 collision mesh\\(es\\) cannot be used"):
+        sim.Simulation.from_urdf_file(urdf, engine=engine)
+    simulation = sim.Simulation.from_urdf_file(urdf, engine=engine, boxes_for_missing_meshes=True)
+    # Every link with a mesh and a mass gets its box; each is named.
+    assert len(simulation.warnings) == 8
+    assert all("simulated as a box of" in w or "no mass" in w for w in simulation.warnings)
+    assert any(w.startswith("link 'link_3'") and "a box of" in w for w in simulation.warnings)

@@ -126,7 +126,7 @@ class CerrCapture {
 // The URDF without its <visual> elements (not simulated) and with its collision meshes at
 // absolute paths, found as for the MuJoCo scene: DART's own retrievers know no package://
 // without a registered package folder and do not look beside or above the URDF.
-std::string collision_only_urdf(const std::string& path) {
+std::string collision_only_urdf(const std::string& path, bool boxes_for_missing_meshes) {
   std::ifstream file(path, std::ios::binary);
   std::stringstream content;
   content << file.rdbuf();
@@ -137,14 +137,16 @@ std::string collision_only_urdf(const std::string& path) {
   }
   tinyxml2::XMLElement* robot = document.FirstChildElement("robot");
   if (robot == nullptr) fail("URDF file '" + path + "' has no <robot> element");
-  resolve_collision_meshes(robot, path);
+  UrdfImportOptions import;
+  import.boxes_for_missing_meshes = boxes_for_missing_meshes;
+  resolve_collision_meshes(robot, path, import);
   apply_physical_inertias(robot, path);
   tinyxml2::XMLPrinter printer;
   document.Print(&printer);
   return printer.CStr();
 }
 
-dd::SkeletonPtr load_robot(const SceneRobot& robot) {
+dd::SkeletonPtr load_robot(const SceneRobot& robot, bool boxes_for_missing_meshes) {
   // Until the end: the massless default inertia and the joints moved below warn as well.
   CerrCapture capture;
   dart::utils::DartLoader loader;
@@ -154,7 +156,7 @@ dd::SkeletonPtr load_robot(const SceneRobot& robot) {
   options.mDefaultInertia = dd::Inertia(0.0, Eigen::Vector3d::Zero(), Eigen::Matrix3d::Zero());
   loader.setOptions(options);
   const std::string absolute = std::filesystem::absolute(robot.urdf).string();
-  const std::string text = collision_only_urdf(absolute);
+  const std::string text = collision_only_urdf(absolute, boxes_for_missing_meshes);
   const dd::SkeletonPtr skeleton =
       loader.parseSkeletonString(text, dart::common::Uri::createFromPath(absolute));
   if (!skeleton) fail("DART's URDF loader cannot load '" + robot.urdf + "': " + capture.text());
@@ -273,7 +275,7 @@ DartPhysics::DartPhysics(const UrdfScene& scene, const Simulation::Impl& impl)
   world_->setTimeStep(m->opt.timestep);
   world_->setGravity(Eigen::Vector3d(m->opt.gravity[0], m->opt.gravity[1], m->opt.gravity[2]));
   for (const SceneRobot& robot : scene.robots) {
-    robots_.push_back(load_robot(robot));
+    robots_.push_back(load_robot(robot, impl.options.boxes_for_missing_meshes));
     world_->addSkeleton(robots_.back());
   }
   // Contacts exist only with an environment; without one, no collision shape is registered

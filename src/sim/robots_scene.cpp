@@ -93,7 +93,11 @@ Simulation make_robots_scene(const std::vector<SceneRobot>& robots, SimulationOp
 
   // The first robot's document keeps its floor, lights and sky and receives every robot.
   tinyxml2::XMLDocument scene;
-  scene.Parse(detail::mjcf_from_urdf(robots[0].urdf, detail::UrdfImportOptions{}).c_str());
+  detail::UrdfImportOptions import;
+  import.boxes_for_missing_meshes = options.boxes_for_missing_meshes;
+  scene.Parse(detail::mjcf_from_urdf(robots[0].urdf, import).c_str());
+  detail::UrdfScene urdf_scene{robots, {}, {}};
+  import.warnings = &urdf_scene.warnings;
   tinyxml2::XMLElement* world = section(scene, "worldbody");
   tinyxml2::XMLElement* assets = section(scene, "asset");
   std::vector<tinyxml2::XMLElement*> own;  // the first robot's bodies and meshes, moved below
@@ -120,9 +124,8 @@ Simulation make_robots_scene(const std::vector<SceneRobot>& robots, SimulationOp
   for (std::size_t r = 0; r < robots.size(); ++r) {
     const SceneRobot& robot = robots[r];
     tinyxml2::XMLDocument imported;
-    imported.Parse(detail::attach_boxes(
-                       detail::mjcf_from_urdf(robot.urdf, detail::UrdfImportOptions{}),
-                       robot.attached, "robots[" + std::to_string(r) + "].attached", robot.urdf)
+    imported.Parse(detail::attach_boxes(detail::mjcf_from_urdf(robot.urdf, import), robot.attached,
+                                        "robots[" + std::to_string(r) + "].attached", robot.urdf)
                        .c_str());
     for (std::size_t i = 0; i < robot.attached.size(); ++i) {
       attached_names.push_back(robot.prefix + detail::attached_name(robot.attached[i], i));
@@ -158,7 +161,6 @@ Simulation make_robots_scene(const std::vector<SceneRobot>& robots, SimulationOp
   const fs::path first = fs::absolute(robots[0].urdf);
   const std::string name = first.stem().string() + "_cartesian_impedance_robots.xml";
   const detail::VirtualFile file(name, printer.CStr());
-  const detail::UrdfScene urdf_scene{robots, {}};
   return detail::load_simulation((first.parent_path() / name).string(), file.vfs(),
                                  "scene of " + std::to_string(robots.size()) + " robots",
                                  std::move(options), &urdf_scene, attached_names);

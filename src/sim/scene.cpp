@@ -112,9 +112,12 @@ Simulation make_scene(const std::string& robot_mjcf, const std::vector<Box>& box
   // A URDF becomes the same complete model Simulation::from_urdf_file() simulates.
   std::optional<detail::UrdfScene> urdf_scene;
   if (root_element(document) == "robot") {
-    document = detail::mjcf_from_urdf(robot_mjcf, detail::UrdfImportOptions{});
-    urdf_scene =
-        detail::UrdfScene{{SceneRobot{robot_mjcf, "", Eigen::Vector3d::Zero(), attached}}, boxes};
+    urdf_scene = detail::UrdfScene{
+        {SceneRobot{robot_mjcf, "", Eigen::Vector3d::Zero(), attached}}, boxes, {}};
+    detail::UrdfImportOptions import;
+    import.boxes_for_missing_meshes = options.boxes_for_missing_meshes;
+    import.warnings = &urdf_scene->warnings;
+    document = detail::mjcf_from_urdf(robot_mjcf, import);
   }
   std::vector<std::string> attached_names;
   for (std::size_t i = 0; i < attached.size(); ++i) {

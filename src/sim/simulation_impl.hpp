@@ -48,6 +48,7 @@ class MujocoErrorTrap {
 struct UrdfScene {
   std::vector<SceneRobot> robots;
   std::vector<Box> boxes;
+  std::vector<std::string> warnings;  ///< Simulation::warnings() of the scene
 };
 
 /// Compiles `path` (looked up in `vfs` first when given) and builds the simulation.
@@ -86,6 +87,10 @@ class VirtualFile {
 struct UrdfImportOptions {
   double armature = 0.1;  ///< [kg m^2] reflected rotor inertia per joint
   double damping = 0.5;   ///< [N m s/rad] joint damping
+  /// SimulationOptions::boxes_for_missing_meshes; each replacement is appended to `warnings`
+  /// (if given).
+  bool boxes_for_missing_meshes = false;
+  std::vector<std::string>* warnings = nullptr;
 };
 
 /// The file a URDF <mesh filename> names, found as ROS tools find it: `package://NAME/rest` in
@@ -108,8 +113,10 @@ std::string converted_mesh(const std::string& source, const std::string& what);
 /// Removes every <visual> of the <robot> element `robot` (parsed from `urdf_path`; not simulated)
 /// and replaces every <collision> mesh's filename by its absolute path (resolve_mesh_file()), so
 /// that both engines load the meshes the URDF names. Throws one Error naming every mesh that
-/// cannot be used, before anything is loaded.
-void resolve_collision_meshes(tinyxml2::XMLElement* robot, const std::string& urdf_path);
+/// cannot be used, before anything is loaded; or, with options.boxes_for_missing_meshes, gives
+/// each link with such a mesh the box of its inertia instead and says so in options.warnings.
+void resolve_collision_meshes(tinyxml2::XMLElement* robot, const std::string& urdf_path,
+                              const UrdfImportOptions& options = {});
 
 /// Gives every <inertial> of the <robot> element `robot` (parsed from `urdf_path`) the tensor
 /// physical_link_inertia() makes of it, as the controller's RobotModel does (which reports the
@@ -163,7 +170,8 @@ struct Simulation::Impl {
   std::string source;  // file the model came from, for messages
   std::string model_name;
   SimulationOptions options;
-  int keyframe_id = -1;  // -1: default qpos
+  std::vector<std::string> warnings;  // Simulation::warnings()
+  int keyframe_id = -1;               // -1: default qpos
 
   std::vector<std::string> joint_names;
   std::vector<int> joint_ids;     // MuJoCo joint id per exchanged joint

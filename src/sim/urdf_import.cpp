@@ -9,8 +9,12 @@
 #include <tinyxml2.h>
 #include <unistd.h>
 
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+#include <algorithm>
 #include <cctype>
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -120,6 +124,66 @@ std::vector<std::pair<std::filesystem::path, std::string>> package_candidates(
   return candidates;
 }
 
+// The uniform box of `link`'s mass and principal moments as a <collision> of the link (placed
+// at its centre of mass, turned to its principal axes); "" if the link has no mass. Its sides:
+// a^2 = 6 (B + C - A) / m and so on.
+std::string inertia_box(tinyxml2::XMLElement* link) {
+  tinyxml2::XMLElement* inertial = link->FirstChildElement("inertial");
+  tinyxml2::XMLElement* mass = inertial ? inertial->FirstChildElement("mass") : nullptr;
+  tinyxml2::XMLElement* inertia = inertial ? inertial->FirstChildElement("inertia") : nullptr;
+  double m = 0.0, i[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+  const char* names[6] = {"ixx", "ixy", "ixz", "iyy", "iyz", "izz"};
+  if (mass == nullptr || inertia == nullptr ||
+      mass->QueryDoubleAttribute("value", &m) != tinyxml2::XML_SUCCESS || !(m > 0.0)) {
+    return "";
+  }
+  for (int k = 0; k < 6; ++k) inertia->QueryDoubleAttribute(names[k], &i[k]);
+  Eigen::Matrix3d tensor;
+  tensor << i[0], i[1], i[2], i[1], i[3], i[4], i[2], i[4], i[5];
+  const char* name = link->Attribute("name");
+  const LinkInertia checked = physical_link_inertia(name != nullptr ? name : "", m, tensor);
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(checked.inertia);
+  const Eigen::Vector3d moment = solver.eigenvalues();
+  Eigen::Matrix3d axes = solver.eigenvectors();
+  if (axes.determinant() < 0.0) axes.col(2) = -axes.col(2);
+  Eigen::Vector3d side;
+  for (int k = 0; k < 3; ++k) {
+    const double sum = moment.sum() - 2.0 * moment[k];  // B + C - A
+    side[k] = std::sqrt(std::max(6.0 * sum / m, 0.0));
+  }
+  side = side.cwiseMax(1e-3);  // a rod's zero thickness as 1 mm
+  Eigen::Vector3d xyz = Eigen::Vector3d::Zero(), rpy = Eigen::Vector3d::Zero();
+  if (tinyxml2::XMLElement* origin = inertial->FirstChildElement("origin")) {
+    std::istringstream(origin->Attribute("xyz") ? origin->Attribute("xyz") : "0 0 0") >> xyz[0] >>
+        xyz[1] >> xyz[2];
+    std::istringstream(origin->Attribute("rpy") ? origin->Attribute("rpy") : "0 0 0") >> rpy[0] >>
+        rpy[1] >> rpy[2];
+  }
+  const Eigen::Matrix3d turned = (Eigen::AngleAxisd(rpy[2], Eigen::Vector3d::UnitZ()) *
+                                  Eigen::AngleAxisd(rpy[1], Eigen::Vector3d::UnitY()) *
+                                  Eigen::AngleAxisd(rpy[0], Eigen::Vector3d::UnitX()))
+                                     .toRotationMatrix() *
+                                 axes;
+  const Eigen::Vector3d ypr = turned.eulerAngles(2, 1, 0);  // URDF rpy: R = Rz(y) Ry(p) Rx(r)
+  char text[3][96];
+  std::snprintf(text[0], sizeof(text[0]), "%.9g %.9g %.9g", xyz[0], xyz[1], xyz[2]);
+  std::snprintf(text[1], sizeof(text[1]), "%.9g %.9g %.9g", ypr[2], ypr[1], ypr[0]);
+  std::snprintf(text[2], sizeof(text[2]), "%.4g %.4g %.4g", side[0], side[1], side[2]);
+  tinyxml2::XMLDocument& document = *link->GetDocument();
+  tinyxml2::XMLElement* collision = document.NewElement("collision");
+  tinyxml2::XMLElement* origin = document.NewElement("origin");
+  origin->SetAttribute("xyz", text[0]);
+  origin->SetAttribute("rpy", text[1]);
+  collision->InsertEndChild(origin);
+  tinyxml2::XMLElement* geometry = document.NewElement("geometry");
+  tinyxml2::XMLElement* box = document.NewElement("box");
+  box->SetAttribute("size", text[2]);
+  geometry->InsertEndChild(box);
+  collision->InsertEndChild(geometry);
+  link->InsertEndChild(collision);
+  return std::string("a box of ") + text[2] + " m from its inertia";
+}
+
 }  // namespace
 
 std::string resolve_mesh_file(const std::string& uri, const std::string& urdf_path,
@@ -162,7 +226,8 @@ std::string resolve_mesh_file(const std::string& uri, const std::string& urdf_pa
   throw Error(what + " not found; looked in:" + looked);
 }
 
-void resolve_collision_meshes(tinyxml2::XMLElement* robot, const std::string& urdf_path) {
+void resolve_collision_meshes(tinyxml2::XMLElement* robot, const std::string& urdf_path,
+                              const UrdfImportOptions& options) {
   std::string problems;
   int count = 0;
   for (tinyxml2::XMLElement* link = robot->FirstChildElement("link"); link != nullptr;
@@ -171,6 +236,9 @@ void resolve_collision_meshes(tinyxml2::XMLElement* robot, const std::string& ur
       link->DeleteChild(visual);
     }
     const char* name = link->Attribute("name");
+    const std::string link_name = name != nullptr ? name : "";
+    std::vector<tinyxml2::XMLElement*> missing;
+    std::string why;
     for (tinyxml2::XMLElement* collision = link->FirstChildElement("collision");
          collision != nullptr; collision = collision->NextSiblingElement("collision")) {
       tinyxml2::XMLElement* geometry = collision->FirstChildElement("geometry");
@@ -180,21 +248,33 @@ void resolve_collision_meshes(tinyxml2::XMLElement* robot, const std::string& ur
       const char* filename = mesh->Attribute("filename");
       try {
         if (filename == nullptr) {
-          throw Error("link '" + std::string(name != nullptr ? name : "") +
-                      "': <collision> <mesh> has no filename");
+          throw Error("link '" + link_name + "': <collision> <mesh> has no filename");
         }
-        mesh->SetAttribute(
-            "filename",
-            resolve_mesh_file(filename, urdf_path, name != nullptr ? name : "").c_str());
+        mesh->SetAttribute("filename", resolve_mesh_file(filename, urdf_path, link_name).c_str());
       } catch (const Error& error) {
         problems += std::string("\n") + error.what();
+        why += std::string(why.empty() ? "" : "; ") + error.what();
+        missing.push_back(collision);
         ++count;
       }
     }
+    if (!options.boxes_for_missing_meshes || missing.empty()) continue;
+    for (tinyxml2::XMLElement* collision : missing) link->DeleteChild(collision);
+    std::string replacement = inertia_box(link);
+    if (options.warnings != nullptr) {
+      options.warnings->push_back(why + "; " +
+                                  (replacement.empty()
+                                       ? "the link has no mass, so it is simulated without "
+                                         "collision geometry"
+                                       : "simulated as " + replacement));
+    }
   }
-  if (count > 0) {
+  if (count > 0 && !options.boxes_for_missing_meshes) {
     throw Error("URDF file '" + urdf_path + "': " + std::to_string(count) +
-                " collision mesh(es) cannot be used (visual meshes are not simulated):" + problems);
+                " collision mesh(es) cannot be used (visual meshes are not simulated; "
+                "SimulationOptions::boxes_for_missing_meshes, the demo's --boxes-for-missing-"
+                "meshes, puts the box of each link's inertia in their place):" +
+                problems);
   }
 }
 
@@ -261,7 +341,7 @@ std::string mjcf_from_urdf(const std::string& urdf_path, const UrdfImportOptions
   // visual meshes, which are not simulated. Collision meshes stay (the contact checks need the
   // flange's geometry) with absolute paths: MuJoCo's URDF import strips the folders by default
   // (strippath) and knows no package:// URIs.
-  resolve_collision_meshes(robot, urdf_path);
+  resolve_collision_meshes(robot, urdf_path, options);
   apply_physical_inertias(robot, urdf_path);
   tinyxml2::XMLElement* compiler = child(urdf, child(urdf, robot, "mujoco", true), "compiler");
   compiler->SetAttribute("fusestatic", "false");

@@ -65,6 +65,12 @@ struct SimulationOptions {
   /// a rotor's reflected inertia acts). Contacts and joint friction are DART's hard
   /// complementarity constraints instead of MuJoCo's soft ones.
   Engine engine = Engine::mujoco;
+  /// A URDF <collision> mesh that cannot be found or read: false refuses the URDF (naming every
+  /// such mesh and every place looked); true simulates the link with one box instead, the
+  /// uniform box of the link's own mass and principal moments (placed and turned as its
+  /// inertial), so that the controller can be tried before the meshes are in place. Each
+  /// replacement is listed in Simulation::warnings(); a link without mass loses the geometry.
+  bool boxes_for_missing_meshes = false;
 };
 
 /// An arrow drawn into a picture: a force (or any vector) acting at a point.
@@ -202,6 +208,11 @@ class Simulation {
   /// right after set_state() or reset(), as DART solves contacts only while stepping).
   /// @throw Error if the body is unknown.
   Vector6d contact_wrench(const std::string& body) const;
+  /// What the loading changed in the robot's description, one sentence each (today: meshes
+  /// replaced by boxes, see SimulationOptions::boxes_for_missing_meshes). Inertias repaired
+  /// alike in the model are in RobotModel::warnings().
+  const std::vector<std::string>& warnings() const noexcept;
+
   /// What a force-torque sensor in `body` measures: as contact_wrench(), plus the contacts of
   /// every body below it in the tree (a hand's fingers on their own joints). The demo presses
   /// with the flange this way: a hand's fingertips touch first.
