@@ -254,9 +254,8 @@ TEST(VendorInertia, TriangleInequalityIsRepairedAlikeByTheModelAndBothEngines) {
             std::string::npos)
       << warning;
   // The projection along (1, 1, -1) onto A + B = C keeps the sum: each moves by the excess / 3.
-  // A and B up, C down twice as much (the sum stays), to 1e-5 of the sum inside the limit
-  // (MuJoCo's import rounds to 6 digits on the way).
-  const double shift = (c - 2.0 * a + 1e-5 * (2.0 * a + c)) / 4.0;
+  // A and B up, C down twice as much (the sum stays), to 1e-9 of the sum inside the limit.
+  const double shift = (c - 2.0 * a + 1e-9 * (2.0 * a + c)) / 4.0;
   const double a_repaired = a + shift, c_repaired = c - 2.0 * shift;
   // The model is the one of a file written with the repaired moments (its mass matrix agrees to
   // rounding).
@@ -284,9 +283,8 @@ TEST(VendorInertia, TriangleInequalityIsRepairedAlikeByTheModelAndBothEngines) {
   Eigen::Vector3d compiled;
   moments >> compiled[0] >> compiled[1] >> compiled[2];
   std::sort(compiled.data(), compiled.data() + 3);
-  // MuJoCo's MJCF has 6 significant digits.
   EXPECT_LT((compiled - Eigen::Vector3d(a_repaired, a_repaired, c_repaired)).cwiseAbs().maxCoeff(),
-            1e-5 * c)
+            1e-14 * c)
       << compiled.transpose();
   for (const sim::Engine engine : {sim::Engine::mujoco, sim::Engine::dart}) {
     if (!sim::engine_available(engine)) continue;
@@ -333,15 +331,19 @@ TEST(VendorInertia, ImpossibleInertiasAreRefusedAlikeNamingTheLinkAndTheValue) {
               ci::physical_link_inertia("l", -1.0, Eigen::Matrix3d::Identity());
             }).find("link 'l' has mass = -1 kg; expected a finite value >= 0 kg"),
             std::string::npos);
-  // A flat plate lies on the limit (A, B, A + B): moved 1e-5 of the sum inside, without a warning;
-  // a tensor well inside is used exactly as written.
+  // A flat plate lies on the limit (A, B, A + B) and a box inside it: used exactly as written. A
+  // violation by rounding (1e-12 of the sum) is moved inside without a warning.
   const Eigen::Matrix3d plate = Eigen::Vector3d(0.02, 0.1, 0.12).asDiagonal();
   const ci::LinkInertia plate_used = ci::physical_link_inertia("plate", 1.0, plate);
   EXPECT_TRUE(plate_used.repair.empty());
-  EXPECT_LT((plate_used.inertia - plate).cwiseAbs().maxCoeff(), 1e-5 * 0.24);
-  EXPECT_GT((plate_used.inertia - plate).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ(plate_used.inertia, plate);
   const Eigen::Matrix3d box = Eigen::Vector3d(0.05, 0.1, 0.12).asDiagonal();
   EXPECT_EQ(ci::physical_link_inertia("box", 1.0, box).inertia, box);
+  const Eigen::Matrix3d rounded = Eigen::Vector3d(0.02, 0.1, 0.12 + 1e-11).asDiagonal();
+  const ci::LinkInertia rounded_used = ci::physical_link_inertia("rounded", 1.0, rounded);
+  EXPECT_TRUE(rounded_used.repair.empty());
+  EXPECT_LE(rounded_used.inertia(2, 2), rounded_used.inertia(0, 0) + rounded_used.inertia(1, 1));
+  EXPECT_LE((rounded_used.inertia - rounded).cwiseAbs().maxCoeff(), 1e-9 * 0.24);
 }
 
 // The corners of the box around a binary STL's vertices.
@@ -434,6 +436,18 @@ TEST(VendorMeshes, MissingMeshesBecomeTheBoxOfTheLinksInertia) {
     EXPECT_TRUE(simulation.has_collision_geometry("link_2"));
   }
   fs::remove_all(folder);
+}
+
+// MuJoCo 2.2 writes its MJCF with 6 significant digits (2.875920688 kg became 2.87592 kg); the
+// import writes each body's placement and inertial again to the last digit, so that MuJoCo
+// simulates the URDF's numbers.
+TEST(VendorMeshes, MujocoSimulatesTheUrdfsNumbersToTheLastDigit) {
+  ScopedEnvironment no_ros("ROS_PACKAGE_PATH", "");
+  const std::string mjcf = sim::detail::mjcf_from_urdf(kUrdf, {});
+  const std::size_t body = mjcf.find("<body name=\"link_2\"");
+  ASSERT_NE(body, std::string::npos);
+  const std::size_t at = mjcf.find("mass=\"", mjcf.find("<inertial", body)) + 6;
+  EXPECT_EQ(std::stod(mjcf.substr(at, mjcf.find('"', at) - at)), 2.875920688);
 }
 
 }  // namespace

@@ -544,9 +544,6 @@ class RobotModel:
     def moving_mass(self) -> float:
         """Mass the dynamics include [kg]."""
     @property
-    def warnings(self) -> List[str]:
-        """What the loader repaired in the file (each naming the link, the values and the repair)."""
-    @property
     def num_joints(self) -> int: ...
     @property
     def robot_name(self) -> str: ...
@@ -555,6 +552,9 @@ class RobotModel:
     @property
     def tool(self) -> Pose:
         """T_tip_tool (quaternion x, y, z, w)."""
+    @property
+    def warnings(self) -> List[str]:
+        """What the loader repaired in the file (list of str, each naming the link, the values and the repair; today: inertias that break the triangle inequality, repaired the same way in the simulation). Empty for a file used as it is."""
 
 
 class RobotState:

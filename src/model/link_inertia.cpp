@@ -14,13 +14,13 @@ namespace {
 constexpr double kMaxMass = 1e6;  // [kg]
 // The largest mass 1 m from its centre of mass; the links of industrial arms have below 1e3.
 constexpr double kMaxInertia = 1e6;  // [kg m^2] every entry of an inertia tensor
-// Rounding in a file, relative to the trace: a zero moment written slightly negative, a plate
-// written on the triangle limit. Beyond it, a violation is the file's and is reported.
+// Rounding in a file, relative to the trace: a zero moment written slightly negative, or moments
+// written on the triangle limit (a flat plate). Beyond it, a violation is the file's and is
+// reported.
 constexpr double kRounding = 1e-9;
-// How far inside the triangle limit the moments are put: MuJoCo's URDF import goes through an
-// MJCF that it writes with 6 significant digits, which moves each moment by up to 5e-7 of
-// itself; a tensor closer to the limit than that would be refused when the MJCF is read back.
-constexpr double kInside = 1e-5;
+// What an eigen-decomposition's rounding may move moments that lie on the limit: a tensor within
+// it is the file's own, used exactly as written.
+constexpr double kEigenRounding = 1e-12;
 
 std::string moments(const Eigen::Vector3d& m) {
   std::ostringstream text;
@@ -69,20 +69,20 @@ LinkInertia physical_link_inertia(const std::string& link, double mass,
   const bool rounded_negative = moment[0] < 0.0;
   moment = moment.cwiseMax(0.0);
   const double excess = moment[2] - moment[0] - moment[1];  // > 0: A + B < C
-  const double inside = kInside * std::abs(trace);
-  if (excess <= -inside) {
+  if (excess <= kEigenRounding * std::abs(trace)) {
     if (rounded_negative) {
       result.inertia =
           solver.eigenvectors() * moment.asDiagonal() * solver.eigenvectors().transpose();
     }
     return result;
   }
-  // The nearest moments with A + B - C = inside and the same sum: a step along (1, 1, -2). The
+  // The nearest moments with A + B - C = slack and the same sum: a step along (1, 1, -2). The
   // sum is twice the body's polar moment (the integral of |r|^2 dm), which the repair keeps; so a
   // repaired tensor is its own repair. The other two inequalities still hold for sorted moments:
-  // A' + C' - B' = (3A + C - B - inside) / 2.
+  // A' + C' - B' = (3A + C - B - slack) / 2. The slack keeps an engine's own eigen-decomposition
+  // of the repaired tensor inside the limit.
   const Eigen::Vector3d before = moment;
-  const double shift = (excess + inside) / 4.0;
+  const double shift = (excess + slack) / 4.0;
   moment += Eigen::Vector3d(shift, shift, -2.0 * shift);
   result.inertia = solver.eigenvectors() * moment.asDiagonal() * solver.eigenvectors().transpose();
   if (excess > slack) {

@@ -184,6 +184,33 @@ std::string inertia_box(tinyxml2::XMLElement* link) {
   return std::string("a box of ") + text[2] + " m from its inertia";
 }
 
+// MuJoCo 2.2 writes its MJCF with 6 significant digits (a mass of 4.970684 kg as 4.97068 kg, a
+// quaternion 0.7071068 as 0.707107): a body's placement and inertial are written again from the
+// model compiled from the URDF, to the last digit, so that the simulation is the URDF's arm and
+// the controller's model, and moments that lie on the triangle limit stay on it.
+void write_full_precision(tinyxml2::XMLElement* body, const mjModel* m) {
+  const char* name = body->Attribute("name");
+  const int id = name != nullptr ? mj_name2id(m, mjOBJ_BODY, name) : -1;
+  if (id < 0) return;
+  const auto numbers = [](const mjtNum* values, int count) {
+    std::string text;
+    char number[32];
+    for (int k = 0; k < count; ++k) {
+      std::snprintf(number, sizeof(number), "%.17g", values[k]);
+      text += (k > 0 ? " " : "") + std::string(number);
+    }
+    return text;
+  };
+  body->SetAttribute("pos", numbers(m->body_pos + 3 * id, 3).c_str());
+  body->SetAttribute("quat", numbers(m->body_quat + 4 * id, 4).c_str());
+  if (tinyxml2::XMLElement* inertial = body->FirstChildElement("inertial")) {
+    inertial->SetAttribute("pos", numbers(m->body_ipos + 3 * id, 3).c_str());
+    inertial->SetAttribute("quat", numbers(m->body_iquat + 4 * id, 4).c_str());
+    inertial->SetAttribute("mass", numbers(m->body_mass + id, 1).c_str());
+    inertial->SetAttribute("diaginertia", numbers(m->body_inertia + 3 * id, 3).c_str());
+  }
+}
+
 }  // namespace
 
 std::string resolve_mesh_file(const std::string& uri, const std::string& urdf_path,
@@ -396,6 +423,7 @@ std::string mjcf_from_urdf(const std::string& urdf_path, const UrdfImportOptions
         e->SetAttribute("conaffinity", 1);
       } else if (tag == "body") {
         stack.push_back(e);
+        write_full_precision(e, model.get());
       }
     }
   }

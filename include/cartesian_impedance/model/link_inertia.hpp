@@ -34,10 +34,8 @@ struct LinkInertia {
 
 /// Checks and, where the file only breaks the triangle inequality, repairs the <inertial> of
 /// `link` (the URDF's ixx, ixy, ixz, iyy, iyz, izz as the symmetric `inertia`).
-/// Moments that meet it within 1e-5 of their sum (a flat plate lies on the limit) are moved that
-/// far inside without a warning: MuJoCo's import writes them with 6 significant digits on the
-/// way, and must not read them back outside. A warning is given for a violation beyond 1e-9 of
-/// the sum (rounding in the file).
+/// Moments on the limit (a flat plate) are used as written; a violation within 1e-9 of the sum
+/// (rounding in the file) is repaired without a warning, a larger one with it.
 /// @throw Error naming the link and the value for what is refused (see the file comment).
 LinkInertia physical_link_inertia(const std::string& link, double mass,
                                   const Eigen::Matrix3d& inertia);
