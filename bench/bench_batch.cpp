@@ -6,8 +6,11 @@
 
 #include <benchmark/benchmark.h>
 
+#include <chrono>
+#include <ctime>
 #include <memory>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "cartesian_impedance/loop/control_loop.hpp"
@@ -86,6 +89,27 @@ void BM_BatchThreadsPerCall(benchmark::State& state) {
   report(state, batch);
 }
 
+// What the pool's threads cost while they wait for the next run: the process's CPU seconds over
+// 200 ms of waiting after a short run, with spin 0 (the threads sleep at once) and the longest
+// spin (they keep a core busy, yielding it to anyone who wants it). Counter cpu_seconds_idle;
+// the figure depends on the machine's load, so it is measured here, not asserted in a test
+// (batch_runner_test checks only that a sleeping pool uses next to nothing).
+void BM_BatchIdleCpu(benchmark::State& state) {
+  Batch batch(2);
+  const std::chrono::microseconds spin =
+      state.range(0) == 0 ? std::chrono::microseconds(0) : ci::sim::BatchRunner::kMaxSpin;
+  ci::sim::BatchRunner runner(batch.batch_pairs, 2, spin);
+  double idle = 0.0;
+  for (auto _ : state) {
+    runner.run(20);
+    const std::clock_t before = std::clock();
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    idle += static_cast<double>(std::clock() - before) / CLOCKS_PER_SEC;
+  }
+  state.counters["cpu_seconds_idle"] = idle / static_cast<double>(state.iterations());
+  if (!batch.ok()) state.SkipWithError("a loop failed closed");
+}
+
 void batch_arguments(benchmark::internal::Benchmark* benchmark) {
   benchmark->ArgNames({"pairs", "steps"})->UseRealTime()->Unit(benchmark::kMillisecond);
   for (int steps : {10, 100}) {
@@ -98,3 +122,10 @@ void batch_arguments(benchmark::internal::Benchmark* benchmark) {
 BENCHMARK(BM_BatchSerial)->Apply(batch_arguments);
 BENCHMARK(BM_BatchPool)->Apply(batch_arguments);
 BENCHMARK(BM_BatchThreadsPerCall)->Apply(batch_arguments);
+BENCHMARK(BM_BatchIdleCpu)
+    ->ArgNames({"spin"})
+    ->Arg(0)
+    ->Arg(1)
+    ->Iterations(5)
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);

@@ -146,9 +146,11 @@ TEST(BatchRunner, UsesOneThreadPerCoreAtMostOnePerPair) {
 }
 
 // With spin 0 the pool's thread sleeps as soon as a run ends: the process uses next to no CPU
-// while it waits for the next run (under 20 ms of the 200 it waits). Spinning, the thread keeps a
-// core busy (yielding it to anyone who wants it) for up to the spin: here the whole 200 ms, of
-// which it should get well over 50 ms even on a loaded machine. The results are the same.
+// while it waits for the next run (under 20 ms of the 200 it waits), however loaded the machine
+// (a sleeping thread asks for none). Spinning, the thread keeps a core busy for up to the spin;
+// how much of it the thread gets depends on the machine's load (a loaded CI machine gave it 7 ms
+// of 200), so that figure is measured in bench_batch (BM_BatchIdleCpu), not asserted here. The
+// results are the same either way.
 TEST(BatchRunner, WithoutSpinThePoolSleepsBetweenRuns) {
   using std::chrono::microseconds;
   Arms alone = make_arms({Kind::panda_mujoco, Kind::panda_mujoco});
@@ -164,9 +166,8 @@ TEST(BatchRunner, WithoutSpinThePoolSleepsBetweenRuns) {
     return static_cast<double>(std::clock() - before) / CLOCKS_PER_SEC;
   };
   EXPECT_LT(cpu_seconds_while_idle(sleeper), 0.02);
-  // Made only now: a pool thread also spins when it starts.
   sim::BatchRunner spinner(pairs_of(busy), 2, sim::BatchRunner::kMaxSpin);
-  EXPECT_GT(cpu_seconds_while_idle(spinner), 0.05);
+  spinner.run_for(0.02);
   for (std::size_t i = 0; i < 2; ++i) {
     sim::ClosedLoopRunner(alone[i]->simulation, alone[i]->loop).run_for(0.02);
     EXPECT_EQ(quiet[i]->simulation.q(), alone[i]->simulation.q());

