@@ -12,7 +12,13 @@ It builds from a copy of the source distribution's files (MANIFEST.in) in WORK/s
 build folder (scikit-build's _skbuild/) is outside the source tree; the copy keeps the files'
 times, so a second run recompiles only what changed. The venv is new each run.
 
-Usage: venv_install.py SOURCE_DIR WORK_DIR   (ctest: python_package_install, label python)
+With --from-build BUILD_DIR the package is not compiled again: the build's own install
+component `python` (the module, its files and data, as setup.py packs them) is staged, wrapped in
+a setuptools project and pip-installed, so the venv install and everything after it is checked
+in seconds (ctest python_package_install). Without it, pip builds from the source as a user does
+(ctest python_package_install_from_source, label long: scripts/test --long, and CI).
+
+Usage: venv_install.py SOURCE_DIR WORK_DIR [--from-build BUILD_DIR]
 Prints how long pip took. Exit status 0 if every check passed.
 """
 
@@ -98,6 +104,40 @@ def copy_sources(source, destination):
             shutil.copy2(source / name, destination / name)
 
 
+# The staged package as a setuptools project: what pip installs is the build's module and files.
+PREBUILT_SETUP = """
+from setuptools import setup
+setup(name="cartesian_impedance", version="{version}",
+      packages=["cartesian_impedance", "cartesian_impedance.envs"],
+      package_data={{"cartesian_impedance": ["*.so", "*.pyi", "py.typed", "data/**/*"]}},
+      zip_safe=False)
+"""
+
+
+def cmake_project_version(source):
+    import re
+    match = re.search(r"project\(cartesian_impedance\s+VERSION\s+([0-9.]+)",
+                      (source / "CMakeLists.txt").read_text())
+    return match.group(1)
+
+
+def stage_prebuilt(source, build, work, environment):
+    """The build's install component `python` as a setuptools project in work/prebuilt."""
+    stage = work / "stage"
+    shutil.rmtree(stage, ignore_errors=True)
+    run(["cmake", "--install", build, "--component", "python", "--prefix", stage], work,
+        environment)
+    packages = list(stage.glob("**/cartesian_impedance/__init__.py"))
+    if len(packages) != 1:
+        sys.exit(f"the install component python of {build} has no single package: {packages}")
+    project = work / "prebuilt"
+    shutil.rmtree(project, ignore_errors=True)
+    project.mkdir(parents=True)
+    shutil.copytree(packages[0].parent, project / "cartesian_impedance")
+    (project / "setup.py").write_text(PREBUILT_SETUP.format(version=cmake_project_version(source)))
+    return project
+
+
 def run(command, cwd, environment):
     shown = ["<EXAMPLE>" if "\n" in str(part) else str(part) for part in command]
     print("+", " ".join(shown), f"(in {cwd})", flush=True)
@@ -105,9 +145,14 @@ def run(command, cwd, environment):
 
 
 def main():
-    if len(sys.argv) != 3:
+    arguments = sys.argv[1:]
+    build = None
+    if len(arguments) == 4 and arguments[2] == "--from-build":
+        build = pathlib.Path(arguments[3]).resolve()
+        arguments = arguments[:2]
+    if len(arguments) != 2:
         sys.exit(__doc__)
-    source, work = (pathlib.Path(argument).resolve() for argument in sys.argv[1:])
+    source, work = (pathlib.Path(argument).resolve() for argument in arguments)
     # Nothing of the build tree's or the test's Python path may reach the venv: the module must
     # come from the install.
     environment = {key: value for key, value in os.environ.items()
@@ -117,15 +162,20 @@ def main():
     # gives this test two processors (PROCESSORS 2), as many as CI's machine has.
     environment.setdefault("CMAKE_BUILD_PARALLEL_LEVEL", "2")
 
-    copy_sources(source, work / "source")
+    if build is None:
+        copy_sources(source, work / "source")
+        installed = work / "source"
+    else:
+        work.mkdir(parents=True, exist_ok=True)
+        installed = stage_prebuilt(source, build, work, environment)
     venv = work / "venv"
     shutil.rmtree(venv, ignore_errors=True)
     run(["/usr/bin/python3", "-m", "venv", "--system-site-packages", venv], work, environment)
     python = venv / "bin" / "python"
 
     began = time.monotonic()
-    run([python, "-m", "pip", "install", "--no-build-isolation", "--no-index",
-         work / "source"], work, environment)
+    run([python, "-m", "pip", "install", "--no-build-isolation", "--no-index", installed], work,
+        environment)
     seconds = time.monotonic() - began
     print(f"pip install took {seconds:.0f} s", flush=True)
 
