@@ -511,6 +511,20 @@ void bind_simulation(py::module_& m) {
           "Total contact wrench [force; torque] (6,) [N; Nm] that everything else exerts on the "
           "body (and bodies welded to it): world frame, torque about the body origin.")
       .def(
+          "contact_wrench_beyond",
+          [](Sim& s, const std::string& body) {
+            return vector_array(s.get().contact_wrench_beyond(body));
+          },
+          py::arg("body"),
+          "What a force-torque sensor in the body measures: contact_wrench() plus the contacts of "
+          "every body below it (a hand's fingers on joints of their own).")
+      .def(
+          "has_collision_geometry",
+          [](Sim& s, const std::string& body) { return s.get().has_collision_geometry(body); },
+          py::arg("body"),
+          "Whether the body or a body welded to it has collision geometry (a URDF link without "
+          "<collision> has none: nothing presses on it).")
+      .def(
           "track_contact_wrench",
           [](Sim& s, const std::string& body) { s.get().track_contact_wrench(body); },
           py::arg("body"),

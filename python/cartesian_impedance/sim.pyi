@@ -183,6 +183,8 @@ class Simulation:
         """Removes every push."""
     def contact_wrench(self, body: str) -> numpy.typing.NDArray[numpy.float64]:
         """Total contact wrench [force; torque] (6,) [N; Nm] that everything else exerts on the body (and bodies welded to it): world frame, torque about the body origin."""
+    def contact_wrench_beyond(self, body: str) -> numpy.typing.NDArray[numpy.float64]:
+        """What a force-torque sensor in the body measures: contact_wrench() plus the contacts of every body below it (a hand's fingers on joints of their own)."""
     @property
     def dq(self) -> numpy.typing.NDArray[numpy.float64]:
         """Joint velocities (n,) [rad/s]."""
@@ -198,6 +200,8 @@ class Simulation:
     @staticmethod
     def from_urdf_file(path: str | os.PathLike, timestep: float = ..., gravity_compensation: bool = ..., keyframe: str = ..., joint_names: Optional[List[str]] = ..., multi_point_contacts: bool = ..., start_q: object = ..., armature: object = ..., engine: str = ..., boxes_for_missing_meshes: bool = ..., model: cartesian_impedance.RobotModel = ...) -> Simulation:
         """Loads a URDF with MuJoCo's importer (no actuators, no floor, no keyframe). model: the controller's RobotModel of this URDF; with it, the simulation exchanges model.joint_names (unless joint_names is given) and, without start_q, starts and resets at cartesian_impedance.find_start_configuration(model)['q'] instead of q = 0 (which is singular on most arms). Options: timestep [s] (replaces the model's); gravity_compensation: each joint receives tau + g(q), as robot firmware does; keyframe to reset to ('' or missing: the model's default qpos); joint_names: order of q, dq and tau (default: the model's hinge and slide joints); multi_point_contacts: steadier face-on-face contact forces; start_q: joint positions (n,) [rad or m] to start from and reset() to, instead of the keyframe, each checked against its joint's range; armature: rotor inertia per joint (n,) or one value for all [kg m^2], replacing the model's (use the same for the controller's dynamics.armature); engine: the physics engine, 'mujoco' or 'dart' (DART needs the robot from URDF; see engine_available()); boxes_for_missing_meshes: a URDF link whose collision mesh cannot be found or read is simulated as the box of its inertia (listed in warnings) instead of refusing the URDF."""
+    def has_collision_geometry(self, body: str) -> bool:
+        """Whether the body or a body welded to it has collision geometry (a URDF link without <collision> has none: nothing presses on it)."""
     @property
     def joint_names(self) -> List[str]:
         """Joint names in the order q, dq and tau are exchanged."""

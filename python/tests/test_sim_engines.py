@@ -106,6 +106,10 @@ def test_a_vendor_package_as_shipped_repairs_and_reports_alike_in_model_and_simu
     simulation = sim.Simulation.from_urdf_file(urdf, engine=engine, model=model)
     assert simulation.warnings == []
     assert simulation.num_joints == model.num_joints == 7
+    # The hand's fingers are bodies on joints of their own: what presses through them is measured
+    # beyond the flange, as by a wrist sensor (nothing touches here: zero).
+    assert simulation.has_collision_geometry("hand_tcp")
+    assert np.array_equal(simulation.contact_wrench_beyond("hand_tcp"), np.zeros(6))
 
 
 @pytest.mark.parametrize("engine", ENGINES)
@@ -124,3 +128,6 @@ def test_missing_meshes_are_refused_or_simulated_as_boxes_when_asked(engine, tmp
     assert len(simulation.warnings) == 8
     assert all("simulated as a box of" in w or "no mass" in w for w in simulation.warnings)
     assert any(w.startswith("link 'link_3'") and "a box of" in w for w in simulation.warnings)
+    assert simulation.has_collision_geometry("link_3")
+    with pytest.raises(ci.Error, match="no_such_link"):
+        simulation.has_collision_geometry("no_such_link")
