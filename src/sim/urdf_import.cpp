@@ -124,24 +124,49 @@ std::vector<std::pair<std::filesystem::path, std::string>> package_candidates(
   return candidates;
 }
 
+constexpr const char* kInertiaEntries[6] = {"ixx", "ixy", "ixz", "iyy", "iyz", "izz"};
+
+// A link's <inertial> as written: its <inertia> element (to write back), mass and tensor. Null
+// when the element or one of its numbers is missing: an engine's parser refuses that anyway (and
+// the model's stricter one names it).
+struct WrittenInertial {
+  tinyxml2::XMLElement* inertia = nullptr;
+  double mass = 0.0;
+  Eigen::Matrix3d tensor = Eigen::Matrix3d::Zero();
+};
+WrittenInertial written_inertial(tinyxml2::XMLElement* link) {
+  WrittenInertial result;
+  tinyxml2::XMLElement* inertial = link->FirstChildElement("inertial");
+  tinyxml2::XMLElement* mass = inertial ? inertial->FirstChildElement("mass") : nullptr;
+  tinyxml2::XMLElement* inertia = inertial ? inertial->FirstChildElement("inertia") : nullptr;
+  double i[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+  if (mass == nullptr || inertia == nullptr ||
+      mass->QueryDoubleAttribute("value", &result.mass) != tinyxml2::XML_SUCCESS) {
+    return {};
+  }
+  for (int k = 0; k < 6; ++k) {
+    if (inertia->QueryDoubleAttribute(kInertiaEntries[k], &i[k]) != tinyxml2::XML_SUCCESS) {
+      return {};
+    }
+  }
+  result.inertia = inertia;
+  result.tensor << i[0], i[1], i[2], i[1], i[3], i[4], i[2], i[4], i[5];
+  return result;
+}
+
+std::string link_name(const tinyxml2::XMLElement* link) {
+  const char* name = link->Attribute("name");
+  return name != nullptr ? name : "";
+}
+
 // The uniform box of `link`'s mass and principal moments as a <collision> of the link (placed
 // at its centre of mass, turned to its principal axes); "" if the link has no mass. Its sides:
 // a^2 = 6 (B + C - A) / m and so on.
 std::string inertia_box(tinyxml2::XMLElement* link) {
+  const WrittenInertial written = written_inertial(link);
+  if (written.inertia == nullptr || !(written.mass > 0.0)) return "";
   tinyxml2::XMLElement* inertial = link->FirstChildElement("inertial");
-  tinyxml2::XMLElement* mass = inertial ? inertial->FirstChildElement("mass") : nullptr;
-  tinyxml2::XMLElement* inertia = inertial ? inertial->FirstChildElement("inertia") : nullptr;
-  double m = 0.0, i[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
-  const char* names[6] = {"ixx", "ixy", "ixz", "iyy", "iyz", "izz"};
-  if (mass == nullptr || inertia == nullptr ||
-      mass->QueryDoubleAttribute("value", &m) != tinyxml2::XML_SUCCESS || !(m > 0.0)) {
-    return "";
-  }
-  for (int k = 0; k < 6; ++k) inertia->QueryDoubleAttribute(names[k], &i[k]);
-  Eigen::Matrix3d tensor;
-  tensor << i[0], i[1], i[2], i[1], i[3], i[4], i[2], i[4], i[5];
-  const char* name = link->Attribute("name");
-  const LinkInertia checked = physical_link_inertia(name != nullptr ? name : "", m, tensor);
+  const LinkInertia checked = physical_link_inertia(link_name(link), written.mass, written.tensor);
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(checked.inertia);
   const Eigen::Vector3d moment = solver.eigenvalues();
   Eigen::Matrix3d axes = solver.eigenvectors();
@@ -149,7 +174,7 @@ std::string inertia_box(tinyxml2::XMLElement* link) {
   Eigen::Vector3d side;
   for (int k = 0; k < 3; ++k) {
     const double sum = moment.sum() - 2.0 * moment[k];  // B + C - A
-    side[k] = std::sqrt(std::max(6.0 * sum / m, 0.0));
+    side[k] = std::sqrt(std::max(6.0 * sum / written.mass, 0.0));
   }
   side = side.cwiseMax(1e-3);  // a rod's zero thickness as 1 mm
   Eigen::Vector3d xyz = Eigen::Vector3d::Zero(), rpy = Eigen::Vector3d::Zero();
@@ -262,8 +287,7 @@ void resolve_collision_meshes(tinyxml2::XMLElement* robot, const std::string& ur
     while (tinyxml2::XMLElement* visual = link->FirstChildElement("visual")) {
       link->DeleteChild(visual);
     }
-    const char* name = link->Attribute("name");
-    const std::string link_name = name != nullptr ? name : "";
+    const std::string name = link_name(link);
     std::vector<tinyxml2::XMLElement*> missing;
     std::string why;
     for (tinyxml2::XMLElement* collision = link->FirstChildElement("collision");
@@ -275,9 +299,9 @@ void resolve_collision_meshes(tinyxml2::XMLElement* robot, const std::string& ur
       const char* filename = mesh->Attribute("filename");
       try {
         if (filename == nullptr) {
-          throw Error("link '" + link_name + "': <collision> <mesh> has no filename");
+          throw Error("link '" + name + "': <collision> <mesh> has no filename");
         }
-        mesh->SetAttribute("filename", resolve_mesh_file(filename, urdf_path, link_name).c_str());
+        mesh->SetAttribute("filename", resolve_mesh_file(filename, urdf_path, name).c_str());
       } catch (const Error& error) {
         problems += std::string("\n") + error.what();
         why += std::string(why.empty() ? "" : "; ") + error.what();
@@ -308,37 +332,19 @@ void resolve_collision_meshes(tinyxml2::XMLElement* robot, const std::string& ur
 void apply_physical_inertias(tinyxml2::XMLElement* robot, const std::string& urdf_path) {
   for (tinyxml2::XMLElement* link = robot->FirstChildElement("link"); link != nullptr;
        link = link->NextSiblingElement("link")) {
-    tinyxml2::XMLElement* inertial = link->FirstChildElement("inertial");
-    tinyxml2::XMLElement* mass = inertial ? inertial->FirstChildElement("mass") : nullptr;
-    tinyxml2::XMLElement* inertia = inertial ? inertial->FirstChildElement("inertia") : nullptr;
-    double m = 0.0, i[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
-    const char* names[6] = {"ixx", "ixy", "ixz", "iyy", "iyz", "izz"};
-    // An element the engine's parser would refuse anyway is left to it (and to the model's
-    // stricter parser, which names it).
-    if (mass == nullptr || inertia == nullptr ||
-        mass->QueryDoubleAttribute("value", &m) != tinyxml2::XML_SUCCESS) {
-      continue;
-    }
-    bool complete = true;
-    for (int k = 0; k < 6; ++k) {
-      complete =
-          complete && inertia->QueryDoubleAttribute(names[k], &i[k]) == tinyxml2::XML_SUCCESS;
-    }
-    if (!complete) continue;
-    Eigen::Matrix3d tensor;
-    tensor << i[0], i[1], i[2], i[1], i[3], i[4], i[2], i[4], i[5];
-    const char* name = link->Attribute("name");
+    const WrittenInertial written = written_inertial(link);
+    if (written.inertia == nullptr) continue;
     LinkInertia checked;
     try {
-      checked = physical_link_inertia(name != nullptr ? name : "", m, tensor);
+      checked = physical_link_inertia(link_name(link), written.mass, written.tensor);
     } catch (const Error& error) {
       throw Error("URDF file '" + urdf_path + "': " + error.what());
     }
-    if (checked.inertia == tensor) continue;
+    if (checked.inertia == written.tensor) continue;
     const double repaired[6] = {checked.inertia(0, 0), checked.inertia(0, 1),
                                 checked.inertia(0, 2), checked.inertia(1, 1),
                                 checked.inertia(1, 2), checked.inertia(2, 2)};
-    for (int k = 0; k < 6; ++k) inertia->SetAttribute(names[k], repaired[k]);
+    for (int k = 0; k < 6; ++k) written.inertia->SetAttribute(kInertiaEntries[k], repaired[k]);
   }
 }
 
