@@ -45,8 +45,6 @@ void require_value(const ParameterValue& value, std::string_view element,
        std::string(name) + " must be " + expected + ", got " + value.describe());
 }
 
-constexpr const char* kAxisSuffix[3] = {".x", ".y", ".z"};
-
 Eigen::Vector3d decode_axes(const ParameterValue& value, const ParameterInfo& row) {
   using Kind = ParameterValue::Kind;
   if (value.is(Kind::map) || (value.is(Kind::list) && value.as_list().size() != 3)) {

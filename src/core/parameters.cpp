@@ -254,8 +254,6 @@ std::string element_name(std::string_view base, const char* suffix) {
   return name;
 }
 
-constexpr const char* kAxisSuffix[3] = {".x", ".y", ".z"};
-
 std::string with_unit(double value, std::string_view unit) {
   std::string text = format_number(value);
   if (!unit.empty() && unit != "-") text += " " + std::string(unit);

@@ -2,11 +2,13 @@
 """Runs the demo's scenarios on generated arms nobody tuned (the ctest `generated_arms`).
 
     run_generated_arms.py --demo build/apps/cartesian_impedance_demo [--count 20] [--seed 1]
-                          [--dart 4] [--jobs 2] [--report] [--keep DIR]
+                          [--first 0] [--no-regression] [--dart 4] [--jobs 2] [--report]
+                          [--keep DIR]
     run_generated_arms.py --self-check [--count 20] [--seed 1]     (the ctest `arm_generator`)
 
-Generates --count arms from seeds --seed, --seed + 1, ... (the environment variable CI_ARM_SEED
-picks another base seed), adds the regression arms of tests/arms/regression/, and runs
+Generates --count arms from seeds --seed + --first, --seed + --first + 1, ... (the environment
+variable CI_ARM_SEED picks another base seed; --first lets two runs share one base seed without
+overlapping), adds the regression arms of tests/arms/regression/ (unless --no-regression), runs
 `cartesian_impedance_demo --urdf ... --base-link ... --tip-link ... --no-render --no-plots` on each
 with MuJoCo and on --dart of them (spread over the list) with DART, --jobs at a time. Exits 0 only
 if every run exits 0; otherwise prints per failing run the seed, the joints, the exit code, the
@@ -49,7 +51,7 @@ def base_seed(option):
     return int(os.environ.get("CI_ARM_SEED", DEFAULT_SEED))
 
 
-def arms_to_run(count, seed, folder):
+def arms_to_run(count, seed, folder, regression=True):
     """(label, seed or None, urdf path, info) of the generated arms and the regression arms."""
     arms = []
     for s in range(seed, seed + count):
@@ -58,7 +60,7 @@ def arms_to_run(count, seed, folder):
         with open(path, "w") as f:
             f.write(urdf)
         arms.append(("seed %d" % s, s, path, info))
-    for path in sorted(glob.glob(os.path.join(REGRESSION_DIR, "*.urdf"))):
+    for path in sorted(glob.glob(os.path.join(REGRESSION_DIR, "*.urdf")) if regression else []):
         joints = sum(1 for j in ElementTree.parse(path).getroot().iter("joint")
                      if j.get("type") == "revolute")
         arms.append((os.path.relpath(path, os.path.dirname(os.path.dirname(HERE))), None, path,
@@ -133,12 +135,12 @@ def run_all(args):
     if not os.access(args.demo or "", os.X_OK):
         print("run_generated_arms: --demo '%s' is not an executable" % args.demo)
         return 2
-    seed = base_seed(args.seed)
+    seed = base_seed(args.seed) + args.first
     with tempfile.TemporaryDirectory(prefix="generated_arms_") as scratch:
         folder = os.path.abspath(args.keep or scratch)  # the demo runs in its output folder
         args.demo = os.path.abspath(args.demo)
         os.makedirs(folder, exist_ok=True)
-        arms = arms_to_run(args.count, seed, folder)
+        arms = arms_to_run(args.count, seed, folder, not args.no_regression)
         # DART on --dart arms spread over the list (generated and regression arms alike).
         step = max(1, len(arms) // max(1, args.dart))
         on_dart = arms[::step][:args.dart] if args.dart > 0 else []
@@ -351,6 +353,10 @@ def main():
     parser.add_argument("--count", type=int, default=20, help="generated arms (default 20)")
     parser.add_argument("--seed", type=int, help="first seed (default: $CI_ARM_SEED or %d)"
                         % DEFAULT_SEED)
+    parser.add_argument("--first", type=int, default=0,
+                        help="skip this many seeds after the first (default 0)")
+    parser.add_argument("--no-regression", action="store_true",
+                        help="only the generated arms, not those of tests/arms/regression/")
     parser.add_argument("--dart", type=int, default=4,
                         help="also run N of the arms, spread over the list, on DART (default 4)")
     parser.add_argument("--jobs", type=int, default=2, help="demo runs at a time (default 2)")

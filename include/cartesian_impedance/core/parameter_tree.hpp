@@ -260,4 +260,7 @@ std::string decode_name(const ParameterValue& value, std::string_view element,
 /// "base" or "end_effector" (see decode_name()); frame_from_name() for a plain string.
 Frame decode_frame(const ParameterValue& value, std::string_view element);
 
+/// What names the elements of a 3-vector parameter: `workspace.min` + ".x".
+inline constexpr const char* kAxisSuffix[3] = {".x", ".y", ".z"};
+
 }  // namespace cartesian_impedance
