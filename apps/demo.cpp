@@ -9,6 +9,7 @@
 #include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -54,6 +55,11 @@ Options:
   --boxes-for-missing-meshes
                            simulate a link whose collision mesh cannot be found or read as the
                            box of its inertia (each named) instead of refusing the URDF
+  --plant NAME             the simulated arm: nominal (the controller's model, read at once and
+                           exactly; default) or realistic (link inertias x 0.7-1.3, centres of
+                           mass moved up to 1 cm, joint friction, damping and armature off,
+                           readings 1 ms late and noisy, torques 1 ms late and noisy)
+  --plant-seed N           the seed of the realistic plant's draws (default 1)
   --package-path DIRS      folders (':'-separated) searched first for the URDF's package://NAME/
                            meshes, as entries of ROS_PACKAGE_PATH: DIR/NAME, or DIR itself if it
                            is named NAME (then ROS_PACKAGE_PATH, AMENT_PREFIX_PATH and the folders
@@ -73,6 +79,8 @@ struct Options {
   std::vector<ci::sim::Engine> engines{ci::sim::Engine::mujoco};
   std::vector<std::string> scenarios;
   bool boxes_for_missing_meshes = false;
+  std::string plant = "nominal";
+  std::uint64_t plant_seed = 1;
   fs::path out = "demo_output";
   bool render = true;
   bool plots = true;
@@ -136,6 +144,16 @@ Options parse(int argc, char** argv) {
       package_path = value();
     } else if (argument == "--boxes-for-missing-meshes") {
       options.boxes_for_missing_meshes = true;
+    } else if (argument == "--plant") {
+      options.plant = value();
+    } else if (argument == "--plant-seed") {
+      const std::string text = value();
+      char* end = nullptr;
+      const unsigned long long seed = std::strtoull(text.c_str(), &end, 10);
+      if (text.empty() || *end != '\0' || text[0] == '-') {
+        usage_error("--plant-seed '" + text + "' is not a whole number >= 0");
+      }
+      options.plant_seed = seed;
     } else if (argument == "--config") {
       config = value();
     } else if (argument == "--start-q") {
@@ -153,7 +171,8 @@ Options parse(int argc, char** argv) {
     } else {
       usage_error("unknown argument '" + argument +
                   "' (valid: --robot, --urdf, --mjcf, --base-link, --tip-link, --package-path, "
-                  "--boxes-for-missing-meshes, --flange, --config, --start-q, --engine, "
+                  "--boxes-for-missing-meshes, --plant, --plant-seed, --flange, --config, "
+                  "--start-q, --engine, "
                   "--scenario, --out, --no-render, "
                   "--no-plots, --help)");
     }
@@ -186,6 +205,11 @@ Options parse(int argc, char** argv) {
       usage_error(std::string("--robot: ") + error.what());
     }
     if (!flange.empty()) options.robot.flange = flange;
+  }
+  try {
+    options.robot.plant = ci::sim::plant_from_name(options.plant, options.plant_seed);
+  } catch (const ci::Error& error) {
+    usage_error(std::string("--plant: ") + error.what());
   }
   if (!config.empty()) {
     require_file("--config", config);
@@ -476,6 +500,11 @@ int main(int argc, char** argv) {
     std::cout << (tours.empty() ? "" : "\n") << "Cartesian impedance demo: " << options.robot.name
               << " in " << ci::demo::engine_title(engine) << " at 1 kHz, "
               << options.scenarios.size() << " scenarios, output in " << out.string() << "\n";
+    if (!options.robot.plant.nominal()) {
+      std::cout << "Plant: " << options.plant << " (seed " << options.plant_seed
+                << "): the simulated arm is not the controller's model, and the checks' bounds "
+                   "are the nominal plant's\n";
+    }
     if (options.render && !render) std::cout << "(no pictures: " << why_not << ")\n";
     tours.push_back(run_tour(options, scenarios::with_engine(options.robot, engine), out, render));
     print_summary(tours.back().results);

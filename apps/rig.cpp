@@ -97,6 +97,7 @@ sim::Simulation make_simulation(const RobotSetup& robot, const RobotModel& model
   options.start_q = robot.start_q;
   options.engine = robot.engine;
   options.boxes_for_missing_meshes = robot.boxes_for_missing_meshes;
+  options.plant = robot.plant;
   if (configures_armature(parameters)) options.armature = parameters.dynamics.armature;
   if (boxes.empty()) {
     return robot.mjcf.empty() ? sim::Simulation::from_urdf_file(robot.urdf, options)

@@ -50,6 +50,8 @@ struct RobotSetup {
   sim::Engine engine = sim::Engine::mujoco;
   /// sim::SimulationOptions::boxes_for_missing_meshes (the demo's --boxes-for-missing-meshes).
   bool boxes_for_missing_meshes = false;
+  /// sim::SimulationOptions::plant (the demo's --plant): model error, delays and noise.
+  sim::PlantOptions plant = sim::PlantOptions();
 };
 
 /// `robot` simulated by `engine`. DART simulates URDF files only: a robot with an MJCF is then

@@ -434,6 +434,7 @@ TwoArmRun run_two_arms(const ArmPair& pair, bool push_left, bool step_right,
   sim::SimulationOptions options;
   options.engine = pair.left.engine;
   options.boxes_for_missing_meshes = pair.left.boxes_for_missing_meshes;
+  options.plant = pair.left.plant;
   std::optional<sim::Simulation> scene;
   if (pair.sites) {
     options.joint_names = left_model.joint_names();

@@ -39,9 +39,17 @@ ci::sim::SimulationOptions simulation_options(py::handle timestep, bool gravity_
                                               const std::optional<std::vector<std::string>>& names,
                                               bool multi_point_contacts, py::handle start_q,
                                               py::handle armature, const std::string& engine,
-                                              bool boxes_for_missing_meshes) {
+                                              bool boxes_for_missing_meshes, py::handle plant) {
   ci::sim::SimulationOptions options;
   options.boxes_for_missing_meshes = boxes_for_missing_meshes;
+  if (py::isinstance<py::str>(plant)) {
+    options.plant = ci::sim::plant_from_name(plant.cast<std::string>());
+  } else if (py::isinstance<ci::sim::PlantOptions>(plant)) {
+    options.plant = plant.cast<ci::sim::PlantOptions>();
+  } else {
+    throw ci::Error("plant must be 'nominal', 'realistic' or a Plant, got " +
+                    py::repr(plant).cast<std::string>());
+  }
   options.engine = ci::sim::engine_from_name(engine);
   options.timestep = read_scalar(timestep, "timestep");
   options.gravity_compensation = gravity_compensation;
@@ -85,7 +93,8 @@ void bind_simulation(py::module_& m) {
         py::arg("multi_point_contacts") = default_options.multi_point_contacts,
         py::arg("start_q") = py::none(), py::arg("armature") = py::none(),
         py::arg("engine") = ci::sim::engine_name(default_options.engine),
-        py::arg("boxes_for_missing_meshes") = default_options.boxes_for_missing_meshes);
+        py::arg("boxes_for_missing_meshes") = default_options.boxes_for_missing_meshes,
+        py::arg("plant") = "nominal");
   };
   const char* options_doc =
       " Options: timestep [s] (replaces the model's); gravity_compensation: each joint receives "
@@ -99,7 +108,62 @@ void bind_simulation(py::module_& m) {
       "physics engine, 'mujoco' or 'dart' (DART needs the robot from URDF; see "
       "engine_available()); boxes_for_missing_meshes: a URDF link whose collision mesh cannot be "
       "found or read is simulated as the box of its inertia (listed in warnings) instead of "
-      "refusing the URDF.";
+      "refusing the URDF; plant: 'nominal' (the model itself, read at once and exactly), "
+      "'realistic' (Plant.realistic()) or a Plant: model error, delays and noise.";
+
+  // A Spread as the tuple (low, high).
+  const auto spread_property = [](py::class_<ci::sim::PlantOptions>& plant, const char* name,
+                                  ci::sim::Spread ci::sim::PlantOptions::*member, const char* doc) {
+    plant.def_property(
+        name,
+        [member](const ci::sim::PlantOptions& p) {
+          return std::make_tuple((p.*member).low, (p.*member).high);
+        },
+        [member, name](ci::sim::PlantOptions& p, py::handle value) {
+          Eigen::Vector2d range;
+          read_vector(value, name, Length{2}, range);
+          p.*member = {range[0], range[1]};
+        },
+        doc);
+  };
+  py::class_<ci::sim::PlantOptions> plant(
+      sim, "Plant",
+      "How the simulated arm differs from its model and how its sensors and drives behave "
+      "(the plant option of the loaders). Plant() is the nominal plant; Plant.realistic(seed) "
+      "one of the kind users meet. The model error is drawn once from seed, the noise every step "
+      "(reset() starts it over). Checked by the loader, which names a field out of range.");
+  plant.def(py::init<>())
+      .def_static(
+          "realistic", &ci::sim::PlantOptions::realistic, py::arg("seed") = 1,
+          "Link inertias x U(0.7, 1.3), centres of mass moved up to 1 cm, friction x "
+          "U(0.5, 1.5), damping and armature x U(0.8, 1.2); readings 1 ms old with 1e-5 rad "
+          "and 0.005 rad/s of noise and a 19-bit encoder; torques acting 1 ms late with "
+          "0.05 Nm of noise.")
+      .def_property_readonly("nominal", &ci::sim::PlantOptions::nominal,
+                             "Nothing differs from the model.")
+      .def_readwrite("seed", &ci::sim::PlantOptions::seed)
+      .def_readwrite("center_of_mass_offset", &ci::sim::PlantOptions::center_of_mass_offset,
+                     "Each link's centre of mass moved by up to this [m].")
+      .def_readwrite("measurement_delay", &ci::sim::PlantOptions::measurement_delay,
+                     "Age of each reading [s] (whole timesteps).")
+      .def_readwrite("position_noise", &ci::sim::PlantOptions::position_noise,
+                     "Standard deviation [rad] of white noise on each position read.")
+      .def_readwrite("velocity_noise", &ci::sim::PlantOptions::velocity_noise,
+                     "Standard deviation [rad/s] of white noise on each velocity read.")
+      .def_readwrite("position_resolution", &ci::sim::PlantOptions::position_resolution,
+                     "The encoder's quantum [rad] (0: none).")
+      .def_readwrite("actuation_delay", &ci::sim::PlantOptions::actuation_delay,
+                     "Time from set_torque() until the torque acts [s] (whole timesteps).")
+      .def_readwrite("torque_noise", &ci::sim::PlantOptions::torque_noise,
+                     "Standard deviation [Nm] of white noise on each applied torque.");
+  spread_property(plant, "inertia", &ci::sim::PlantOptions::inertia,
+                  "(low, high): each link's mass and inertia scaled by a factor drawn from it.");
+  spread_property(plant, "friction", &ci::sim::PlantOptions::friction,
+                  "(low, high): each joint's Coulomb friction scaled.");
+  spread_property(plant, "damping", &ci::sim::PlantOptions::damping,
+                  "(low, high): each joint's viscous damping scaled.");
+  spread_property(plant, "armature", &ci::sim::PlantOptions::armature,
+                  "(low, high): each joint's armature scaled.");
 
   py::class_<ci::sim::Box>(sim, "Box",
                            "A static box (table, wall, step) that collides with the robot.")
@@ -266,12 +330,12 @@ void bind_simulation(py::module_& m) {
             [](PathLike path, Real timestep, bool gravity_compensation, const std::string& keyframe,
                std::optional<std::vector<std::string>> names, bool multi_point_contacts,
                py::object start_q, py::object armature, const std::string& engine,
-               bool boxes_for_missing_meshes) {
+               bool boxes_for_missing_meshes, py::object plant) {
               return std::make_unique<Sim>(ci::sim::Simulation::from_mjcf_file(
                   read_path(path, "path"),
                   simulation_options(timestep, gravity_compensation, keyframe, names,
                                      multi_point_contacts, start_q, armature, engine,
-                                     boxes_for_missing_meshes)));
+                                     boxes_for_missing_meshes, plant)));
             },
             py::arg("path"), args...,
             (std::string("Loads an MJCF file (e.g. models/panda/panda.xml); each joint is "
@@ -283,10 +347,10 @@ void bind_simulation(py::module_& m) {
             [](PathLike path, Real timestep, bool gravity_compensation, const std::string& keyframe,
                std::optional<std::vector<std::string>> names, bool multi_point_contacts,
                py::object start_q, py::object armature, const std::string& engine,
-               bool boxes_for_missing_meshes, const Model* model) {
+               bool boxes_for_missing_meshes, py::object plant, const Model* model) {
               ci::sim::SimulationOptions options = simulation_options(
                   timestep, gravity_compensation, keyframe, names, multi_point_contacts, start_q,
-                  armature, engine, boxes_for_missing_meshes);
+                  armature, engine, boxes_for_missing_meshes, plant);
               // A URDF has no start of its own and q = 0 is singular on most arms: with the
               // controller's model, the library chooses one.
               if (model != nullptr) {
@@ -313,12 +377,13 @@ void bind_simulation(py::module_& m) {
                bool gravity_compensation, const std::string& keyframe,
                std::optional<std::vector<std::string>> names, bool multi_point_contacts,
                py::object start_q, py::object armature, const std::string& engine,
-               bool boxes_for_missing_meshes, const std::vector<ci::sim::AttachedBox>& attached) {
+               bool boxes_for_missing_meshes, py::object plant,
+               const std::vector<ci::sim::AttachedBox>& attached) {
               return std::make_unique<Sim>(ci::sim::make_scene(
                   read_path(path, "robot_mjcf"), boxes, attached,
                   simulation_options(timestep, gravity_compensation, keyframe, names,
                                      multi_point_contacts, start_q, armature, engine,
-                                     boxes_for_missing_meshes)));
+                                     boxes_for_missing_meshes, plant)));
             },
             py::arg("robot_mjcf"), py::arg("boxes"), args...,
             py::arg("attached") = std::vector<ci::sim::AttachedBox>{},
@@ -334,7 +399,7 @@ void bind_simulation(py::module_& m) {
                bool gravity_compensation, const std::string& keyframe,
                std::optional<std::vector<std::string>> names, bool multi_point_contacts,
                py::object start_q, py::object armature, const std::string& engine,
-               bool boxes_for_missing_meshes) {
+               bool boxes_for_missing_meshes, py::object plant) {
               ci::sim::PegInHole scene;
               scene.robot = read_path(robot, "robot");
               scene.flange = flange;
@@ -345,7 +410,7 @@ void bind_simulation(py::module_& m) {
               return std::make_unique<Sim>(ci::sim::make_peg_in_hole_scene(
                   scene, simulation_options(timestep, gravity_compensation, keyframe, names,
                                             multi_point_contacts, start_q, armature, engine,
-                                            boxes_for_missing_meshes)));
+                                            boxes_for_missing_meshes, plant)));
             },
             py::arg("robot"), py::arg("flange"), py::arg("hole"),
             py::arg("peg_length") = default_peg_in_hole.peg_length,
@@ -377,9 +442,17 @@ void bind_simulation(py::module_& m) {
       .def_property_readonly(
           "timestep", [](Sim& s) { return s.get().timestep(); }, "Integration step [s].")
       .def_property_readonly(
-          "q", [](Sim& s) { return vector_array(s.get().q()); }, "Joint positions (n,) [rad].")
+          "q", [](Sim& s) { return vector_array(s.get().q()); },
+          "Joint positions (n,) [rad] as the sensors read them (the plant's delay and noise).")
       .def_property_readonly(
-          "dq", [](Sim& s) { return vector_array(s.get().dq()); }, "Joint velocities (n,) [rad/s].")
+          "dq", [](Sim& s) { return vector_array(s.get().dq()); },
+          "Joint velocities (n,) [rad/s] as the sensors read them.")
+      .def_property_readonly(
+          "true_q", [](Sim& s) { return vector_array(s.get().true_q()); },
+          "The joints' actual positions (n,) [rad] (q for the nominal plant).")
+      .def_property_readonly(
+          "true_dq", [](Sim& s) { return vector_array(s.get().true_dq()); },
+          "The joints' actual velocities (n,) [rad/s].")
       .def_property_readonly(
           "torque", [](Sim& s) { return vector_array(s.get().torque()); },
           "Applied commanded torque after clipping (n,) [Nm], without gravity compensation.")

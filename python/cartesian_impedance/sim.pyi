@@ -142,6 +142,76 @@ class DriverState:
         """new torques taken from the outbox"""
 
 
+class Plant:
+    """How the simulated arm differs from its model and how its sensors and drives behave (the plant option of the loaders). Plant() is the nominal plant; Plant.realistic(seed) one of the kind users meet. The model error is drawn once from seed, the noise every step (reset() starts it over). Checked by the loader, which names a field out of range."""
+    def __init__(self) -> None: ...
+    @property
+    def actuation_delay(self) -> float:
+        """Time from set_torque() until the torque acts [s] (whole timesteps)."""
+    @actuation_delay.setter
+    def actuation_delay(self, value: float) -> None: ...
+    @property
+    def armature(self) -> Tuple[float, float]:
+        """(low, high): each joint's armature scaled."""
+    @armature.setter
+    def armature(self, value: object) -> None: ...
+    @property
+    def center_of_mass_offset(self) -> float:
+        """Each link's centre of mass moved by up to this [m]."""
+    @center_of_mass_offset.setter
+    def center_of_mass_offset(self, value: float) -> None: ...
+    @property
+    def damping(self) -> Tuple[float, float]:
+        """(low, high): each joint's viscous damping scaled."""
+    @damping.setter
+    def damping(self, value: object) -> None: ...
+    @property
+    def friction(self) -> Tuple[float, float]:
+        """(low, high): each joint's Coulomb friction scaled."""
+    @friction.setter
+    def friction(self, value: object) -> None: ...
+    @property
+    def inertia(self) -> Tuple[float, float]:
+        """(low, high): each link's mass and inertia scaled by a factor drawn from it."""
+    @inertia.setter
+    def inertia(self, value: object) -> None: ...
+    @property
+    def measurement_delay(self) -> float:
+        """Age of each reading [s] (whole timesteps)."""
+    @measurement_delay.setter
+    def measurement_delay(self, value: float) -> None: ...
+    @property
+    def nominal(self) -> bool:
+        """Nothing differs from the model."""
+    @property
+    def position_noise(self) -> float:
+        """Standard deviation [rad] of white noise on each position read."""
+    @position_noise.setter
+    def position_noise(self, value: float) -> None: ...
+    @property
+    def position_resolution(self) -> float:
+        """The encoder's quantum [rad] (0: none)."""
+    @position_resolution.setter
+    def position_resolution(self, value: float) -> None: ...
+    @staticmethod
+    def realistic(seed: int = ...) -> Plant:
+        """Link inertias x U(0.7, 1.3), centres of mass moved up to 1 cm, friction x U(0.5, 1.5), damping and armature x U(0.8, 1.2); readings 1 ms old with 1e-5 rad and 0.005 rad/s of noise and a 19-bit encoder; torques acting 1 ms late with 0.05 Nm of noise."""
+    @property
+    def seed(self) -> int: ...
+    @seed.setter
+    def seed(self, value: int) -> None: ...
+    @property
+    def torque_noise(self) -> float:
+        """Standard deviation [Nm] of white noise on each applied torque."""
+    @torque_noise.setter
+    def torque_noise(self, value: float) -> None: ...
+    @property
+    def velocity_noise(self) -> float:
+        """Standard deviation [rad/s] of white noise on each velocity read."""
+    @velocity_noise.setter
+    def velocity_noise(self, value: float) -> None: ...
+
+
 class SimulatedDriver:
     """A stand-in for a robot's driver: a C++ thread that steps the simulation in real time, one timestep per tick on absolute deadlines, applying the newest torque of a runtime.TorqueOutbox and publishing the measured q and dq to a runtime.MeasurementBuffer, for a runtime.ControlThread. Like a Panda on FCI, the arm is held (not stepped) until the first torque, a tick without a new torque applies the last one again, and after torque_timeout without one the arm is braked (velocity zeroed, not stepped) until torques return. While it runs the simulation is the driver's: read the arm with state(). A context manager: `with` stops it; so does dropping the last reference."""
     def __enter__(self) -> object: ...
@@ -187,7 +257,7 @@ class Simulation:
         """What a force-torque sensor in the body measures: contact_wrench() plus the contacts of every body below it (a hand's fingers on joints of their own)."""
     @property
     def dq(self) -> numpy.typing.NDArray[numpy.float64]:
-        """Joint velocities (n,) [rad/s]."""
+        """Joint velocities (n,) [rad/s] as the sensors read them."""
     @property
     def engine(self) -> str:
         """The physics engine integrating this simulation: 'mujoco' or 'dart'."""
@@ -195,11 +265,11 @@ class Simulation:
     def friction_loss(self) -> numpy.typing.NDArray[numpy.float64]:
         """Coulomb friction per joint (n,) [Nm]"""
     @staticmethod
-    def from_mjcf_file(path: str | os.PathLike, timestep: float = ..., gravity_compensation: bool = ..., keyframe: str = ..., joint_names: Optional[List[str]] = ..., multi_point_contacts: bool = ..., start_q: object = ..., armature: object = ..., engine: str = ..., boxes_for_missing_meshes: bool = ...) -> Simulation:
-        """Loads an MJCF file (e.g. models/panda/panda.xml); each joint is driven by its <motor>, or through qfrc_applied without one. Options: timestep [s] (replaces the model's); gravity_compensation: each joint receives tau + g(q), as robot firmware does; keyframe to reset to ('' or missing: the model's default qpos); joint_names: order of q, dq and tau (default: the model's hinge and slide joints); multi_point_contacts: steadier face-on-face contact forces; start_q: joint positions (n,) [rad or m] to start from and reset() to, instead of the keyframe, each checked against its joint's range; armature: rotor inertia per joint (n,) or one value for all [kg m^2], replacing the model's (use the same for the controller's dynamics.armature); engine: the physics engine, 'mujoco' or 'dart' (DART needs the robot from URDF; see engine_available()); boxes_for_missing_meshes: a URDF link whose collision mesh cannot be found or read is simulated as the box of its inertia (listed in warnings) instead of refusing the URDF."""
+    def from_mjcf_file(path: str | os.PathLike, timestep: float = ..., gravity_compensation: bool = ..., keyframe: str = ..., joint_names: Optional[List[str]] = ..., multi_point_contacts: bool = ..., start_q: object = ..., armature: object = ..., engine: str = ..., boxes_for_missing_meshes: bool = ..., plant: object = ...) -> Simulation:
+        """Loads an MJCF file (e.g. models/panda/panda.xml); each joint is driven by its <motor>, or through qfrc_applied without one. Options: timestep [s] (replaces the model's); gravity_compensation: each joint receives tau + g(q), as robot firmware does; keyframe to reset to ('' or missing: the model's default qpos); joint_names: order of q, dq and tau (default: the model's hinge and slide joints); multi_point_contacts: steadier face-on-face contact forces; start_q: joint positions (n,) [rad or m] to start from and reset() to, instead of the keyframe, each checked against its joint's range; armature: rotor inertia per joint (n,) or one value for all [kg m^2], replacing the model's (use the same for the controller's dynamics.armature); engine: the physics engine, 'mujoco' or 'dart' (DART needs the robot from URDF; see engine_available()); boxes_for_missing_meshes: a URDF link whose collision mesh cannot be found or read is simulated as the box of its inertia (listed in warnings) instead of refusing the URDF; plant: 'nominal' (the model itself, read at once and exactly), 'realistic' (Plant.realistic()) or a Plant: model error, delays and noise."""
     @staticmethod
-    def from_urdf_file(path: str | os.PathLike, timestep: float = ..., gravity_compensation: bool = ..., keyframe: str = ..., joint_names: Optional[List[str]] = ..., multi_point_contacts: bool = ..., start_q: object = ..., armature: object = ..., engine: str = ..., boxes_for_missing_meshes: bool = ..., model: cartesian_impedance.RobotModel = ...) -> Simulation:
-        """Loads a URDF with MuJoCo's importer (no actuators, no floor, no keyframe). model: the controller's RobotModel of this URDF; with it, the simulation exchanges model.joint_names (unless joint_names is given) and, without start_q, starts and resets at cartesian_impedance.find_start_configuration(model)['q'] instead of q = 0 (which is singular on most arms). Options: timestep [s] (replaces the model's); gravity_compensation: each joint receives tau + g(q), as robot firmware does; keyframe to reset to ('' or missing: the model's default qpos); joint_names: order of q, dq and tau (default: the model's hinge and slide joints); multi_point_contacts: steadier face-on-face contact forces; start_q: joint positions (n,) [rad or m] to start from and reset() to, instead of the keyframe, each checked against its joint's range; armature: rotor inertia per joint (n,) or one value for all [kg m^2], replacing the model's (use the same for the controller's dynamics.armature); engine: the physics engine, 'mujoco' or 'dart' (DART needs the robot from URDF; see engine_available()); boxes_for_missing_meshes: a URDF link whose collision mesh cannot be found or read is simulated as the box of its inertia (listed in warnings) instead of refusing the URDF."""
+    def from_urdf_file(path: str | os.PathLike, timestep: float = ..., gravity_compensation: bool = ..., keyframe: str = ..., joint_names: Optional[List[str]] = ..., multi_point_contacts: bool = ..., start_q: object = ..., armature: object = ..., engine: str = ..., boxes_for_missing_meshes: bool = ..., plant: object = ..., model: cartesian_impedance.RobotModel = ...) -> Simulation:
+        """Loads a URDF with MuJoCo's importer (no actuators, no floor, no keyframe). model: the controller's RobotModel of this URDF; with it, the simulation exchanges model.joint_names (unless joint_names is given) and, without start_q, starts and resets at cartesian_impedance.find_start_configuration(model)['q'] instead of q = 0 (which is singular on most arms). Options: timestep [s] (replaces the model's); gravity_compensation: each joint receives tau + g(q), as robot firmware does; keyframe to reset to ('' or missing: the model's default qpos); joint_names: order of q, dq and tau (default: the model's hinge and slide joints); multi_point_contacts: steadier face-on-face contact forces; start_q: joint positions (n,) [rad or m] to start from and reset() to, instead of the keyframe, each checked against its joint's range; armature: rotor inertia per joint (n,) or one value for all [kg m^2], replacing the model's (use the same for the controller's dynamics.armature); engine: the physics engine, 'mujoco' or 'dart' (DART needs the robot from URDF; see engine_available()); boxes_for_missing_meshes: a URDF link whose collision mesh cannot be found or read is simulated as the box of its inertia (listed in warnings) instead of refusing the URDF; plant: 'nominal' (the model itself, read at once and exactly), 'realistic' (Plant.realistic()) or a Plant: model error, delays and noise."""
     def has_collision_geometry(self, body: str) -> bool:
         """Whether the body or a body welded to it has collision geometry (a URDF link without <collision> has none: nothing presses on it)."""
     @property
@@ -213,7 +283,7 @@ class Simulation:
         """Applies wrench [force; torque] (6,) [N; Nm], world frame, at the origin of the named site (or body) for `duration` [s] of simulated time from the next step (default: until clear_pushes()). The point moves with the body; pushes add up."""
     @property
     def q(self) -> numpy.typing.NDArray[numpy.float64]:
-        """Joint positions (n,) [rad]."""
+        """Joint positions (n,) [rad] as the sensors read them (the plant's delay and noise)."""
     def render_png(self, path: str | os.PathLike, width: int = ..., height: int = ..., camera: str = ...) -> None:
         """Renders offscreen (EGL) to an RGB PNG of width x height pixels; camera: an MJCF camera name, '' = a free camera from the robot's right. Releases the GIL."""
     def reset(self) -> None:
@@ -247,6 +317,12 @@ class Simulation:
         """(n,) [Nm]; +inf without a limited actuator"""
     def track_contact_wrench(self, body: str) -> None:
         """From now on every step (also inside run() and BatchRunner.run()) adds the body's contact_wrench after it; take_mean_contact_wrench() gives the mean. One body at a time; '' stops. Raises Error for an unknown body."""
+    @property
+    def true_dq(self) -> numpy.typing.NDArray[numpy.float64]:
+        """The joints' actual velocities (n,) [rad/s]."""
+    @property
+    def true_q(self) -> numpy.typing.NDArray[numpy.float64]:
+        """The joints' actual positions (n,) [rad] (q for the nominal plant)."""
     @property
     def warnings(self) -> List[str]:
         """What the loading changed in the robot's description (list of str; meshes replaced by boxes). Inertias repaired alike in the model are in RobotModel.warnings."""
@@ -301,12 +377,12 @@ def hole_boxes(hole: SquareHole) -> List[Box]:
     """The static boxes (list of Box) of the block around a SquareHole: four walls and, unless hole.floor is 0, a floor; for make_scene()."""
 
 
-def make_peg_in_hole_scene(robot: str | os.PathLike, flange: str, hole: SquareHole, peg_length: float = ..., peg_mass: float = ..., peg_name: str = ..., timestep: float = ..., gravity_compensation: bool = ..., keyframe: str = ..., joint_names: Optional[List[str]] = ..., multi_point_contacts: bool = ..., start_q: object = ..., armature: object = ..., engine: str = ..., boxes_for_missing_meshes: bool = ...) -> Simulation:
-    """The robot (URDF: MuJoCo or DART; MJCF: MuJoCo) holding a square peg of 2 hole.peg_half_width x 2 hole.peg_half_width x peg_length [m] and peg_mass [kg] along the flange body's z axis from its origin (the tip at (0, 0, peg_length) in the flange frame, the sides along its x and y), named peg_name, with the block of the SquareHole `hole` in the world. The simulated firmware does not compensate the peg's weight: declare it to the controller as payload.mass = peg_mass, payload.center_of_mass = (0, 0, peg_length / 2). Options: timestep [s] (replaces the model's); gravity_compensation: each joint receives tau + g(q), as robot firmware does; keyframe to reset to ('' or missing: the model's default qpos); joint_names: order of q, dq and tau (default: the model's hinge and slide joints); multi_point_contacts: steadier face-on-face contact forces; start_q: joint positions (n,) [rad or m] to start from and reset() to, instead of the keyframe, each checked against its joint's range; armature: rotor inertia per joint (n,) or one value for all [kg m^2], replacing the model's (use the same for the controller's dynamics.armature); engine: the physics engine, 'mujoco' or 'dart' (DART needs the robot from URDF; see engine_available()); boxes_for_missing_meshes: a URDF link whose collision mesh cannot be found or read is simulated as the box of its inertia (listed in warnings) instead of refusing the URDF."""
+def make_peg_in_hole_scene(robot: str | os.PathLike, flange: str, hole: SquareHole, peg_length: float = ..., peg_mass: float = ..., peg_name: str = ..., timestep: float = ..., gravity_compensation: bool = ..., keyframe: str = ..., joint_names: Optional[List[str]] = ..., multi_point_contacts: bool = ..., start_q: object = ..., armature: object = ..., engine: str = ..., boxes_for_missing_meshes: bool = ..., plant: object = ...) -> Simulation:
+    """The robot (URDF: MuJoCo or DART; MJCF: MuJoCo) holding a square peg of 2 hole.peg_half_width x 2 hole.peg_half_width x peg_length [m] and peg_mass [kg] along the flange body's z axis from its origin (the tip at (0, 0, peg_length) in the flange frame, the sides along its x and y), named peg_name, with the block of the SquareHole `hole` in the world. The simulated firmware does not compensate the peg's weight: declare it to the controller as payload.mass = peg_mass, payload.center_of_mass = (0, 0, peg_length / 2). Options: timestep [s] (replaces the model's); gravity_compensation: each joint receives tau + g(q), as robot firmware does; keyframe to reset to ('' or missing: the model's default qpos); joint_names: order of q, dq and tau (default: the model's hinge and slide joints); multi_point_contacts: steadier face-on-face contact forces; start_q: joint positions (n,) [rad or m] to start from and reset() to, instead of the keyframe, each checked against its joint's range; armature: rotor inertia per joint (n,) or one value for all [kg m^2], replacing the model's (use the same for the controller's dynamics.armature); engine: the physics engine, 'mujoco' or 'dart' (DART needs the robot from URDF; see engine_available()); boxes_for_missing_meshes: a URDF link whose collision mesh cannot be found or read is simulated as the box of its inertia (listed in warnings) instead of refusing the URDF; plant: 'nominal' (the model itself, read at once and exactly), 'realistic' (Plant.realistic()) or a Plant: model error, delays and noise."""
 
 
-def make_scene(robot_mjcf: str | os.PathLike, boxes: List[Box], timestep: float = ..., gravity_compensation: bool = ..., keyframe: str = ..., joint_names: Optional[List[str]] = ..., multi_point_contacts: bool = ..., start_q: object = ..., armature: object = ..., engine: str = ..., boxes_for_missing_meshes: bool = ..., attached: List[AttachedBox] = ...) -> Simulation:
-    """Loads the robot file (MJCF, or URDF as from_urdf_file() completes it) with the boxes (a list of Box) added to its world and the attached boxes (a list of AttachedBox) fixed to its bodies, writing no file. Options: timestep [s] (replaces the model's); gravity_compensation: each joint receives tau + g(q), as robot firmware does; keyframe to reset to ('' or missing: the model's default qpos); joint_names: order of q, dq and tau (default: the model's hinge and slide joints); multi_point_contacts: steadier face-on-face contact forces; start_q: joint positions (n,) [rad or m] to start from and reset() to, instead of the keyframe, each checked against its joint's range; armature: rotor inertia per joint (n,) or one value for all [kg m^2], replacing the model's (use the same for the controller's dynamics.armature); engine: the physics engine, 'mujoco' or 'dart' (DART needs the robot from URDF; see engine_available()); boxes_for_missing_meshes: a URDF link whose collision mesh cannot be found or read is simulated as the box of its inertia (listed in warnings) instead of refusing the URDF."""
+def make_scene(robot_mjcf: str | os.PathLike, boxes: List[Box], timestep: float = ..., gravity_compensation: bool = ..., keyframe: str = ..., joint_names: Optional[List[str]] = ..., multi_point_contacts: bool = ..., start_q: object = ..., armature: object = ..., engine: str = ..., boxes_for_missing_meshes: bool = ..., plant: object = ..., attached: List[AttachedBox] = ...) -> Simulation:
+    """Loads the robot file (MJCF, or URDF as from_urdf_file() completes it) with the boxes (a list of Box) added to its world and the attached boxes (a list of AttachedBox) fixed to its bodies, writing no file. Options: timestep [s] (replaces the model's); gravity_compensation: each joint receives tau + g(q), as robot firmware does; keyframe to reset to ('' or missing: the model's default qpos); joint_names: order of q, dq and tau (default: the model's hinge and slide joints); multi_point_contacts: steadier face-on-face contact forces; start_q: joint positions (n,) [rad or m] to start from and reset() to, instead of the keyframe, each checked against its joint's range; armature: rotor inertia per joint (n,) or one value for all [kg m^2], replacing the model's (use the same for the controller's dynamics.armature); engine: the physics engine, 'mujoco' or 'dart' (DART needs the robot from URDF; see engine_available()); boxes_for_missing_meshes: a URDF link whose collision mesh cannot be found or read is simulated as the box of its inertia (listed in warnings) instead of refusing the URDF; plant: 'nominal' (the model itself, read at once and exactly), 'realistic' (Plant.realistic()) or a Plant: model error, delays and noise."""
 
 
 def offscreen_rendering_available() -> Tuple[bool, str]:

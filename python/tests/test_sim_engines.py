@@ -131,3 +131,34 @@ def test_missing_meshes_are_refused_or_simulated_as_boxes_when_asked(engine, tmp
     assert simulation.has_collision_geometry("link_3")
     with pytest.raises(ci.Error, match="no_such_link"):
         simulation.has_collision_geometry("no_such_link")
+
+
+def test_a_realistic_plant_reads_late_and_noisy_and_a_nominal_one_exactly():
+    nominal = ci.sim.Simulation.from_mjcf_file(PANDA_XML)
+    realistic = ci.sim.Simulation.from_mjcf_file(PANDA_XML, plant="realistic")
+    for _ in range(50):
+        for s in (nominal, realistic):
+            s.set_torque(np.full(7, 0.5))
+            s.step()
+    assert np.array_equal(nominal.q, nominal.true_q)
+    assert not np.array_equal(realistic.dq, realistic.true_dq)
+    # 0.005 rad/s of noise on each reading: far below 0.1 rad/s, far above round-off
+    assert 1e-4 < np.max(np.abs(realistic.dq - realistic.true_dq)) < 0.1
+
+
+def test_a_plant_is_configured_field_by_field_and_checked_by_the_loader():
+    plant = ci.sim.Plant.realistic(seed=5)
+    assert plant.seed == 5 and plant.inertia == (0.7, 1.3) and not plant.nominal
+    assert ci.sim.Plant().nominal
+    plant = ci.sim.Plant()
+    plant.measurement_delay = 0.002
+    s = ci.sim.Simulation.from_mjcf_file(PANDA_XML, plant=plant)
+    start = s.true_q.copy()
+    s.set_torque(np.full(7, 1.0))
+    s.step()
+    assert np.array_equal(s.q, start)  # the reading is two steps old
+    plant.inertia = (1.2, 0.8)
+    with pytest.raises(ci.Error, match=r"SimulationOptions.plant.inertia = \[1.2, 0.8\]"):
+        ci.sim.Simulation.from_mjcf_file(PANDA_XML, plant=plant)
+    with pytest.raises(ci.Error, match=r"plant 'noisy' is not known \(valid: nominal, realistic\)"):
+        ci.sim.Simulation.from_mjcf_file(PANDA_XML, plant="noisy")

@@ -310,6 +310,20 @@ DartPhysics::DartPhysics(const UrdfScene& scene, const Simulation::Impl& impl)
     std::vector<int>& welds = welds_up_[bodies_[static_cast<std::size_t>(body)]];
     for (int up = body; up > 0; up = m->body_parentid[up]) welds.push_back(m->body_weldid[up]);
   }
+  // A plant's model error (SimulationOptions::plant) is drawn once, into the MuJoCo model: the
+  // same links get the same mass, centre of mass and inertia here (both keep the URDF's link
+  // frames as body frames).
+  for (const int body : impl.perturbed_bodies) {
+    const mjtNum* turn = m->body_iquat + 4 * body;
+    const Eigen::Matrix3d axes =
+        Eigen::Quaterniond(turn[0], turn[1], turn[2], turn[3]).toRotationMatrix();
+    const Eigen::Vector3d moments(m->body_inertia[3 * body], m->body_inertia[3 * body + 1],
+                                  m->body_inertia[3 * body + 2]);
+    const Eigen::Vector3d center(m->body_ipos[3 * body], m->body_ipos[3 * body + 1],
+                                 m->body_ipos[3 * body + 2]);
+    bodies_[static_cast<std::size_t>(body)]->setInertia(
+        dd::Inertia(m->body_mass[body], center, axes * moments.asDiagonal() * axes.transpose()));
+  }
 
   exchanged_.resize(impl.joint_ids.size());
   for (int joint = 0; joint < m->njnt; ++joint) {

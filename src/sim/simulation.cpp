@@ -300,11 +300,20 @@ Simulation load_simulation(const std::string& path, const mjVFS* vfs, const std:
       }
     }
   }
+  detail::check_plant(options.plant);
+  if (!options.plant.nominal()) {
+    std::vector<int> exact_bodies;
+    for (const std::string& name : uncompensated_bodies) {
+      exact_bodies.push_back(mj_name2id(model, mjOBJ_BODY, name.c_str()));
+    }
+    impl->perturbed_bodies = perturb_model(model, joints, exact_bodies, options.plant);
+    mj_setConst(model, impl->data.get());
+  }
+  impl->plant.configure(options.plant, model->opt.timestep, n);
   impl->options = std::move(options);
   impl->pushes.reserve(16);
-  impl->q = JointVector::Zero(n);
-  impl->dq = JointVector::Zero(n);
-  impl->tau = JointVector::Zero(n);
+  impl->q = impl->dq = impl->true_q = impl->true_dq = JointVector::Zero(n);
+  impl->tau = impl->tau_command = JointVector::Zero(n);
   impl->reset();
   if (impl->options.engine == Engine::dart) impl->physics = make_dart_physics(*urdf_scene, *impl);
   return Simulation(std::move(impl));
@@ -327,21 +336,24 @@ void Simulation::Impl::reset() {
     d->qpos[qpos_address[i]] = options.start_q[static_cast<Eigen::Index>(i)];
   }
   tau.setZero();
+  tau_command.setZero();
   pushes.clear();
   tracked_sum.setZero();
   tracked_steps = 0;
   mj_forward(m, d);
   kinematics_current = true;
   if (physics) physics->set_state(*this);
-  read_state();
+  read_state(true);
 }
 
-void Simulation::Impl::read_state() noexcept {
+void Simulation::Impl::read_state(bool restart, bool reseed) noexcept {
   const mjData* d = data.get();
   for (std::size_t i = 0; i < joint_ids.size(); ++i) {
-    q[static_cast<Eigen::Index>(i)] = d->qpos[qpos_address[i]];
-    dq[static_cast<Eigen::Index>(i)] = d->qvel[dof_address[i]];
+    true_q[static_cast<Eigen::Index>(i)] = d->qpos[qpos_address[i]];
+    true_dq[static_cast<Eigen::Index>(i)] = d->qvel[dof_address[i]];
   }
+  if (restart) plant.restart(true_q, true_dq, reseed);
+  plant.measure(true_q, true_dq, q, dq);
 }
 
 void Simulation::Impl::update_kinematics() const noexcept {
@@ -489,6 +501,12 @@ const JointVector& Simulation::q() const noexcept {
 const JointVector& Simulation::dq() const noexcept {
   return impl_->dq;
 }
+const JointVector& Simulation::true_q() const noexcept {
+  return impl_->true_q;
+}
+const JointVector& Simulation::true_dq() const noexcept {
+  return impl_->true_dq;
+}
 const JointVector& Simulation::torque() const noexcept {
   return impl_->tau;
 }
@@ -560,7 +578,7 @@ void Simulation::set_state(const JointVector& q, const JointVector& dq) {
   mj_forward(s.model.get(), d);
   s.kinematics_current = true;
   if (s.physics) s.physics->set_state(s);
-  s.read_state();
+  s.read_state(true, false);
 }
 
 void Simulation::reset() {
@@ -570,14 +588,19 @@ void Simulation::reset() {
 bool Simulation::set_torque(const JointVector& tau) {
   Impl& s = *impl_;
   check_joint_vector(tau, num_joints(), "tau", s.joint_names);
-  s.tau = tau.cwiseMax(s.tau_lower).cwiseMin(s.tau_upper);
-  return s.tau != tau;
+  s.tau_command = tau.cwiseMax(s.tau_lower).cwiseMin(s.tau_upper);
+  if (!s.plant.actuates()) s.tau = s.tau_command;
+  return s.tau_command != tau;
 }
 
 void Simulation::step() noexcept {
   Impl& s = *impl_;
   const mjModel* m = s.model.get();
   mjData* d = s.data.get();
+  if (s.plant.actuates()) {
+    s.plant.actuate(s.tau_command, s.tau);
+    s.tau = s.tau.cwiseMax(s.tau_lower).cwiseMin(s.tau_upper);
+  }
   if (s.physics) {
     s.physics->step(s);
   } else if (m->opt.integrator == mjINT_RK4) {

@@ -11,6 +11,7 @@
 
 #include "cartesian_impedance/core/error.hpp"
 #include "cartesian_impedance/sim/simulation.hpp"
+#include "plant_state.hpp"
 #include "renderer.hpp"
 
 namespace tinyxml2 {
@@ -180,9 +181,13 @@ struct Simulation::Impl {
   std::vector<int> actuator_ids;  // -1: torque through qfrc_applied
   JointVector ctrl_per_torque;    // ctrl = tau * ctrl_per_torque for actuated joints
 
-  JointVector q, dq;
-  JointVector tau;                   // applied commanded torque (after clipping)
-  JointVector tau_lower, tau_upper;  // joint torque range
+  JointVector q, dq;                  // what the sensors read (the plant's delay and noise)
+  JointVector true_q, true_dq;        // the engine's state
+  JointVector tau;                    // torque acting in the next step (after clipping)
+  JointVector tau_command;            // what set_torque() was given last (after clipping)
+  JointVector tau_lower, tau_upper;   // joint torque range
+  detail::PlantState plant;           // delays and noise between the engine and the controller
+  std::vector<int> perturbed_bodies;  // bodies whose inertia the plant changed
 
   std::vector<Push> pushes;
   // (exchanged joint, attached body) for every attached body in that joint's subtree: the
@@ -203,7 +208,9 @@ struct Simulation::Impl {
   mutable detail::DataPtr ghost_data;  // kinematics of a render's ghost, made when first needed
 
   void reset();
-  void read_state() noexcept;
+  // The engine's state into true_q, true_dq and through the plant into q, dq; `restart`: every
+  // delayed reading becomes this state (reset, set_state), `reseed`: the noise starts over.
+  void read_state(bool restart = false, bool reseed = true) noexcept;
   void apply_inputs() noexcept;   // needs kinematics and subtree_com of the current qpos
   void expire_pushes() noexcept;  // drops the pushes that end before the next step
   void update_kinematics() const noexcept;

@@ -22,6 +22,7 @@
 
 #include "cartesian_impedance/core/types.hpp"
 #include "cartesian_impedance/sim/engine.hpp"
+#include "cartesian_impedance/sim/plant.hpp"
 
 namespace cartesian_impedance::sim {
 
@@ -71,6 +72,9 @@ struct SimulationOptions {
   /// inertial), so that the controller can be tried before the meshes are in place. Each
   /// replacement is listed in Simulation::warnings(); a link without mass loses the geometry.
   bool boxes_for_missing_meshes = false;
+  /// How the simulated arm differs from its model and how its sensors and drives behave (model
+  /// error, delays, noise; plant.hpp). Default: the nominal plant, the model itself read at once.
+  PlantOptions plant;
 };
 
 /// An arrow drawn into a picture: a force (or any vector) acting at a point.
@@ -149,12 +153,18 @@ class Simulation {
   /// Integration step [s].
   double timestep() const noexcept;
 
-  /// Joint positions [rad or m] and velocities [rad/s or m/s], in joint_names() order.
+  /// Joint positions [rad or m] and velocities [rad/s or m/s], in joint_names() order, as the
+  /// robot's sensors report them: with a plant that is not nominal, late, noisy and quantised
+  /// (SimulationOptions::plant); what a controller reads.
   const JointVector& q() const noexcept;
   const JointVector& dq() const noexcept;
+  /// The joints' actual positions and velocities (what q() and dq() are for the nominal plant).
+  const JointVector& true_q() const noexcept;
+  const JointVector& true_dq() const noexcept;
 
   /// Sets positions and velocities of the exchanged joints (other degrees of freedom keep theirs)
-  /// and recomputes every derived quantity (poses, contacts). Time is not changed.
+  /// and recomputes every derived quantity (poses, contacts). Time is not changed. A plant's
+  /// delayed readings all become this state, as if the arm had rested there.
   /// @throw Error on a wrong size or a non-finite value (nothing is changed then).
   void set_state(const JointVector& q, const JointVector& dq);
 
@@ -168,8 +178,9 @@ class Simulation {
   /// @throw Error on a wrong size or a non-finite value (the previous torque stays then).
   bool set_torque(const JointVector& tau);
 
-  /// The commanded torque actually applied, after clipping [Nm or N] (without gravity
-  /// compensation).
+  /// The commanded torque acting in the next step, after clipping [Nm or N] (without gravity
+  /// compensation); with a plant's actuation delay and torque noise, the one set that many steps
+  /// before, with the noise of the last step.
   const JointVector& torque() const noexcept;
   /// Torque range per joint [Nm or N]; -inf/+inf where the joint has no limited actuator.
   const JointVector& torque_lower_limits() const noexcept;

@@ -1,0 +1,52 @@
+#pragma once
+// Internal to the sim target: the plant between the engine and the controller (plant.hpp).
+
+#include <mujoco/mujoco.h>
+
+#include <cstddef>
+#include <random>
+#include <vector>
+
+#include "cartesian_impedance/core/types.hpp"
+#include "cartesian_impedance/sim/plant.hpp"
+
+namespace cartesian_impedance::sim::detail {
+
+/// @throw Error naming the field of `plant` that is out of its range, and the value.
+void check_plant(const PlantOptions& plant);
+
+/// Writes the model error of `plant` into `m` (after its joints' armature, damping and friction
+/// are final): each moving link below one of `joint_ids` (except `exact_bodies`) gets its mass
+/// and inertia scaled and its centre of mass moved, each of those joints its friction, damping
+/// and armature scaled. Returns the bodies changed, for an engine that copies them.
+std::vector<int> perturb_model(mjModel* m, const std::vector<int>& joint_ids,
+                               const std::vector<int>& exact_bodies, const PlantOptions& plant);
+
+/// The sensors and drives: delay lines sized once by configure(), so that a step allocates
+/// nothing.
+class PlantState {
+ public:
+  void configure(const PlantOptions& plant, double timestep, int joints);
+  /// Every delayed reading becomes (q, dq), no torque is pending; `reseed` restarts the noise.
+  void restart(const JointVector& q, const JointVector& dq, bool reseed);
+  /// Takes in the state after a step; q and dq receive the reading.
+  void measure(const JointVector& true_q, const JointVector& true_dq, JointVector& q,
+               JointVector& dq) noexcept;
+  /// Takes in this step's command; tau receives what acts in this step.
+  void actuate(const JointVector& command, JointVector& tau) noexcept;
+  /// Whether actuate() changes anything (else the command acts as it is, at once).
+  bool actuates() const noexcept { return actuates_; }
+
+ private:
+  PlantOptions plant_;
+  int measurement_steps_ = 0;
+  int actuation_steps_ = 0;
+  bool senses_ = false;
+  bool actuates_ = false;
+  std::vector<JointVector> q_ring_, dq_ring_, tau_ring_;
+  std::size_t q_head_ = 0, tau_head_ = 0;
+  std::mt19937_64 random_;
+  std::normal_distribution<double> normal_{0.0, 1.0};
+};
+
+}  // namespace cartesian_impedance::sim::detail
