@@ -66,7 +66,7 @@ RobotSetup with_engine(RobotSetup robot, sim::Engine engine) {
         RobotModel::from_urdf_file(robot.urdf, robot.base_link, robot.tip_link);
     sim::SimulationOptions options;
     options.joint_names = model.joint_names();
-    robot.start_q = sim::Simulation::from_mjcf_file(robot.mjcf, options).q();
+    robot.start_q = sim::Simulation::from_mjcf_file(robot.mjcf, options).true_q();
   }
   robot.mjcf.clear();
   robot.flange = robot.tip_link;
@@ -204,7 +204,7 @@ void Rig::view(double azimuth, double elevation) {
 }
 
 void Rig::remember_pose(const std::string& what) {
-  ghost_q_ = sim_.q();
+  ghost_q_ = sim_.true_q();
   ghost_what_ = what;
 }
 
@@ -312,7 +312,7 @@ void Rig::run(double seconds) {
       sample.contact = contact_force();
       sample.wrench = state.controller.wrench_base.head<3>();
       sample.commanded_wrench = state.controller.commanded.wrench.head<3>();
-      sample.q = sim_.q();
+      sample.q = sim_.true_q();
       sample.nullspace_target = state.controller.filtered.nullspace_q;
       sample.commanded_nullspace_target = state.controller.commanded.nullspace_q;
       sample.tau = tau;

@@ -83,7 +83,7 @@ double linear_overshoot(Rig& rig, const Vector6d& x0, const Vector6d& direction)
   ModelWorkspace workspace(rig.model());
   Kinematics kinematics = workspace.make_kinematics();
   const int n = rig.model().num_joints();
-  if (!workspace.compute(rig.sim().q(), JointVector::Zero(n), kinematics, ModelTerms::all)) {
+  if (!workspace.compute(rig.sim().true_q(), JointVector::Zero(n), kinematics, ModelTerms::all)) {
     return 0.0;
   }
   const Parameters parameters = rig.loop().latest_parameters();
@@ -156,7 +156,7 @@ std::string flange_without_geometry(Rig& rig, const RobotSetup& robot) {
 Eigen::MatrixXd jacobian_now(Rig& rig) {
   ModelWorkspace workspace(rig.model());
   Kinematics kinematics = workspace.make_kinematics();
-  workspace.compute(rig.sim().q(), rig.sim().dq(), kinematics);
+  workspace.compute(rig.sim().true_q(), rig.sim().true_dq(), kinematics);
   return kinematics.jacobian;
 }
 
@@ -173,7 +173,7 @@ Capacity capacity(Rig& rig) {
   const int n = model.num_joints();
   ModelWorkspace workspace(model);
   Kinematics kinematics = workspace.make_kinematics();
-  result.q = rig.sim().q();
+  result.q = rig.sim().true_q();
   workspace.compute(result.q, JointVector::Zero(n), kinematics, true);
   result.reach = kinematics.pose.position.norm();
   result.jacobian = kinematics.jacobian;
@@ -353,7 +353,7 @@ void run_measured(Rig& rig, double seconds, const std::function<void(double spee
 double mass_along(Rig& rig, const Eigen::Vector3d& direction) {
   ModelWorkspace workspace(rig.model());
   Kinematics kinematics = workspace.make_kinematics();
-  workspace.compute(rig.sim().q(), rig.sim().dq(), kinematics, true);
+  workspace.compute(rig.sim().true_q(), rig.sim().true_dq(), kinematics, true);
   JointMatrix mass = kinematics.mass;
   mass.diagonal() += rig.sim().armature();
   const Eigen::MatrixXd& jacobian = kinematics.jacobian;
@@ -396,7 +396,7 @@ Move reachable_move(Rig& rig, double longest) {
       for (const double sense : {inward, -inward}) {
         Pose target = start;
         target.position[axis] += sense * length;
-        if (const auto goal = reach(rig.model(), rig.sim().q(), target, 0.1)) {
+        if (const auto goal = reach(rig.model(), rig.sim().true_q(), target, 0.1)) {
           return {sense * Eigen::Vector3d::Unit(axis), length, *goal};
         }
       }

@@ -24,7 +24,7 @@ double creep_speed(Rig& rig) {
   const int n = rig.model().num_joints();
   ModelWorkspace workspace(rig.model());
   Kinematics kinematics = workspace.make_kinematics();
-  workspace.compute(rig.sim().q(), JointVector::Zero(n), kinematics, true);
+  workspace.compute(rig.sim().true_q(), JointVector::Zero(n), kinematics, true);
   const JointMatrix mass = kinematics.mass + JointMatrix(rig.sim().armature().asDiagonal());
   const JointVector inverse_diagonal = mass.inverse().diagonal();
   const JointVector friction = rig.sim().friction_loss();
@@ -440,7 +440,7 @@ const sim::Box* first_table_only_the_flange_meets(const RobotSetup& robot,
   const auto fits = std::find_if(candidates.begin(), candidates.end(), [&](const sim::Box& box) {
     Rig check(geometry, parameters, {box});
     for (int k = 0; k <= 4; ++k) {
-      check.sim().set_state(probe.sim().q() + step_down * (k / 4.0),
+      check.sim().set_state(probe.sim().true_q() + step_down * (k / 4.0),
                             JointVector::Zero(probe.model().num_joints()));
       if (other_link_touches(check)) return false;
     }
@@ -583,7 +583,7 @@ Outcome nullspace(const RobotSetup& robot, const MomentCallback& moment) {
   }
   rig.run(0.2);
   const Pose start = rig.flange();
-  const JointVector q_start = rig.sim().q();
+  const JointVector q_start = rig.sim().true_q();
   // A self-motion: along the Jacobian's null space (for the Panda and the iiwa mostly the first
   // joint turning the arm about the vertical and the third, the elbow's rotation, countering
   // it), 0.3 rad on the joint that moves most.
@@ -618,7 +618,7 @@ Outcome nullspace(const RobotSetup& robot, const MomentCallback& moment) {
     rig.run(0.01);
     worst = std::max(worst, (rig.flange().position - start.position).norm());
   }
-  const double elbow = (rig.sim().q() - q_start).norm();
+  const double elbow = (rig.sim().true_q() - q_start).norm();
   notify(moment, "elbow moved", rig,
          {format("the joints moved %.2f rad toward the new nullspace target; the flange stayed "
                  "within %.1f mm",
@@ -677,7 +677,7 @@ Outcome teaching(const RobotSetup& robot, const MomentCallback& moment) {
   // The linear prediction of the coast, from the state at the release.
   ModelWorkspace workspace(rig.model());
   Kinematics kinematics = workspace.make_kinematics();
-  workspace.compute(rig.sim().q(), rig.sim().dq(), kinematics, true);
+  workspace.compute(rig.sim().true_q(), rig.sim().true_dq(), kinematics, true);
   JointMatrix mass = kinematics.mass;
   mass.diagonal() += per_joint(parameters.dynamics.armature, rig.model().num_joints());
   // Lambda = (J M^-1 J^T)^+: the pseudo-inverse also serves a chain that moves in fewer than
@@ -686,7 +686,7 @@ Outcome teaching(const RobotSetup& robot, const MomentCallback& moment) {
   const Matrix6d inertia = Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(
                                jacobian * mass.ldlt().solve(jacobian.transpose()))
                                .pseudoInverse();
-  const Vector6d twist = kinematics.jacobian * rig.sim().dq();
+  const Vector6d twist = kinematics.jacobian * rig.sim().true_dq();
   Vector6d damping_inverse;
   damping_inverse << Eigen::Vector3d::Constant(1.0 / parameters.minimum_damping.translation),
       Eigen::Vector3d::Constant(1.0 / parameters.minimum_damping.rotation);

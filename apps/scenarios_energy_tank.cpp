@@ -100,14 +100,14 @@ ScheduleRun run_schedule(const RobotSetup& robot, Parameters parameters, int axi
   double previous_error = -1.0, earlier_error = -1.0, lowest = kForever;
   Pose previous_pose;
   Matrix6d previous_stiffness = Matrix6d::Zero();
-  JointVector previous_q = rig.sim().q();
+  JointVector previous_q = rig.sim().true_q();
   JointVector previous_other = JointVector::Zero(n);
   bool pictured = false;
   const int steps = static_cast<int>(std::lround(kScheduleTime / kDt));
   for (int k = 0; k <= steps; ++k) {
     const ControllerState& state = rig.loop().state().controller;  // the newest snapshot
-    const JointVector& q = rig.sim().q();
-    const JointVector& dq = rig.sim().dq();
+    const JointVector& q = rig.sim().true_q();
+    const JointVector& dq = rig.sim().true_dq();
     const double error = (state.pose.position - reference.position).norm();
     if (k == 0) run.initial_error = error;
     run.peak_error = std::max(run.peak_error, error);

@@ -295,7 +295,7 @@ void speed_cap(const RobotSetup& robot, Outcome& outcome, const MomentCallback& 
                      1e3 * travel.length, stiffness, run.peak, cap)});
     }
     run.error = (rig.flange().position - target.position).norm();
-    run.joint_speed = rig.sim().dq().norm();
+    run.joint_speed = rig.sim().true_dq().norm();
     return run;
   };
   const Run free_jump = jump_to(0.0);
@@ -311,7 +311,7 @@ void speed_cap(const RobotSetup& robot, Outcome& outcome, const MomentCallback& 
   // reference is not held back, but its velocity, which the damper pulls toward, is. Cosine-
   // shaped, its peak speed is about pi / 2 x the distance / the duration; no joint faster than
   // half its URDF limit, and where that makes it slower, a cap of half its speed.
-  const JointVector start_q = probe.sim().q();
+  const JointVector start_q = probe.sim().true_q();
   double duration = 0.5 * M_PI * travel.length / (2.0 * cap);
   for (int i = 0; i < start_q.size(); ++i) {
     duration = std::max(duration, 0.5 * M_PI * std::abs(travel.goal[i] - start_q[i]) /

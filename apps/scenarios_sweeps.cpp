@@ -53,7 +53,7 @@ Outcome trajectory(const RobotSetup& robot, const MomentCallback& moment) {
   }
   Rig rig(robot, parameters);
   rig.run(0.2);
-  const JointVector start = rig.sim().q();
+  const JointVector start = rig.sim().true_q();
   // Every joint moves 0.2-0.5 rad; one that would come within 0.2 rad of a limit goes the other
   // way, and one that has no room either way moves as far as it can.
   JointVector goal = start;
@@ -96,7 +96,7 @@ Outcome trajectory(const RobotSetup& robot, const MomentCallback& moment) {
       worst_tracking = std::max(worst_tracking, state.controller.pose_error.head<3>().norm());
     }
     if (state.trajectory.state == TrajectoryState::finished) {
-      error_when_finished = (rig.sim().q() - goal).cwiseAbs().maxCoeff();
+      error_when_finished = (rig.sim().true_q() - goal).cwiseAbs().maxCoeff();
       finish_time = state.trajectory.time;
     }
   }
@@ -188,7 +188,7 @@ Outcome stability_grid(const RobotSetup& robot, const MomentCallback&) {
       double initial = -1.0, peak = 0.0, limit_work = 0.0;
       Matrix6d stiffness = Matrix6d::Zero();
       bool limited = false;
-      JointVector dq_before = rig.sim().dq();
+      JointVector dq_before = rig.sim().true_dq();
       // 2.5 s, or 6 time constants d / K of the minimum damping against the spring where that
       // is longer (a soft grid point is overdamped by it: e^-6 leaves 0.25 % of the step). The
       // joints' own damping (the simulation's; 0.5 Nm s/rad on a URDF without <dynamics>) adds
@@ -215,12 +215,12 @@ Outcome stability_grid(const RobotSetup& robot, const MomentCallback&) {
         rig.run(kDt);
         const ControllerState& state = rig.loop().state().controller;
         const Vector6d& e = state.pose_error;
-        const JointVector& dq = rig.sim().dq();
+        const JointVector& dq = rig.sim().true_dq();
         const JointVector tau_law =
             state.tau_cartesian + state.tau_nullspace + state.tau_wrench + state.tau_gravity;
         limit_work += kDt * (state.tau - tau_law).dot(0.5 * (dq_before + dq));
         dq_before = dq;
-        workspace.compute(rig.sim().q(), dq, kinematics, true);
+        workspace.compute(rig.sim().true_q(), dq, kinematics, true);
         // The rotors' kinetic energy too: the simulated arm has them (dynamics.armature).
         const double kinetic =
             0.5 * dq.dot(kinematics.mass * dq) + 0.5 * dq.dot(armature.cwiseProduct(dq));
@@ -291,7 +291,7 @@ Outcome convergence(const RobotSetup& robot, const MomentCallback&) {
   for (int c = 0; c < cases; ++c) {
     Rig rig(robot, parameters);
     const JointLimits& limits = rig.model().limits();
-    JointVector q_target = rig.sim().q();
+    JointVector q_target = rig.sim().true_q();
     for (int i = 0; i < q_target.size(); ++i) {
       const double low = std::max(limits.position_lower[i] + 0.2, -kForever);
       const double high = std::min(limits.position_upper[i] - 0.2, kForever);
@@ -307,7 +307,7 @@ Outcome convergence(const RobotSetup& robot, const MomentCallback&) {
     bool limited = false;
     for (int k = 0; k < 100; ++k) {
       rig.run(0.01);
-      fastest = std::max(fastest, rig.sim().dq().cwiseAbs().maxCoeff());
+      fastest = std::max(fastest, rig.sim().true_dq().cwiseAbs().maxCoeff());
       limited |= rig.loop().state().controller.limits.torque_rate_limited;
     }
     fastest_late = std::max(fastest_late, fastest);
@@ -487,7 +487,7 @@ TwoArmRun run_two_arms(const ArmPair& pair, bool push_left, bool step_right,
   runner.run_for(0.5);
   result.left_start = tip(pair.left_tip);
   result.right_start = tip(pair.right_tip);
-  const JointVector q_start = sim.q();
+  const JointVector q_start = sim.true_q();
   double phase = 0.0;
   const auto record = [&](std::int64_t step) {
     if (step % 10 != 0) return;  // every 10 ms

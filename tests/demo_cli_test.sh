@@ -46,6 +46,8 @@ expect_error "the start configuration is outside the joint range (joint panda_jo
   { echo "FAIL: a URDF without --start-q:"; cat "$scratch/chosen.log"; failures=$((failures + 1)); }
 expect_error "--urdf: " --urdf "$source_dir/models/panda/panda.urdf" --base-link panda_link0 --tip-link gripper
 expect_error "--engine: engine 'bullet' is not known; the engines are: mujoco, dart (or both)" --engine bullet
+expect_error "--plant: plant 'noisy' is not known (valid: nominal, realistic)" --plant noisy
+expect_error "--plant-seed '-3' is not a whole number >= 0" --plant realistic --plant-seed -3
 # An MJCF that does not simulate the URDF's joints is a bad argument (exit 2), as in the ROS 2 node.
 expect_error "--mjcf: SimulationOptions.joint_names[0] = 'panda_joint1' is not a joint of MJCF" \
   --urdf "$source_dir/models/panda/panda.urdf" --base-link panda_link0 --tip-link panda_link8 \

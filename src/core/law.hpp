@@ -87,8 +87,10 @@ struct CartesianImpedanceController::Law {
   // velocity map of the payload's centre of mass, J_v - [r]x J_w.
   JointMatrix mass;
   Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::ColMajor, 3, kMaxJoints> payload_map;
-  // How long the end effector has been still [s], for the payload estimate.
+  // How long the end effector has been still [s], for the payload estimate, and its twist
+  // low-passed (kStillFilterTime) for that test, so that sensor noise does not read as motion.
   double still_for = 0.0;
+  Vector6d still_twist = Vector6d::Zero();
 
   // The damping must be computed anew at the next cycle (K, zeta or the mode changed).
   void forget_damping() noexcept {

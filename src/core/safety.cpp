@@ -580,8 +580,13 @@ Vector6d CartesianImpedanceController::payload_holding_wrench() const noexcept {
 void CartesianImpedanceController::estimate_payload(double dt) noexcept {
   Law& law = *law_;
   SafetyState& safety = state_.safety;
-  const bool still =
-      law.twist.head<3>().norm() < kStillSpeed && law.twist.tail<3>().norm() < kStillAngularSpeed;
+  law.still_twist += dt / (kStillFilterTime + dt) * (law.twist - law.still_twist);
+  // Motion ten times the still speeds ends the stillness at once; below that, the low-passed
+  // twist decides, so that noise does not.
+  const bool still = law.still_twist.head<3>().norm() < kStillSpeed &&
+                     law.still_twist.tail<3>().norm() < kStillAngularSpeed &&
+                     law.twist.head<3>().norm() < 10.0 * kStillSpeed &&
+                     law.twist.tail<3>().norm() < 10.0 * kStillAngularSpeed;
   if (!still) {
     law.still_for = 0.0;
     safety.payload_estimate_valid = false;
