@@ -314,6 +314,7 @@ DartPhysics::DartPhysics(const UrdfScene& scene, const Simulation::Impl& impl)
   // same links get the same mass, centre of mass and inertia here (both keep the URDF's link
   // frames as body frames).
   for (const int body : impl.perturbed_bodies) {
+    if (bodies_[static_cast<std::size_t>(body)] == nullptr) continue;  // unnamed: not DART's
     const mjtNum* turn = m->body_iquat + 4 * body;
     const Eigen::Matrix3d axes =
         Eigen::Quaterniond(turn[0], turn[1], turn[2], turn[3]).toRotationMatrix();

@@ -10,7 +10,8 @@ Generates --count arms from seeds --seed + --first, --seed + --first + 1, ... (t
 variable CI_ARM_SEED picks another base seed; --first lets two runs share one base seed without
 overlapping), adds the regression arms of tests/arms/regression/ (unless --no-regression), runs
 `cartesian_impedance_demo --urdf ... --base-link ... --tip-link ... --no-render --no-plots` on each
-with MuJoCo and on --dart of them (spread over the list) with DART, --jobs at a time. Exits 0 only
+with MuJoCo and on DART every sixth generated arm counted from the base seed (at most --dart of
+them), --jobs at a time. Exits 0 only
 if every run exits 0; otherwise prints per failing run the seed, the joints, the exit code, the
 demo's FAIL and could-not-run lines, and the commands that reproduce it. --report prints a table
 of every run and the FAIL lines per scenario instead, and exits 0 (for measurements).
@@ -42,6 +43,7 @@ sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 import generate_arm  # noqa: E402
 
 DEFAULT_SEED = 1
+DART_EVERY = 6
 REGRESSION_DIR = os.path.join(HERE, "regression")
 
 
@@ -141,9 +143,12 @@ def run_all(args):
         args.demo = os.path.abspath(args.demo)
         os.makedirs(folder, exist_ok=True)
         arms = arms_to_run(args.count, seed, folder, not args.no_regression)
-        # DART on --dart arms spread over the list (generated and regression arms alike).
-        step = max(1, len(arms) // max(1, args.dart))
-        on_dart = arms[::step][:args.dart] if args.dart > 0 else []
+        # DART on every DART_EVERY-th generated arm counted from the base seed (at most --dart),
+        # so that splitting the seeds over two runs (--first) keeps the same arms on DART.
+        first = seed - args.first
+        on_dart = [arm for arm in arms
+                   if arm[1] is not None and (arm[1] - first) % DART_EVERY == 0]
+        on_dart = on_dart[:max(0, args.dart)]
         jobs = [(arm, "mujoco") for arm in arms] + [(arm, "dart") for arm in on_dart]
         print("%d arms (seeds %d..%d and %d regression arms): %d runs on MuJoCo, %d on DART, "
               "%d at a time" % (len(arms), seed, seed + args.count - 1, len(arms) - args.count,
@@ -358,7 +363,8 @@ def main():
     parser.add_argument("--no-regression", action="store_true",
                         help="only the generated arms, not those of tests/arms/regression/")
     parser.add_argument("--dart", type=int, default=4,
-                        help="also run N of the arms, spread over the list, on DART (default 4)")
+                        help="also run at most N of the arms on DART: every sixth generated arm "
+                        "from the base seed (default 4)")
     parser.add_argument("--jobs", type=int, default=2, help="demo runs at a time (default 2)")
     parser.add_argument("--report", action="store_true",
                         help="print every run's result and the pass rates; always exit 0")

@@ -164,7 +164,8 @@ class Simulation {
 
   /// Sets positions and velocities of the exchanged joints (other degrees of freedom keep theirs)
   /// and recomputes every derived quantity (poses, contacts). Time is not changed. A plant's
-  /// delayed readings all become this state, as if the arm had rested there.
+  /// delayed readings all become this state, as if the arm had rested there, and a torque still
+  /// on its way to the joints is dropped.
   /// @throw Error on a wrong size or a non-finite value (nothing is changed then).
   void set_state(const JointVector& q, const JointVector& dq);
 
@@ -178,9 +179,10 @@ class Simulation {
   /// @throw Error on a wrong size or a non-finite value (the previous torque stays then).
   bool set_torque(const JointVector& tau);
 
-  /// The commanded torque acting in the next step, after clipping [Nm or N] (without gravity
-  /// compensation); with a plant's actuation delay and torque noise, the one set that many steps
-  /// before, with the noise of the last step.
+  /// The commanded torque on the joints, after clipping [Nm or N] (without gravity
+  /// compensation): for a plant without actuation delay and torque noise what set_torque() set
+  /// (it acts from the next step); with them, what acted in the last step (the torque set that
+  /// many steps before, with its noise).
   const JointVector& torque() const noexcept;
   /// Torque range per joint [Nm or N]; -inf/+inf where the joint has no limited actuator.
   const JointVector& torque_lower_limits() const noexcept;
