@@ -291,15 +291,22 @@ TEST(Payload, ItsMassEntersTheInertiaShapedDamping) {
   EXPECT_NEAR(controller.state().damping(0, 0), 2.0 * std::sqrt(800.0), 1e-9);
 }
 
-// Held still, what the spring carries is read as a payload: 0.8 kg at r = (0.02, -0.03, .) in
-// the base frame gives the spring force (0, 0, m g) and torque r x (0, 0, m g).
-TEST(Payload, TheEstimateExplainsTheStaticWrench) {
+// The Cartesian robot (J = I) held at `robot` by 1000 N/m and 100 Nm/rad, for the payload
+// estimate: a sag of m g / 1000 carries m.
+ci::CartesianImpedanceController payload_controller(const ci::RobotState& robot) {
   ci::Parameters p = bare();
   p.stiffness.translation.setConstant(1000.0);
   p.stiffness.rotation.setConstant(100.0);
   ci::CartesianImpedanceController controller(6, p);
-  ci::RobotState robot = cartesian_robot();
   controller.start(robot);
+  return controller;
+}
+
+// Held still, what the spring carries is read as a payload: 0.8 kg at r = (0.02, -0.03, .) in
+// the base frame gives the spring force (0, 0, m g) and torque r x (0, 0, m g).
+TEST(Payload, TheEstimateExplainsTheStaticWrench) {
+  ci::RobotState robot = cartesian_robot();
+  ci::CartesianImpedanceController controller = payload_controller(robot);
   const double mass = 0.8;
   const double weight = mass * ci::CartesianImpedanceController::kGravity;
   const Eigen::Vector3d r(0.02, -0.03, 0.0);
@@ -328,12 +335,8 @@ TEST(Payload, TheEstimateExplainsTheStaticWrench) {
 // 7 mm/s in all, above kStillSpeed) does not read as motion, and the estimate settles as it does
 // without; a real motion still ends it at once.
 TEST(Payload, NoiseInTheVelocitiesDoesNotReadAsMotion) {
-  ci::Parameters p = bare();
-  p.stiffness.translation.setConstant(1000.0);
-  p.stiffness.rotation.setConstant(100.0);
-  ci::CartesianImpedanceController controller(6, p);
   ci::RobotState robot = cartesian_robot();
-  controller.start(robot);
+  ci::CartesianImpedanceController controller = payload_controller(robot);
   const double mass = 0.8;
   robot.pose.position.z() -= mass * ci::CartesianImpedanceController::kGravity / 1000.0;
   std::mt19937 random(5);

@@ -36,9 +36,15 @@ bool exact(const Spread& spread) {
 }
 }  // namespace
 
+namespace detail {
+bool changes_model(const PlantOptions& plant) noexcept {
+  return !exact(plant.inertia) || plant.center_of_mass_offset != 0.0 || !exact(plant.friction) ||
+         !exact(plant.damping) || !exact(plant.armature);
+}
+}  // namespace detail
+
 bool PlantOptions::nominal() const noexcept {
-  return exact(inertia) && center_of_mass_offset == 0.0 && exact(friction) && exact(damping) &&
-         exact(armature) && measurement_delay == 0.0 && position_noise == 0.0 &&
+  return !detail::changes_model(*this) && measurement_delay == 0.0 && position_noise == 0.0 &&
          velocity_noise == 0.0 && position_resolution == 0.0 && actuation_delay == 0.0 &&
          torque_noise == 0.0;
 }

@@ -15,6 +15,10 @@ namespace cartesian_impedance::sim::detail {
 /// @throw Error naming the field of `plant` that is out of its range, and the value.
 void check_plant(const PlantOptions& plant);
 
+/// Whether `plant` changes the arm itself (inertias, centres of mass, joint parameters), not only
+/// how it is read and driven.
+bool changes_model(const PlantOptions& plant) noexcept;
+
 /// Writes the model error of `plant` into `m` (after its joints' armature, damping and friction
 /// are final): each moving link below one of `joint_ids` (except `exact_bodies`) gets its mass
 /// and inertia scaled and its centre of mass moved, each of those joints its friction, damping

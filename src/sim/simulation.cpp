@@ -301,11 +301,9 @@ Simulation load_simulation(const std::string& path, const mjVFS* vfs, const std:
     }
   }
   detail::check_plant(options.plant);
-  if (!options.plant.nominal()) {
-    std::vector<int> exact_bodies;
-    for (const std::string& name : uncompensated_bodies) {
-      exact_bodies.push_back(mj_name2id(model, mjOBJ_BODY, name.c_str()));
-    }
+  if (detail::changes_model(options.plant)) {
+    std::vector<int> exact_bodies;  // the attached bodies: a load the user knows
+    for (const auto& entry : impl->uncompensated) exact_bodies.push_back(entry.second);
     impl->perturbed_bodies = perturb_model(model, joints, exact_bodies, options.plant);
     mj_setConst(model, impl->data.get());
   }
