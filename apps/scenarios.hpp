@@ -116,6 +116,12 @@ class Rig {
  public:
   Rig(const RobotSetup& robot, const Parameters& parameters,
       const std::vector<sim::Box>& boxes = {});
+  /// Adds the oscillations its controller's watch found (SafetyState::oscillations) to the
+  /// count run_scenario() reports.
+  ~Rig();
+  /// The scenario drives this rig's loop unstable on purpose (a stiffness schedule pumping
+  /// without the energy tank): what the watch finds here is not counted.
+  void expect_oscillation() { oscillation_expected_ = true; }
   Rig(const Rig&) = delete;  // the runner refers to the simulation and the loop
   Rig& operator=(const Rig&) = delete;
 
@@ -173,6 +179,7 @@ class Rig {
   double rate_since_sample_ = 0.0;
   double time_ = 0.0;
   long steps_ = 0;
+  bool oscillation_expected_ = false;
 };
 
 /// Numbers a scenario measured beyond its samples (e.g. one row per stiffness of a grid), for a

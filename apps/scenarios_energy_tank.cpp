@@ -79,6 +79,7 @@ ScheduleRun run_schedule(const RobotSetup& robot, Parameters parameters, int axi
   Rig rig(robot, parameters);
   ScheduleRun run;
   run.tank = rig.loop().controller().parameters().safety.energy_tank.enabled;  // unless a mutant
+  if (!tank) rig.expect_oscillation();  // the schedule pumps: what the tank is there to stop
   const int n = rig.model().num_joints();
   rig.run(0.2);
   Pose reference = rig.loop().state().controller.filtered.pose;

@@ -399,6 +399,12 @@ void bind_states(py::module_& m) {
                     "The valid estimate differs from the declared payload (payload.mass, "
                     "filtered) by more than the tolerance: a load declared but not carried, or "
                     "carried but not declared. The compensation still follows the declaration.")
+      .def_readonly("oscillation_scale", &ci::SafetyState::oscillation_scale,
+                    "The fraction of the commanded Cartesian and nullspace stiffness the law is "
+                    "given [1/256, 1]: each sustained oscillation of the closed loop (a delay "
+                    "past the stiffness's margin) halves it, until start().")
+      .def_readonly("oscillations", &ci::SafetyState::oscillations,
+                    "Sustained oscillations found since start().")
       .def("__repr__", [](const ci::SafetyState& s) {
         return "SafetyState(drive_scale=" + ci::format_number(s.translation_drive_scale) + "/" +
                ci::format_number(s.rotation_drive_scale) +

@@ -96,6 +96,32 @@ TEST_P(AllocationFree, UpdateAllocatesNothingWithEveryFeatureOn) {
 
 INSTANTIATE_TEST_SUITE_P(Joints, AllocationFree, ::testing::Values(6, 7));
 
+// The oscillation watch through all it does: a swing of the end effector (10 Hz, 0.2 m/s along
+// x, and 1.2 rad/s about z) found and the stiffness halved eight times, the ninth failing closed,
+// the halt, and the hold once the arm is at rest.
+TEST(AllocationFree, TheOscillationWatchAllocatesNothingFromSwingToHold) {
+  std::mt19937 rng(5);
+  ci::RobotState robot = random_robot_state(7, rng);
+  const ci::JointMatrix root = ci::JointMatrix::Random(7, 7);
+  robot.mass = root * root.transpose() + ci::JointMatrix::Identity(7, 7);
+  ci::CartesianImpedanceController controller(7);
+  controller.start(robot);
+  const Eigen::MatrixXd inverse = robot.jacobian.completeOrthogonalDecomposition().pseudoInverse();
+  bool halted = false;
+  allocation_counter::Scope scope;
+  for (int k = 0; k < 6000; ++k) {
+    const double swing = std::sin(2.0 * M_PI * 10.0 * k * 0.001);
+    const ci::Vector6d twist = (ci::Vector6d() << 0.2 * swing, 0, 0, 0, 0, 1.2 * swing).finished();
+    robot.dq.noalias() = inverse * twist;
+    halted |= controller.update(robot, 0.001) == ci::Status::motion_halted;
+  }
+  robot.dq.setZero();
+  for (int k = 0; k < 200; ++k) controller.update(robot, 0.001);
+  EXPECT_EQ(scope.allocations(), 0);
+  EXPECT_TRUE(halted) << controller.state().safety.oscillations << " oscillations";
+  EXPECT_TRUE(controller.state().limits.holding);
+}
+
 // The controller's safety layer with every part acting (support/safety_caps.hpp), on the Panda's
 // model: the default diagonal stiffness in the base frame, and a full (coupled) stiffness raise
 // in the end-effector frame, which the tank charges through the whole matrix and the rotated

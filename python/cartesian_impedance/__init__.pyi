@@ -615,6 +615,12 @@ class SafetyState:
     def nullspace_scale(self) -> float:
         """Fraction of the nullspace torque kept [0, 1]: below 1 only where what it leaks to the end effector (near a singularity) alone exceeds a force cap."""
     @property
+    def oscillation_scale(self) -> float:
+        """The fraction of the commanded Cartesian and nullspace stiffness the law is given [1/256, 1]: each sustained oscillation of the closed loop (a delay past the stiffness's margin) halves it, until start()."""
+    @property
+    def oscillations(self) -> int:
+        """Sustained oscillations found since start()."""
+    @property
     def payload_center_of_mass(self) -> numpy.typing.NDArray[numpy.float64]:
         """Its centre of mass (payload.center_of_mass, filtered) (3,) [m], end-effector frame."""
     @property

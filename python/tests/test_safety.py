@@ -36,6 +36,8 @@ SAFETY_FIELDS = {
     "joint_limit_wall": "",
     "static_wrench_unexplained": "",
     "payload_mismatch": "",
+    "oscillation_scale": "[1/256, 1]",
+    "oscillations": "since start()",
     # The settings in force, as objects whose fields carry the units.
     "pose_error_in_force": "PoseErrorLimits",
     "workspace_in_force": "Workspace",

@@ -299,6 +299,11 @@ void CartesianImpedanceController::start(const RobotState& robot,
   episodes_ = 0;
   in_episode_ = false;
   halted_ = false;
+  halted_oscillating_ = false;
+  safety.oscillation_scale = 1.0;
+  safety.oscillations = 0;
+  law_->oscillation_scale_filtered = 1.0;
+  forget_oscillation();
   state_.limits.holding = false;
   started_ = true;
 }
@@ -461,20 +466,25 @@ void CartesianImpedanceController::filter_targets() noexcept {
   filtered.pose.orientation =
       filtered.pose.orientation.slerp(a_pose, commanded.pose.orientation).normalized();
   const double a_stiffness = gains_.stiffness;
+  // The oscillation watch's scale enters the filter's target: the stiffness leaves as smoothly
+  // as a command would take it away.
+  const double scale = state_.safety.oscillation_scale;
   if (stiffness_diagonal_) {
     filtered.stiffness.diagonal() = (1.0 - a_stiffness) * filtered.stiffness.diagonal() +
-                                    a_stiffness * commanded.stiffness.diagonal();
+                                    (a_stiffness * scale) * commanded.stiffness.diagonal();
   } else {
     filtered.stiffness =
-        (1.0 - a_stiffness) * filtered.stiffness + a_stiffness * commanded.stiffness;
+        (1.0 - a_stiffness) * filtered.stiffness + (a_stiffness * scale) * commanded.stiffness;
   }
+  law_->oscillation_scale_filtered =
+      (1.0 - a_stiffness) * law_->oscillation_scale_filtered + a_stiffness * scale;
   filtered.damping_ratio =
       (1.0 - a_stiffness) * filtered.damping_ratio + a_stiffness * commanded.damping_ratio;
   const double a_nullspace = gains_.nullspace;
   filtered.nullspace_q =
       (1.0 - a_nullspace) * filtered.nullspace_q + a_nullspace * commanded.nullspace_q;
   filtered.nullspace_stiffness = (1.0 - a_nullspace) * filtered.nullspace_stiffness +
-                                 a_nullspace * commanded.nullspace_stiffness;
+                                 (a_nullspace * scale) * commanded.nullspace_stiffness;
   filtered.nullspace_damping_ratio = (1.0 - a_nullspace) * filtered.nullspace_damping_ratio +
                                      a_nullspace * commanded.nullspace_damping_ratio;
   filtered.twist = commanded.twist;
@@ -503,6 +513,10 @@ void CartesianImpedanceController::schedule(const ScheduledImpedance& impedance)
     targets->nullspace_stiffness = impedance.nullspace_stiffness;
     targets->wrench = impedance.wrench;
   }
+  // The oscillation watch's scale as far as it has come through the filter.
+  const double scale = law_->oscillation_scale_filtered;
+  state_.filtered.stiffness *= scale;
+  state_.filtered.nullspace_stiffness *= scale;
   scheduled_damping_ = impedance.damping;
   scheduled_damping_diagonal_ = is_diagonal(impedance.damping);
   scheduled_nullspace_damping_ = impedance.nullspace_damping;
@@ -561,7 +575,12 @@ void CartesianImpedanceController::count_implausible_motion(const Fault& fault) 
   if (episodes_ == kHoldEpisodes && time_ - episode_began_[0] <= kHoldWindow) {
     halted_ = true;
     at_rest_for_ = 0.0;
+    halted_for_ = 0.0;
     episodes_ = 0;
+    // Swings past the plausible speed, again and again, are the closed loop's instability at its
+    // most violent (a delay far past the stiffness's margin): the oscillation watch halves the
+    // stiffness the arm is held with afterwards, as it does for a slower limit cycle.
+    halve_stiffness();
   }
 }
 
@@ -577,6 +596,7 @@ void CartesianImpedanceController::hold_where_the_arm_is(const RobotState& robot
     targets->nullspace_dq.setZero();
   }
   halted_ = false;
+  halted_oscillating_ = false;
   state_.limits.holding = true;
 }
 
@@ -621,6 +641,13 @@ Status CartesianImpedanceController::cycle(const RobotState& robot, double dt,
     // Springs off, only the minimum damping, until the arm is at rest; then it holds where it
     // stopped.
     at_rest_for_ = robot.dq.cwiseAbs().maxCoeff() <= kRestSpeed ? at_rest_for_ + dt : 0.0;
+    // A halt whose damping has not brought the arm to rest within kHoldWindow acts on late
+    // measurements: its damping goes down with the stiffness the arm will be held with.
+    halted_for_ += dt;
+    if (halted_for_ > kHoldWindow) {
+      halted_for_ = 0.0;
+      halve_stiffness();
+    }
     if (at_rest_for_ < kRestTime) {
       static constexpr Fault kHalted{"joint motion",
                                      -1,
@@ -632,12 +659,22 @@ Status CartesianImpedanceController::cycle(const RobotState& robot, double dt,
                                      false,
                                      "",
                                      Fault::Form::statement};
+      static constexpr Fault kOscillating{"oscillation",
+                                          -1,
+                                          0.0,
+                                          "of the closed loop persisted at 1/256 of the commanded "
+                                          "stiffness: springs off, the minimum damping brings the "
+                                          "arm to rest",
+                                          0.0,
+                                          false,
+                                          "",
+                                          Fault::Form::statement};
       time_ += dt;
       Fault fault;
       if (!evaluate_halt(robot, fault)) return fail_closed(Status::numerical_error, fault, dt);
       limit_torque(dt);
       state_.status = Status::motion_halted;
-      state_.fault = kHalted;
+      state_.fault = halted_oscillating_ ? kOscillating : kHalted;
       return state_.status;
     }
     hold_where_the_arm_is(robot);

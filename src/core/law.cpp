@@ -62,6 +62,7 @@ bool CartesianImpedanceController::evaluate_law(const RobotState& robot, double 
   const JointMatrix& mass = mass_with_payload(robot);
   if (!compute_damping(robot, mass, fault)) return false;
   spring_damper(robot, dt);
+  watch_oscillation(dt);
   if (!nullspace(robot, mass, fault)) return false;
   measure_nullspace_dissipation(robot, dt);
   commanded_wrench();
@@ -88,15 +89,19 @@ bool CartesianImpedanceController::evaluate_law(const RobotState& robot, double 
 bool CartesianImpedanceController::evaluate_halt(const RobotState& robot, Fault& fault) noexcept {
   measure_pose(robot);
   const MinimumDampingParameters& minimum = parameters_.minimum_damping;
+  // Scaled as the law's damping is by the oscillation watch: on a light wrist a damper acting on
+  // a late measurement pumps energy in as a spring does (measured: the full minimum damping
+  // swung a Panda's wrist at 10 rad/s behind 50 ms of delay).
+  const double scale = std::sqrt(state_.safety.oscillation_scale);
   Vector6d damping;
-  damping << Eigen::Vector3d::Constant(minimum.translation),
-      Eigen::Vector3d::Constant(minimum.rotation);
+  damping << Eigen::Vector3d::Constant(scale * minimum.translation),
+      Eigen::Vector3d::Constant(scale * minimum.rotation);
   state_.damping = damping.asDiagonal();
   Vector6d velocity;
   jacobian_times(robot.jacobian, robot.dq, velocity);
   const Vector6d force = -damping.cwiseProduct(velocity);
   jacobian_transpose_times(robot.jacobian, force, state_.tau_cartesian);
-  law_->tau_0 = -minimum.nullspace * robot.dq;
+  law_->tau_0 = -(scale * minimum.nullspace) * robot.dq;
   law_->projector.project(robot.jacobian, parameters_.nullspace.pseudo_inverse_damping, law_->tau_0,
                           state_.tau_nullspace);
   state_.tau_wrench.setZero();
@@ -141,7 +146,9 @@ bool CartesianImpedanceController::compute_damping(const RobotState& robot, cons
   law.damping_diagonal = stiffness_diagonal_;
   law.inertia_damping.inertia().invalidate();  // computed anew by the inertia-shaped damping
   if (scheduled_) {
-    law.damping_frame = scheduled_damping_;
+    // The oscillation watch's scale of the stiffness takes the damping down by its square root:
+    // the damping ratio is kept, as a damping derived from ratios keeps it.
+    law.damping_frame = std::sqrt(law.oscillation_scale_filtered) * scheduled_damping_;
     law.damping_diagonal = stiffness_diagonal_ && scheduled_damping_diagonal_;
   } else if (parameters_.dynamics.inertia_shaped_damping) {
     const bool in_base = parameters_.stiffness.frame == Frame::base;
@@ -175,9 +182,13 @@ bool CartesianImpedanceController::compute_damping(const RobotState& robot, cons
   // diagonal by a non-negative amount keeps D symmetric positive semi-definite.
   Matrix6d& damping = state_.damping;
   damping = law.damping_frame;
+  // (Lowered with the stiffness by the oscillation watch, by the square root as the damping is.)
   const MinimumDampingParameters& minimum = parameters_.minimum_damping;
+  const double scale = std::sqrt(law.oscillation_scale_filtered);
+  const double floor_translation = scale * minimum.translation;
+  const double floor_rotation = scale * minimum.rotation;
   for (int i = 0; i < 6; ++i) {
-    damping(i, i) = std::max(damping(i, i), i < 3 ? minimum.translation : minimum.rotation);
+    damping(i, i) = std::max(damping(i, i), i < 3 ? floor_translation : floor_rotation);
   }
   return true;
 }
@@ -240,13 +251,15 @@ bool CartesianImpedanceController::nullspace(const RobotState& robot, const Join
   const Targets& filtered = state_.filtered;
   const JointVector& stiffness_ns = filtered.nullspace_stiffness;
   if (scheduled_) {
-    law.nullspace_damping = scheduled_nullspace_damping_;
+    law.nullspace_damping =
+        std::sqrt(law.oscillation_scale_filtered) * scheduled_nullspace_damping_;
   } else {
     law.nullspace_damping = (2.0 * filtered.nullspace_damping_ratio) * stiffness_ns.cwiseSqrt();
   }
-  law.nullspace_damping_torque =
-      -law.nullspace_damping.cwiseMax(parameters_.minimum_damping.nullspace)
-           .cwiseProduct(robot.dq - filtered.nullspace_dq);
+  law.nullspace_damping_torque = -law.nullspace_damping
+                                      .cwiseMax(std::sqrt(law.oscillation_scale_filtered) *
+                                                parameters_.minimum_damping.nullspace)
+                                      .cwiseProduct(robot.dq - filtered.nullspace_dq);
   law.tau_0 =
       law.nullspace_damping_torque - stiffness_ns.cwiseProduct(robot.q - filtered.nullspace_q);
   if (robot.secondary_torque.size() == num_joints_) law.tau_0 += robot.secondary_torque;

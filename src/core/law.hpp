@@ -3,6 +3,8 @@
 // law functions (law.cpp) share within a cycle and carry from one cycle to the next. Sized once at
 // construction; copying a controller copies it.
 
+#include <array>
+
 #include "cartesian_impedance/core/controller.hpp"
 #include "kernels.hpp"
 
@@ -91,6 +93,16 @@ struct CartesianImpedanceController::Law {
   // low-passed (kStillFilterTime) for that test, so that sensor noise does not read as motion.
   double still_for = 0.0;
   Vector6d still_twist = Vector6d::Zero();
+  // The oscillation watch, per axis of the end effector's error rate (base frame): the side of
+  // the threshold it was last beyond (0: none, or the swings went stale), when that swing began
+  // [s, controller time], its largest magnitude, the previous swing's, and the sustained swings
+  // in a row. The stiffness scale through the stiffness filter, for a scheduled damping.
+  std::array<int, 6> swing_side{};
+  std::array<double, 6> swing_began{};
+  std::array<double, 6> swing_peak{};
+  std::array<double, 6> swing_peak_before{};
+  std::array<int, 6> swings{};
+  double oscillation_scale_filtered = 1.0;
 
   // The damping must be computed anew at the next cycle (K, zeta or the mode changed).
   void forget_damping() noexcept {

@@ -23,10 +23,22 @@ std::vector<ReportLine> StatusReporter::update(const LoopState& state,
     if (status == Status::ok) {
       lines.push_back({Level::info, "controller status: ok"});
     } else {
-      lines.push_back({Level::warning, std::string("controller status: ") + to_string(status)});
+      lines.push_back({Level::warning, std::string("controller status: ") + to_string(status) +
+                                           " (" + to_string(state.controller.fault) + ")"});
     }
     status_ = status;
   }
+  // Each oscillation the watch finds lowers the stiffness for good (until a restart): say so.
+  const SafetyState& safety = state.controller.safety;
+  if (safety.oscillations > oscillations_) {
+    lines.push_back(
+        {Level::warning,
+         "the closed loop oscillated (a delay or a resonance past the stiffness's margin): the "
+         "stiffness is now " +
+             format_number(safety.oscillation_scale) + " of the commanded (" +
+             std::to_string(safety.oscillations) + " oscillation(s) since start)"});
+  }
+  oscillations_ = safety.oscillations;
   if (timing.stale != stale_) {
     if (timing.stale) {
       lines.push_back({Level::warning, "no " + measurements_ + " for more than " +

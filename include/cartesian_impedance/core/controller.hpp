@@ -197,6 +197,14 @@ struct SafetyState {
   /// or carried but not declared. The compensation still follows the declaration (it is the
   /// user's word; the caps bound what a wrong one can do), and the nodes warn.
   bool payload_mismatch = false;
+  /// The oscillation watch (CartesianImpedanceController::kOscillationSwings): the fraction of
+  /// the commanded Cartesian and nullspace stiffness the law is given [1/256, 1] (the damping
+  /// follows: through the ratios, or by its square root where schedule() gives it), and how many
+  /// sustained oscillations it has seen since start(). Each one halves the fraction; it is
+  /// restored only by start(), since the loop that oscillated (a delay, a soft mount) is still
+  /// there.
+  double oscillation_scale = 1.0;
+  int oscillations = 0;
 };
 
 /// Snapshot written by every update().
@@ -253,6 +261,24 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   static constexpr double kHoldWindow = 1.0;
   static constexpr double kRestSpeed = 0.05;
   static constexpr double kRestTime = 0.1;
+  /// The oscillation watch: a limit cycle of the closed loop (a measurement or actuation delay
+  /// past the stiffness's margin, a structural resonance) that stays below
+  /// plausibility.joint_velocity. It watches the end effector's error rate, J dq less the
+  /// reference's own velocity, per axis of the base frame: kOscillationSwings swings in a row
+  /// across +-kOscillationSpeed [m/s] (kOscillationAngularSpeed [rad/s]), each at least
+  /// kOscillationSustain of the one before (a decaying ring with a damping ratio above 0.07 never
+  /// counts) and each shorter than kOscillationHalfPeriod [s] (a sustained motion at 1 Hz or
+  /// faster), is an oscillation: found within three of its periods, 3 s at most. The commanded
+  /// stiffnesses are then halved (SafetyState::oscillation_scale; through their filter, the
+  /// damping following), which slows every mode and buys phase margin against any delay. An
+  /// oscillation that persists past kOscillationFloor of the stiffness fails closed as
+  /// Status::motion_halted.
+  static constexpr int kOscillationSwings = 6;
+  static constexpr double kOscillationSpeed = 0.05;
+  static constexpr double kOscillationAngularSpeed = 0.3;
+  static constexpr double kOscillationSustain = 0.8;
+  static constexpr double kOscillationHalfPeriod = 0.5;
+  static constexpr double kOscillationFloor = 1.0 / 256.0;
   /// The payload estimate (SafetyState) is valid after the end effector has been still (slower
   /// than kStillSpeed [m/s] and kStillAngularSpeed [rad/s]) for this long [s]. The speeds are
   /// of its twist low-passed with the time constant kStillFilterTime [s]: a real arm's joint
@@ -446,6 +472,11 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   void expect_acceleration(const RobotState& robot) noexcept;
   Vector6d payload_holding_wrench() const noexcept;
   void estimate_payload(double dt) noexcept;
+  // The oscillation watch (oscillation.cpp).
+  void watch_oscillation(double dt) noexcept;
+  void forget_oscillation() noexcept;
+  // Halves SafetyState::oscillation_scale; false (and nothing halved) at kOscillationFloor.
+  bool halve_stiffness() noexcept;
   void limit_torque(double dt, const RobotState* law_robot = nullptr) noexcept;
   void shape_torque(const RobotState& robot, const JointVector& bound) noexcept;
   void bound_joint_drive(const RobotState& robot) noexcept;
@@ -471,8 +502,10 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   std::array<double, kHoldEpisodes> episode_began_{};
   int episodes_ = 0;
   bool in_episode_ = false;
-  bool halted_ = false;     // Status::motion_halted: waiting for the arm to come to rest
-  double at_rest_for_ = 0;  // [s] every joint slower than kRestSpeed
+  bool halted_ = false;              // Status::motion_halted: waiting for the arm to come to rest
+  bool halted_oscillating_ = false;  // ... because the oscillation watch found no scale left
+  double at_rest_for_ = 0;           // [s] every joint slower than kRestSpeed
+  double halted_for_ = 0;  // [s] since the halt began, or since the last halving within it
   // Set by schedule(): the damping then comes from the caller, not from the damping ratios.
   bool scheduled_ = false;
   bool scheduled_damping_diagonal_ = true;

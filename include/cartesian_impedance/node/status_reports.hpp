@@ -2,9 +2,10 @@
 /// @file
 /// A node's publisher thread, the same for every shell: at a fixed rate, the newest loop state,
 /// measurement and timing snapshot go to the shell's publish function, and what the node logs
-/// about its control thread is decided here (status changes, measurements lost and back, and
-/// every few seconds while there are any, a summary of the overruns) and handed to the shell's
-/// logger. Never the control thread: it reads the loop's and the thread's lock-free outboxes.
+/// about its control thread is decided here (status changes with their fault, each oscillation
+/// the controller's watch finds, measurements lost and back, and every few seconds while there
+/// are any, a summary of the overruns) and handed to the shell's logger. Never the control
+/// thread: it reads the loop's and the thread's lock-free outboxes.
 
 #include <atomic>
 #include <chrono>
@@ -43,6 +44,7 @@ class StatusReporter {
   std::string measurements_;
   std::chrono::steady_clock::duration interval_;
   Status status_ = Status::ok;
+  int oscillations_ = 0;  // SafetyState::oscillations at the last update
   bool stale_ = false;
   // The window of the next overrun summary: since when, and the thread's counts then (none
   // before the first: since the thread started).
