@@ -638,8 +638,10 @@ void workspace(const RobotSetup& robot, Outcome& outcome, const MomentCallback& 
       compare(kName, format("%.3g N push while teaching: rest beyond the wall", push),
               1e3 * push / wall, 1e3 * rest, "mm", 1e3 * (0.05 * push / wall + band / wall),
               "theory F / K_wall; 5 % and what the joints' friction holds"));
+  // The filter blends clipped references, each exactly inside; the blend rounds (measured
+  // 1e-16 m on the realistic UR5e): a few units in the last place of a coordinate below 1 m.
   outcome.results.push_back(at_most(kName, "reference 10 cm outside: filtered reference outside",
-                                    0.0, 1e3 * reference_out, "mm"));
+                                    1e-9, 1e3 * reference_out, "mm", "round-off"));
   outcome.results.push_back(at_most(kName,
                                     "reference 10 cm outside: flange at rest beyond the face",
                                     1e3 * band / stiffness, 1e3 * std::max(reach_rest, 0.0), "mm",

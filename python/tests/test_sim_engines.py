@@ -162,3 +162,29 @@ def test_a_plant_is_configured_field_by_field_and_checked_by_the_loader():
         ci.sim.Simulation.from_mjcf_file(PANDA_XML, plant=plant)
     with pytest.raises(ci.Error, match=r"plant 'noisy' is not known \(valid: nominal, realistic\)"):
         ci.sim.Simulation.from_mjcf_file(PANDA_XML, plant="noisy")
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_limit_cycle_behind_a_delay_is_found_and_the_arm_settles(panda, engine):
+    # The realistic Panda behind 12 ms of measurement delay (and the plant's 1 ms of actuation
+    # delay): a 5 cm step at 3000 N/m limit-cycled at the wrist with status ok before the
+    # oscillation watch. Now the stiffness is halved until the arm settles.
+    skip_unless_available(engine)
+    plant = ci.sim.Plant.realistic(seed=1)
+    plant.measurement_delay = 0.012
+    s = ci.sim.Simulation.from_urdf_file(PANDA_URDF, engine=engine, plant=plant)
+    s.set_state(PANDA_READY, np.zeros(7))
+    loop = ci.ControlLoop(panda, {"stiffness.translation": 3000, "stiffness.rotation": 300})
+    loop.start(s.q, s.dq)
+    pose = loop.state.controller.pose
+    loop.set_reference_pose((pose.position + np.array([0.05, 0.0, 0.0]), pose.orientation))
+    s.run(loop, 7.0)
+    fastest = 0.0
+    for _ in range(100):
+        s.run(loop, 0.01)
+        fastest = max(fastest, np.abs(s.true_dq).max())
+        assert loop.state.controller.status == ci.Status.ok
+    safety = loop.state.controller.safety
+    assert safety.oscillations >= 1 and safety.oscillation_scale <= 0.5
+    assert fastest < 0.05  # a limit cycle swings the wrist at several rad/s
+    assert np.linalg.norm(loop.state.controller.pose_error[:3]) < 0.003

@@ -303,6 +303,7 @@ void CartesianImpedanceController::start(const RobotState& robot,
   safety.oscillation_scale = 1.0;
   safety.oscillations = 0;
   law_->oscillation_scale_filtered = 1.0;
+  law_->oscillation_damping_scale = 1.0;
   forget_oscillation();
   state_.limits.holding = false;
   started_ = true;
@@ -476,8 +477,11 @@ void CartesianImpedanceController::filter_targets() noexcept {
     filtered.stiffness =
         (1.0 - a_stiffness) * filtered.stiffness + (a_stiffness * scale) * commanded.stiffness;
   }
-  law_->oscillation_scale_filtered =
-      (1.0 - a_stiffness) * law_->oscillation_scale_filtered + a_stiffness * scale;
+  if (law_->oscillation_scale_filtered != scale) {  // only after the watch found something
+    law_->oscillation_scale_filtered =
+        (1.0 - a_stiffness) * law_->oscillation_scale_filtered + a_stiffness * scale;
+    law_->oscillation_damping_scale = std::sqrt(law_->oscillation_scale_filtered);
+  }
   filtered.damping_ratio =
       (1.0 - a_stiffness) * filtered.damping_ratio + a_stiffness * commanded.damping_ratio;
   const double a_nullspace = gains_.nullspace;

@@ -148,7 +148,7 @@ bool CartesianImpedanceController::compute_damping(const RobotState& robot, cons
   if (scheduled_) {
     // The oscillation watch's scale of the stiffness takes the damping down by its square root:
     // the damping ratio is kept, as a damping derived from ratios keeps it.
-    law.damping_frame = std::sqrt(law.oscillation_scale_filtered) * scheduled_damping_;
+    law.damping_frame = law.oscillation_damping_scale * scheduled_damping_;
     law.damping_diagonal = stiffness_diagonal_ && scheduled_damping_diagonal_;
   } else if (parameters_.dynamics.inertia_shaped_damping) {
     const bool in_base = parameters_.stiffness.frame == Frame::base;
@@ -184,7 +184,7 @@ bool CartesianImpedanceController::compute_damping(const RobotState& robot, cons
   damping = law.damping_frame;
   // (Lowered with the stiffness by the oscillation watch, by the square root as the damping is.)
   const MinimumDampingParameters& minimum = parameters_.minimum_damping;
-  const double scale = std::sqrt(law.oscillation_scale_filtered);
+  const double scale = law.oscillation_damping_scale;
   const double floor_translation = scale * minimum.translation;
   const double floor_rotation = scale * minimum.rotation;
   for (int i = 0; i < 6; ++i) {
@@ -251,15 +251,14 @@ bool CartesianImpedanceController::nullspace(const RobotState& robot, const Join
   const Targets& filtered = state_.filtered;
   const JointVector& stiffness_ns = filtered.nullspace_stiffness;
   if (scheduled_) {
-    law.nullspace_damping =
-        std::sqrt(law.oscillation_scale_filtered) * scheduled_nullspace_damping_;
+    law.nullspace_damping = law.oscillation_damping_scale * scheduled_nullspace_damping_;
   } else {
     law.nullspace_damping = (2.0 * filtered.nullspace_damping_ratio) * stiffness_ns.cwiseSqrt();
   }
-  law.nullspace_damping_torque = -law.nullspace_damping
-                                      .cwiseMax(std::sqrt(law.oscillation_scale_filtered) *
-                                                parameters_.minimum_damping.nullspace)
-                                      .cwiseProduct(robot.dq - filtered.nullspace_dq);
+  law.nullspace_damping_torque =
+      -law.nullspace_damping
+           .cwiseMax(law.oscillation_damping_scale * parameters_.minimum_damping.nullspace)
+           .cwiseProduct(robot.dq - filtered.nullspace_dq);
   law.tau_0 =
       law.nullspace_damping_torque - stiffness_ns.cwiseProduct(robot.q - filtered.nullspace_q);
   if (robot.secondary_torque.size() == num_joints_) law.tau_0 += robot.secondary_torque;

@@ -34,6 +34,18 @@ struct CartesianImpedanceController::Law {
   Vector6d joint_wall_force_before = Vector6d::Zero();  // before the caps
   Vector6d nullspace_leak = Vector6d::Zero();
   bool joint_walls = false;
+  // The oscillation watch, per axis of the end effector's error rate (base frame): the side of
+  // the threshold it was last beyond (0: none, or the swings went stale), when that swing began
+  // [s, controller time], its largest magnitude, the previous swing's, and the sustained swings
+  // in a row. The stiffness scale through the stiffness filter, and its square root, which
+  // scales a scheduled damping and the minimum damping.
+  std::array<int, 6> swing_side{};
+  std::array<double, 6> swing_began{};
+  std::array<double, 6> swing_peak{};
+  std::array<double, 6> swing_peak_before{};
+  std::array<int, 6> swings{};
+  double oscillation_scale_filtered = 1.0;
+  double oscillation_damping_scale = 1.0;
   // The speed governor's disturbance observer: the end effector's twist and the acceleration the
   // torque sent should have given it (J M^-1 tau), both of the last cycle, and the low-passed
   // difference to the acceleration measured since: what the law does not model (the centripetal
@@ -93,16 +105,6 @@ struct CartesianImpedanceController::Law {
   // low-passed (kStillFilterTime) for that test, so that sensor noise does not read as motion.
   double still_for = 0.0;
   Vector6d still_twist = Vector6d::Zero();
-  // The oscillation watch, per axis of the end effector's error rate (base frame): the side of
-  // the threshold it was last beyond (0: none, or the swings went stale), when that swing began
-  // [s, controller time], its largest magnitude, the previous swing's, and the sustained swings
-  // in a row. The stiffness scale through the stiffness filter, for a scheduled damping.
-  std::array<int, 6> swing_side{};
-  std::array<double, 6> swing_began{};
-  std::array<double, 6> swing_peak{};
-  std::array<double, 6> swing_peak_before{};
-  std::array<int, 6> swings{};
-  double oscillation_scale_filtered = 1.0;
 
   // The damping must be computed anew at the next cycle (K, zeta or the mode changed).
   void forget_damping() noexcept {

@@ -31,11 +31,14 @@ void CartesianImpedanceController::watch_oscillation(double dt) noexcept {
   const Targets& filtered = state_.filtered;
   // The reference's own velocity: what the filter moved it by this cycle, plus a tracked
   // reference's feed-forward twist.
+  // (Both orientations are unit quaternions: the conjugate is the inverse. Twice the vector part
+  // of the shorter turn is its rotation vector to third order, per cycle a tiny angle.)
+  const double per_second = 1.0 / dt;
   Vector6d rate = law.twist - filtered.twist;
-  rate.head<3>() -= (filtered.pose.position - law.reference_before.position) / dt;
-  Eigen::Quaterniond turn = filtered.pose.orientation * law.reference_before.orientation.inverse();
-  if (turn.w() < 0.0) turn.coeffs() = -turn.coeffs();
-  rate.tail<3>() -= 2.0 * turn.vec() / dt;  // the rotation vector of a small turn, per second
+  rate.head<3>() -= per_second * (filtered.pose.position - law.reference_before.position);
+  const Eigen::Quaterniond turn =
+      filtered.pose.orientation * law.reference_before.orientation.conjugate();
+  rate.tail<3>() -= std::copysign(2.0 * per_second, turn.w()) * turn.vec();
   bool oscillating = false;
   for (int axis = 0; axis < 6; ++axis) {
     const auto c = static_cast<std::size_t>(axis);
