@@ -109,7 +109,9 @@ sim::Simulation make_simulation(const RobotSetup& robot, const RobotModel& model
 // The controller's parameters in the simulation: its rotor inertia, and the mutation of the
 // parameters a broken controller gets.
 Parameters for_simulation(Parameters parameters, const sim::Simulation& sim, Mutation mutation) {
-  if (!configures_armature(parameters)) parameters.dynamics.armature = sim.armature();
+  // The model's rotor inertia, not the realistic plant's drawn one: the controller does not know
+  // the plant's error.
+  if (!configures_armature(parameters)) parameters.dynamics.armature = sim.model_armature();
   if (mutation == Mutation::no_energy_tank) parameters.safety.energy_tank.enabled = false;
   return parameters;
 }

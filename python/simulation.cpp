@@ -464,7 +464,12 @@ void bind_simulation(py::module_& m) {
           "(n,) [Nm]; +inf without a limited actuator")
       .def_property_readonly(
           "armature", [](Sim& s) { return vector_array(s.get().armature()); },
-          "Rotor inertia per joint (n,) [kg m^2]: the value for the parameter dynamics.armature.")
+          "Rotor inertia per joint (n,) [kg m^2] as simulated (with a plant's model error, the "
+          "drawn one).")
+      .def_property_readonly(
+          "model_armature", [](Sim& s) { return vector_array(s.get().model_armature()); },
+          "Rotor inertia per joint (n,) [kg m^2] before the plant's model error: the value for "
+          "the parameter dynamics.armature.")
       .def_property_readonly(
           "friction_loss", [](Sim& s) { return vector_array(s.get().friction_loss()); },
           "Coulomb friction per joint (n,) [Nm]")

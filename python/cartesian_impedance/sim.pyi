@@ -246,7 +246,7 @@ class Simulation:
     def __repr__(self) -> str: ...
     @property
     def armature(self) -> numpy.typing.NDArray[numpy.float64]:
-        """Rotor inertia per joint (n,) [kg m^2]: the value for the parameter dynamics.armature."""
+        """Rotor inertia per joint (n,) [kg m^2] as simulated (with a plant's model error, the drawn one)."""
     def body_pose(self, body: str) -> cartesian_impedance.Pose:
         """Pose of a body in the world frame (quaternion x, y, z, w)."""
     def clear_pushes(self) -> None:
@@ -275,6 +275,9 @@ class Simulation:
     @property
     def joint_names(self) -> List[str]:
         """Joint names in the order q, dq and tau are exchanged."""
+    @property
+    def model_armature(self) -> numpy.typing.NDArray[numpy.float64]:
+        """Rotor inertia per joint (n,) [kg m^2] before the plant's model error: the value for the parameter dynamics.armature."""
     @property
     def model_name(self) -> str: ...
     @property

@@ -435,3 +435,40 @@ def test_environment_options_of_a_wrong_type_or_out_of_range_are_named():
         with pytest.raises(error, match="^" + message):
             envs.make(REACH, **options)
     assert envs.make(REACH, policy_rate=1000.0).reset(seed=0) is not None
+
+
+def test_a_realistic_plant_and_one_drawn_anew_each_episode():
+    # The scripted reach still succeeds on the realistic arm: the controller keeps the model's
+    # rotor inertia, the simulation reads late and noisy.
+    env = envs.make(REACH, max_episode_steps=40, plant="realistic")
+    _, _, terminated, _, info = run_episode(env, reach_policy, seed=11)
+    assert terminated and info["is_success"]
+    assert not np.array_equal(env.sim.dq, env.sim.true_dq)
+    assert np.array_equal(env.sim.model_armature, [0.1, 0.1, 0.1, 0.1, 0.04, 0.04, 0.04])
+    assert not np.array_equal(env.sim.armature, env.sim.model_armature)
+    configured = env.loop.latest_parameters()["dynamics.armature"]
+    assert np.array_equal(configured, env.sim.model_armature)
+    # 'randomized': a plant drawn from the episode's seed: the same seed the same arm, another
+    # seed another.
+    env = envs.make(REACH, max_episode_steps=5, plant="randomized")
+    env.reset(seed=3)
+    first = env.sim.armature.copy()
+    env.reset(seed=4)
+    assert not np.array_equal(env.sim.armature, first)
+    env.reset(seed=3)
+    assert np.array_equal(env.sim.armature, first)
+    with pytest.raises(ci.Error, match="plant = 'noisy' is not one of nominal, realistic, "
+                                       "randomized"):
+        envs.make(REACH, plant="noisy")
+    with pytest.raises(TypeError, match="plant = 5 must be one of"):
+        envs.make(REACH, plant=5)
+
+
+def test_a_vector_of_environments_each_with_its_own_randomized_plant():
+    vector = envs.make_vector(REACH, 2, max_episode_steps=3, plant="randomized")
+    vector.reset(seed=7)
+    assert not np.array_equal(vector.envs[0].sim.armature, vector.envs[1].sim.armature)
+    for _ in range(4):  # past an episode's end: the finished one is reset, drawn anew
+        actions = np.zeros((2, vector.envs[0].action_space.shape[0]), dtype=np.float32)
+        vector.step(actions)
+    assert all(e.plant_mode == "randomized" for e in vector.envs)

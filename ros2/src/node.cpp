@@ -164,8 +164,11 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
   wake_ = dds([&] {
     return Entity(check(dds_create_guardcondition(participant_.get()), "guard condition"));
   });
+  // Sets are taken from the controller's first cycle (its state reads ok from then), not only
+  // once the main thread's poll has seen it run: a client that waited for ok was refused.
   node_parameters_.emplace(
-      *loop_, settings_, shell_settings(configuration_), [this] { return accepting_.load(); },
+      *loop_, settings_, shell_settings(configuration_),
+      [this] { return accepting_.load() || control_thread_->running(); },
       arguments_.fully_qualified_name());
   parameter_services_ = dds([&] {
     return std::make_unique<ParameterServices>(participant_, arguments_.fully_qualified_name(),

@@ -301,6 +301,10 @@ Simulation load_simulation(const std::string& path, const mjVFS* vfs, const std:
     }
   }
   detail::check_plant(options.plant);
+  impl->model_armature.resize(n);
+  for (int i = 0; i < n; ++i) {
+    impl->model_armature[i] = model->dof_armature[impl->dof_address[static_cast<std::size_t>(i)]];
+  }
   if (detail::changes_model(options.plant)) {
     std::vector<int> exact_bodies;  // the attached bodies: a load the user knows
     for (const auto& entry : impl->uncompensated) exact_bodies.push_back(entry.second);
@@ -513,6 +517,9 @@ const JointVector& Simulation::torque_lower_limits() const noexcept {
 }
 const JointVector& Simulation::torque_upper_limits() const noexcept {
   return impl_->tau_upper;
+}
+const JointVector& Simulation::model_armature() const noexcept {
+  return impl_->model_armature;
 }
 JointVector Simulation::armature() const {
   JointVector values(num_joints());

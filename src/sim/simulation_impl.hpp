@@ -186,6 +186,7 @@ struct Simulation::Impl {
   JointVector tau;                    // torque acting in the next step (after clipping)
   JointVector tau_command;            // what set_torque() was given last (after clipping)
   JointVector tau_lower, tau_upper;   // joint torque range
+  JointVector model_armature;         // before the plant's model error
   detail::PlantState plant;           // delays and noise between the engine and the controller
   std::vector<int> perturbed_bodies;  // bodies whose inertia the plant changed
 

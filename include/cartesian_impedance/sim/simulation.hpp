@@ -261,9 +261,12 @@ class Simulation {
   void render_png(const std::string& path, int width, int height, const RenderOverlay& overlay,
                   const std::string& camera = "") const;
 
-  /// Rotor inertia (MuJoCo's armature) per exchanged joint [kg m^2 or kg]: what the controller's
-  /// dynamics.armature should be for this robot.
+  /// Rotor inertia (MuJoCo's armature) per exchanged joint [kg m^2 or kg], as simulated: with a
+  /// plant's model error (SimulationOptions::plant) the drawn one.
   JointVector armature() const;
+  /// The rotor inertia before the plant's model error (armature() for the nominal plant): what
+  /// the controller's dynamics.armature should be for this robot, as a datasheet gives it.
+  const JointVector& model_armature() const noexcept;
   /// Coulomb friction (MuJoCo's frictionloss) per exchanged joint [Nm or N]: the torque below
   /// which a joint at rest does not move, so a spring holds it only up to this.
   JointVector friction_loss() const;

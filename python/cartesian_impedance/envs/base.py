@@ -65,6 +65,26 @@ def _render_size(size):
             _integer("render_size[1] (width)", width, 1))
 
 
+PLANTS = ("nominal", "realistic", "randomized")
+
+
+def _plant(plant):
+    """The plant option as (mode, Plant or None): a name of PLANTS or a ci.sim.Plant."""
+    if plant is None:
+        return "nominal", None
+    if isinstance(plant, ci.sim.Plant):
+        return "given", plant
+    if not isinstance(plant, str):
+        raise TypeError("plant = %r must be one of %s or a cartesian_impedance.sim.Plant" %
+                        (plant, ", ".join(PLANTS)))
+    if plant not in PLANTS:
+        raise ci.Error("plant = '%s' is not one of %s" % (plant, ", ".join(PLANTS)))
+    if plant == "nominal":
+        return plant, None
+    # 'randomized' draws anew at every reset; seed 1 until the first.
+    return plant, ci.sim.Plant.realistic(seed=1)
+
+
 class CartesianImpedanceEnv(_EnvBase):
     """A simulated arm under the library's Cartesian impedance controller, with the Gymnasium
     API: reset(seed=None, options=None) -> (observation, info); step(action) -> (observation,
@@ -84,7 +104,11 @@ class CartesianImpedanceEnv(_EnvBase):
     this many steps), wrench (the action includes a commanded wrench), start_noise [rad]
     (each joint's start is drawn from start +- this at reset), action_limits (ActionLimits or
     a dict of its fields), parameters (a dict of parameters set on top of the robot's
-    configuration), render_mode (None or 'rgb_array'), render_size (height, width) [px]. A
+    configuration), plant (the simulated arm: 'nominal', the controller's model read at once and
+    exactly; 'realistic', ci.sim.Plant.realistic(1): model error, delays and noise; a
+    ci.sim.Plant; or 'randomized', a realistic plant drawn anew from the environment's generator
+    at every reset, for domain randomisation; the controller keeps the model's rotor inertia),
+    render_mode (None or 'rgb_array'), render_size (height, width) [px]. A
     value of the wrong type raises TypeError, one out of range cartesian_impedance.Error, each
     naming the option and the value.
 
@@ -101,7 +125,7 @@ class CartesianImpedanceEnv(_EnvBase):
 
     def __init__(self, robot="panda", engine="mujoco", policy_rate=20.0, max_episode_steps=None,
                  wrench=None, start_noise=None, action_limits=None, parameters=None,
-                 render_mode=None, render_size=(480, 640)):
+                 render_mode=None, render_size=(480, 640), plant=None):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ci.Error("render_mode = %r is not one of %s" %
                            (render_mode, self.metadata["render_modes"]))
@@ -126,6 +150,7 @@ class CartesianImpedanceEnv(_EnvBase):
             raise TypeError("wrench = %r must be True, False or None" % (wrench,))
         self.robot = robot_spec(robot)
         self.engine = engine
+        self.plant_mode, self.plant = _plant(plant)
         self.model = self.robot.load_model()
         self.parameters = self.robot.load_parameters(self.model)
         if parameters:
@@ -135,8 +160,8 @@ class CartesianImpedanceEnv(_EnvBase):
         probe = make_simulation(self.robot, self.model, engine)
         self.start_q = np.array(probe.q)
         self.start_pose = self.model.compute_pose(self.start_q)
-        self.sim = self.build_simulation(probe)
-        self.parameters["dynamics.armature"] = list(self.sim.armature)
+        self.sim = self.build_simulation(self._plain_simulation(probe))
+        self.parameters["dynamics.armature"] = list(self.sim.model_armature)
         self.parameters.validate(self.model.num_joints)
         self.period = 1.0 / self.policy_rate
         if self.period < 0.5 * self.sim.timestep:
@@ -164,11 +189,27 @@ class CartesianImpedanceEnv(_EnvBase):
         return []
 
     def build_simulation(self, plain):
-        """The task's simulation; `plain` is the robot alone (at start_q). The default adds
-        scene_boxes() to it; a task with more than boxes (a peg attached to the flange) builds
-        its own here."""
+        """The task's simulation on the current plant (self.plant); `plain` is the robot alone
+        on it (at start_q), or None where it was not built. The default adds scene_boxes() to
+        it; a task with more than boxes (a peg attached to the flange) builds its own here."""
         boxes = self.scene_boxes()
-        return make_simulation(self.robot, self.model, self.engine, boxes) if boxes else plain
+        if not boxes:
+            return plain if plain is not None else self._plain_simulation()
+        return make_simulation(self.robot, self.model, self.engine, boxes, plant=self.plant)
+
+    def _plain_simulation(self, nominal=None):
+        """The robot alone on the current plant (`nominal`, if given, is the nominal one)."""
+        if self.plant is None and nominal is not None:
+            return nominal
+        return make_simulation(self.robot, self.model, self.engine, plant=self.plant)
+
+    def draw_plant(self, rng):
+        """With plant='randomized', draws this episode's plant from rng (a realistic plant of a
+        new seed); True if it did, and the simulation must be built anew."""
+        if self.plant_mode != "randomized":
+            return False
+        self.plant = ci.sim.Plant.realistic(seed=int(rng.integers(0, 2**63)))
+        return True
 
     def reset_task(self, rng):
         """Draws the task's goal (and whatever else it randomises) from rng after the robot has
@@ -217,6 +258,8 @@ class CartesianImpedanceEnv(_EnvBase):
         if seed is not None:
             self._np_random, self._np_random_seed = spaces.np_random(seed)
         rng = self.np_random
+        if self.draw_plant(rng):
+            self.sim = self.build_simulation(None)
         self.sim.reset()
         q = self.start_q.copy()
         if self.start_noise > 0:

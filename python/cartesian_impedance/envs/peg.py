@@ -94,9 +94,10 @@ class PegInsertion(CartesianImpedanceEnv):
                                  clearance=self.clearance, depth=self.depth)
 
     def _scene(self, offset):
+        extra: dict = {} if self.plant is None else dict(plant=self.plant)
         return ci.sim.make_peg_in_hole_scene(
             self.robot.urdf, self.robot.tip_link, self.hole(offset), peg_length=self.peg_length,
-            peg_mass=self.peg_mass, start_q=list(self.start_q), engine=self.engine)
+            peg_mass=self.peg_mass, start_q=list(self.start_q), engine=self.engine, **extra)
 
     def build_simulation(self, plain):
         return self._scene(self.hole_offset)
@@ -110,7 +111,8 @@ class PegInsertion(CartesianImpedanceEnv):
         rng = self.np_random
         self.hole_offset = rng.uniform(-self.hole_noise, self.hole_noise, 2)
         self.goal_error = rng.uniform(-self.goal_noise, self.goal_noise, 2)
-        self.sim = self._scene(self.hole_offset)
+        if self.plant_mode != "randomized":  # else the base draws the plant and builds the scene
+            self.sim = self._scene(self.hole_offset)
         return super().reset(seed=None, options=options)
 
     def reset_task(self, rng):

@@ -135,11 +135,11 @@ def robot_spec(robot) -> RobotSpec:
                    "and tip_link for your own" % (robot, ", ".join(SHIPPED_ROBOTS)))
 
 
-def make_simulation(spec: RobotSpec, model, engine: str, boxes=()):
+def make_simulation(spec: RobotSpec, model, engine: str, boxes=(), plant=None):
     """The simulation of `spec` with `boxes` (a list of ci.sim.Box) on `engine`: MuJoCo loads the
     MJCF scene where there is one (its motors' torque ranges, keyframe 'ready'), DART and robots
     without MJCF the URDF (start: spec.start_q, else the MJCF keyframe, else
-    find_start_configuration)."""
+    find_start_configuration). plant: None (nominal) or a ci.sim.Plant."""
     available, reason = ci.sim.engine_available(engine)
     if not available:
         raise ci.Error("engine = '%s' is not available: %s" % (engine, reason))
@@ -147,6 +147,8 @@ def make_simulation(spec: RobotSpec, model, engine: str, boxes=()):
     start_q: Any = spec.start_q
     if engine == "mujoco" and spec.mjcf:
         options: dict = dict(joint_names=names, engine=engine)
+        if plant is not None:
+            options["plant"] = plant
         if start_q is not None:
             options["start_q"] = list(start_q)
         return ci.sim.make_scene(spec.mjcf, list(boxes), **options)
@@ -154,5 +156,6 @@ def make_simulation(spec: RobotSpec, model, engine: str, boxes=()):
         start_q = ci.sim.Simulation.from_mjcf_file(spec.mjcf, joint_names=names).q
     if start_q is None:
         start_q = ci.find_start_configuration(model)["q"]
+    extra: dict = {} if plant is None else dict(plant=plant)
     return ci.sim.make_scene(spec.urdf, list(boxes), joint_names=names, engine=engine,
-                             start_q=list(np.asarray(start_q, dtype=float)))
+                             start_q=list(np.asarray(start_q, dtype=float)), **extra)

@@ -229,6 +229,13 @@ TEST(Ros2SafetyLock, ATopicStiffnessIsNotRevertedByAnUnrelatedSet) {
   ASSERT_TRUE(services.matched(15.0)) << node.log();
   ASSERT_TRUE(state.wait(15.0, [](const ArmState& s) { return s.status == "ok"; })) << node.log();
   ASSERT_TRUE(test::eventually(5.0, [&] { return stiffness.matched() > 0; }));
+  // The state reads ok from the controller's first cycle; the node takes sets and commands once
+  // its main thread has seen the control thread run (within its 10 ms poll; measured: a set
+  // 66 ms after the process started was refused, "not running yet").
+  ASSERT_TRUE(test::eventually(5.0, [&] {
+    const auto set = services.set_values({Parameter::number("filter.pose.time", 0.2)});
+    return set.answered && set.results.size() == 1u && set.results[0].first;
+  })) << node.log();
   int lost = 0;
   for (int i = 0; i < 30; ++i) {
     const double k = 400.0 + 10.0 * i;
