@@ -347,6 +347,34 @@ void run_measured(Rig& rig, double seconds, const std::function<void(double spee
   }
 }
 
+double noise_speed(Rig& rig, const sim::PlantOptions& plant) {
+  if (!(plant.torque_noise > 0.0) && !(plant.velocity_noise > 0.0)) return 0.0;
+  ModelWorkspace workspace(rig.model());
+  Kinematics kinematics = workspace.make_kinematics();
+  workspace.compute(rig.sim().true_q(), rig.sim().true_dq(), kinematics, true);
+  JointMatrix mass = kinematics.mass;
+  mass.diagonal() += rig.sim().armature();
+  const Eigen::MatrixXd& jacobian = kinematics.jacobian;
+  const ControllerState& state = rig.loop().state().controller;
+  const Parameters& parameters = rig.loop().controller().parameters();
+  Eigen::MatrixXd damping = jacobian.transpose() * state.damping_base() * jacobian;
+  const JointVector& k_ns = state.filtered.nullspace_stiffness;
+  for (int j = 0; j < damping.rows(); ++j) {
+    damping(j, j) += std::max(2.0 * state.filtered.nullspace_damping_ratio * std::sqrt(k_ns[j]),
+                              parameters.minimum_damping.nullspace);
+  }
+  double largest = 0.0;
+  for (int j = 0; j < damping.rows(); ++j) {
+    const double c = damping(j, j);
+    if (!(c > 0.0)) continue;
+    const double sigma2 =
+        plant.torque_noise * plant.torque_noise +
+        plant.velocity_noise * plant.velocity_noise * damping.row(j).squaredNorm();
+    largest = std::max(largest, std::sqrt(sigma2 * kDt / (2.0 * mass(j, j) * c)));
+  }
+  return largest;
+}
+
 // The largest mass a force along `direction` at the flange can meet: every other direction of
 // the flange held (a flat face stuck on a surface), d^T (J M^-1 J^T)^+ d over the six task
 // directions, M with the simulated rotors' inertia.

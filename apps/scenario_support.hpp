@@ -149,6 +149,15 @@ const sim::Box* first_table_only_the_flange_meets(const RobotSetup& robot,
                                                   const std::vector<sim::Box>& candidates,
                                                   double depth);
 
+/// What the plant's noise (RobotSetup::plant: torque_noise, velocity_noise) keeps a settled arm
+/// moving at [rad/s or m/s], the largest over its joints of the standard deviation of the joint's
+/// speed: 0 on the nominal plant. Each joint j is a mass m_j (M(q)_jj + the simulated armature)
+/// damped by c_jj of C = J^T D J + D_ns (the law's damping in joint space, D_ns the nullspace
+/// damping or its minimum), driven by white torque noise of sigma_j^2 = torque_noise^2 +
+/// velocity_noise^2 sum_k C_jk^2 (the damping acts on the noisy readings) per step dt: a damped
+/// mass under white force moves at sigma_j sqrt(dt / (2 m_j c_jj)).
+double noise_speed(Rig& rig, const sim::PlantOptions& plant);
+
 /// Steps `rig` one cycle at a time for `seconds`, calling `each` after every cycle with the
 /// flange's speed over that cycle [m/s] (ground truth: the simulation's flange poses).
 void run_measured(Rig& rig, double seconds, const std::function<void(double speed)>& each);

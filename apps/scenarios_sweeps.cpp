@@ -287,6 +287,10 @@ Outcome convergence(const RobotSetup& robot, const MomentCallback&) {
   std::uniform_real_distribution<double> offset(-0.3, 0.3);
   int settled = 0;
   double fastest_late = 0.0;
+  // A settled arm moves at no more than 0.01 rad/s, plus what the plant's noise keeps it moving
+  // at: five standard deviations (the largest of a second's samples, correlated over a few ms,
+  // lies within about three), zero on the nominal plant.
+  double settled_speed = 0.01;
   std::ostringstream failures;
   for (int c = 0; c < cases; ++c) {
     Rig rig(robot, parameters);
@@ -311,10 +315,12 @@ Outcome convergence(const RobotSetup& robot, const MomentCallback&) {
       limited |= rig.loop().state().controller.limits.torque_rate_limited;
     }
     fastest_late = std::max(fastest_late, fastest);
+    const double still = 0.01 + 5.0 * noise_speed(rig, robot.plant);
+    settled_speed = std::max(settled_speed, still);
     const FrictionBand band = friction_band(rig);
     const double error = (rig.flange().position - target.position).norm();
     const double angle = rotation_between(target, rig.flange()).norm();
-    const bool ok = fastest <= 0.01 && !limited &&
+    const bool ok = fastest <= still && !limited &&
                     error <= 0.002 + band.force / parameters.stiffness.translation.x() &&
                     angle <= 0.01 + band.torque / parameters.stiffness.rotation.x();
     if (ok) {
@@ -329,8 +335,9 @@ Outcome convergence(const RobotSetup& robot, const MomentCallback&) {
                 "random reachable references that settle within 8 s at %.0f N/m, %.0f Nm/rad",
                 parameters.stiffness.translation.x(), parameters.stiffness.rotation.x());
   return {{compare("convergence", quantity, cases, settled, "", 0.0, failures.str()),
-           at_most("convergence", "largest joint speed in each run's last second", 0.01,
-                   fastest_late, "rad/s")},
+           at_most("convergence", "largest joint speed in each run's last second", settled_speed,
+                   fastest_late, "rad/s",
+                   settled_speed > 0.01 ? "0.01 and five times the plant's noise speed" : "")},
           {},
           overrides(robot, parameters)};
 }
