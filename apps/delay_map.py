@@ -31,7 +31,7 @@ SETTLED_SPEED = 0.05  # [rad/s] the realistic plant's noise keeps a settled arm 
 
 
 def run_cell(robot, model, shaped, stiffness, delay):
-    urdf, mjcf, _, _ = ROBOTS[robot]
+    _, mjcf, _, _ = ROBOTS[robot]
     plant = ci.sim.Plant.realistic(seed=1)
     plant.measurement_delay = delay
     sim = ci.sim.Simulation.from_mjcf_file(SOURCE / "models" / mjcf, plant=plant)

@@ -347,13 +347,18 @@ void run_measured(Rig& rig, double seconds, const std::function<void(double spee
   }
 }
 
-double noise_speed(Rig& rig, const sim::PlantOptions& plant) {
-  if (!(plant.torque_noise > 0.0) && !(plant.velocity_noise > 0.0)) return 0.0;
+Kinematics simulated_arm(Rig& rig) {
   ModelWorkspace workspace(rig.model());
   Kinematics kinematics = workspace.make_kinematics();
   workspace.compute(rig.sim().true_q(), rig.sim().true_dq(), kinematics, true);
-  JointMatrix mass = kinematics.mass;
-  mass.diagonal() += rig.sim().armature();
+  kinematics.mass.diagonal() += rig.sim().armature();
+  return kinematics;
+}
+
+double noise_speed(Rig& rig, const sim::PlantOptions& plant) {
+  if (!(plant.torque_noise > 0.0) && !(plant.velocity_noise > 0.0)) return 0.0;
+  const Kinematics kinematics = simulated_arm(rig);
+  const JointMatrix& mass = kinematics.mass;
   const Eigen::MatrixXd& jacobian = kinematics.jacobian;
   const ControllerState& state = rig.loop().state().controller;
   const Parameters& parameters = rig.loop().controller().parameters();
@@ -379,11 +384,8 @@ double noise_speed(Rig& rig, const sim::PlantOptions& plant) {
 // the flange held (a flat face stuck on a surface), d^T (J M^-1 J^T)^+ d over the six task
 // directions, M with the simulated rotors' inertia.
 double mass_along(Rig& rig, const Eigen::Vector3d& direction) {
-  ModelWorkspace workspace(rig.model());
-  Kinematics kinematics = workspace.make_kinematics();
-  workspace.compute(rig.sim().true_q(), rig.sim().true_dq(), kinematics, true);
-  JointMatrix mass = kinematics.mass;
-  mass.diagonal() += rig.sim().armature();
+  const Kinematics kinematics = simulated_arm(rig);
+  const JointMatrix& mass = kinematics.mass;
   const Eigen::MatrixXd& jacobian = kinematics.jacobian;
   const Eigen::MatrixXd mobility = jacobian * mass.ldlt().solve(jacobian.transpose());
   const Eigen::MatrixXd inertia =

@@ -149,6 +149,10 @@ const sim::Box* first_table_only_the_flange_meets(const RobotSetup& robot,
                                                   const std::vector<sim::Box>& candidates,
                                                   double depth);
 
+/// The model at the simulation's true state (pose, Jacobian, M(q)), with the simulated rotors'
+/// inertia added to M(q)'s diagonal.
+Kinematics simulated_arm(Rig& rig);
+
 /// What the plant's noise (RobotSetup::plant: torque_noise, velocity_noise) keeps a settled arm
 /// moving at [rad/s or m/s], the largest over its joints of the standard deviation of the joint's
 /// speed: 0 on the nominal plant. Each joint j is a mass m_j (M(q)_jj + the simulated armature)

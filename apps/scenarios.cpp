@@ -22,11 +22,8 @@ namespace {
 double creep_speed(Rig& rig) {
   if (rig.sim().engine() != sim::Engine::mujoco) return 0.0;
   const int n = rig.model().num_joints();
-  ModelWorkspace workspace(rig.model());
-  Kinematics kinematics = workspace.make_kinematics();
-  workspace.compute(rig.sim().true_q(), JointVector::Zero(n), kinematics, true);
-  const JointMatrix mass = kinematics.mass + JointMatrix(rig.sim().armature().asDiagonal());
-  const JointVector inverse_diagonal = mass.inverse().diagonal();
+  const Kinematics kinematics = simulated_arm(rig);
+  const JointVector inverse_diagonal = kinematics.mass.inverse().diagonal();
   const JointVector friction = rig.sim().friction_loss();
   constexpr double kImpedance = 0.9, kDamping = 2.0 / (0.95 * 0.02);
   double speed = 0.0;
