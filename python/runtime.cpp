@@ -123,6 +123,7 @@ std::string statistics_repr(const rt::ControlThreadStatistics& s) {
          ", period_p50_us=" + ci::format_number(s.period_p50_us) +
          ", period_p99_us=" + ci::format_number(s.period_p99_us) +
          ", period_max_us=" + ci::format_number(s.period_max_us) +
+         ", measurement_age_p99_us=" + ci::format_number(s.measurement_age_p99_us) +
          ", stale=" + (s.stale ? "True" : "False") +
          ", stale_episodes=" + std::to_string(s.stale_episodes) +
          ", realtime=" + (s.realtime ? "True" : "False") + ")";
@@ -170,6 +171,9 @@ void bind_runtime(py::module_& m) {
       .def_property_readonly(
           "received", [](const rt::JointMeasurement& m) { return seconds_of(m.received); },
           "When it was published [s], on the clock of time.monotonic() (CLOCK_MONOTONIC).")
+      .def_property_readonly(
+          "sampled", [](const rt::JointMeasurement& m) { return seconds_of(m.sampled); },
+          "When the robot measured it [s], same clock: the driver's stamp, else received.")
       .def("__repr__", [](const rt::JointMeasurement& m) {
         return "JointMeasurement(sequence=" + std::to_string(m.sequence) +
                ", q=" + numbers_text(m.q) + ", dq=" + numbers_text(m.dq) + ")";
@@ -187,7 +191,7 @@ void bind_runtime(py::module_& m) {
                              [](const Measurements& self) { return self.buffer.num_joints(); })
       .def(
           "publish",
-          [](Measurements& self, ArrayLike q, ArrayLike dq, ArrayLike effort) {
+          [](Measurements& self, ArrayLike q, ArrayLike dq, ArrayLike effort, py::object sampled) {
             check_free(self.writer, "this MeasurementBuffer");
             const int n = self.buffer.num_joints();
             rt::JointMeasurement measured;
@@ -198,11 +202,24 @@ void bind_runtime(py::module_& m) {
             } else {
               read_vector(effort, "effort", Length{n}, measured.effort);
             }
+            if (!sampled.is_none()) {
+              const double seconds = read_scalar(sampled, "sampled");
+              if (!(seconds > 0.0)) {
+                throw ci::Error("sampled = " + ci::format_number(seconds) +
+                                " s is not a time of time.monotonic()'s clock");
+              }
+              measured.sampled = std::chrono::steady_clock::time_point(
+                  std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                      std::chrono::duration<double>(seconds)));
+            }
             self.buffer.publish(measured);
           },
           py::arg("q"), py::arg("dq"), py::arg("effort") = py::none(),
+          py::arg("sampled") = py::none(),
           "Makes q (n,) [rad or m] and dq (n,) [rad/s or m/s] (and the measured joint torques "
-          "effort (n,) [Nm or N], if any) the newest measurement, received now. Values that are "
+          "effort (n,) [Nm or N], if any) the newest measurement, received now; `sampled` is when "
+          "the robot measured it [s] on time.monotonic()'s clock (its stamp; default: now), from "
+          "which the control thread reports the measurements' age. Values that are "
           "not finite are passed on as measured: the control cycle then fails closed at once "
           "(status invalid_robot_state), the safe reaction to a bad measurement. One writer: "
           "refused (RuntimeError) while a SimulatedDriver publishes to this buffer.")
@@ -291,6 +308,13 @@ void bind_runtime(py::module_& m) {
                     "[us] 99th percentile of the period, within max(0.5 us, 0.4 %)")
       .def_readonly("period_max_us", &rt::ControlThreadStatistics::period_max_us,
                     "[us] largest measured period")
+      .def_readonly("measurement_age_p50_us", &rt::ControlThreadStatistics::measurement_age_p50_us,
+                    "[us] median age of the measurement each cycle used, from the driver's stamp "
+                    "(else its receipt) to the cycle's start")
+      .def_readonly("measurement_age_p99_us", &rt::ControlThreadStatistics::measurement_age_p99_us,
+                    "[us] 99th percentile of the measurements' age")
+      .def_readonly("measurement_age_max_us", &rt::ControlThreadStatistics::measurement_age_max_us,
+                    "[us] largest age of a measurement a cycle used")
       .def("__repr__", &statistics_repr);
 
   const rt::ControlThreadOptions defaults;

@@ -16,6 +16,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <random>
 #include <thread>
 #include <vector>
@@ -108,13 +109,16 @@ class SleepingSink : public rt::TorqueSink {
   std::atomic<int> slow_{0};
 };
 
-// A robot that reports its (motionless) joint state at about 1 kHz while `on`, like a driver.
+// A robot that reports its (motionless) joint state at about 1 kHz while `on`, like a driver;
+// stamped as measured `age` before it is published if `age` is given.
 class FakeRobot {
  public:
-  FakeRobot(rt::MeasurementBuffer& buffer, const ci::JointVector& q)
+  FakeRobot(rt::MeasurementBuffer& buffer, const ci::JointVector& q,
+            std::optional<std::chrono::microseconds> age = std::nullopt)
       : buffer_(buffer), measurement_(at_rest(q)) {
-    thread_ = std::thread([this] {
+    thread_ = std::thread([this, age] {
       while (!quit_) {
+        if (age) measurement_.sampled = rt::monotonic_now() - *age;
         if (on_) buffer_.publish(measurement_);
         std::this_thread::sleep_for(std::chrono::milliseconds(1));
       }
@@ -470,6 +474,30 @@ TEST(ControlThread, FailsClosedWithoutMeasurementsAndResumesWhenTheyReturn) {
   EXPECT_EQ(thread.statistics().stale_episodes, 1u);
 }
 
+// The age of a measurement runs from the driver's stamp, else from its receipt, to the cycle that
+// uses it: the stamp's age plus up to one of the robot's periods (about 1.1 ms) and the
+// scheduler's delay.
+TEST(ControlThread, ReportsTheAgeOfTheMeasurementsItUsedFromTheirStamps) {
+  const ci::RobotModel model = panda();
+  for (const int age_us : {0, 5000, 20000}) {
+    SCOPED_TRACE(age_us);
+    ci::ControlLoop loop(model);
+    rt::MeasurementBuffer measurements(7);
+    rt::ControlThread thread(options_with(1000.0));
+    const auto age = age_us > 0 ? std::optional(std::chrono::microseconds(age_us)) : std::nullopt;
+    FakeRobot robot(measurements, panda_ready(), age);
+    thread.start(loop, measurements, nullptr);
+    ASSERT_TRUE(eventually([&] { return thread.statistics().cycles > 300; }));
+    const rt::ControlThreadStatistics statistics = thread.statistics();
+    thread.stop();
+    EXPECT_GE(statistics.measurement_age_p50_us, age_us);
+    EXPECT_LE(statistics.measurement_age_p50_us, age_us + 3000.0);
+    EXPECT_LE(statistics.measurement_age_p50_us, statistics.measurement_age_p99_us);
+    EXPECT_LE(statistics.measurement_age_p99_us, statistics.measurement_age_max_us);
+    EXPECT_GE(statistics.measurement_age_max_us, age_us + 500.0);  // a robot period goes by
+  }
+}
+
 TEST(ControlThread, StartsAtTheFirstCompleteFiniteMeasurement) {
   const ci::RobotModel model = panda();
   ci::ControlLoop loop(model);
@@ -679,4 +707,14 @@ TEST(MeasurementBuffer, NumbersAndStampsEachMeasurement) {
   EXPECT_EQ(out.effort, in.effort);
   EXPECT_GE(out.received, before);
   EXPECT_LE(out.received, rt::monotonic_now());
+  EXPECT_EQ(out.sampled, out.received);  // no stamp: measured when received
+
+  in.sampled = before - std::chrono::milliseconds(7);  // a driver's stamp is kept
+  buffer.publish(in);
+  buffer.read(out);
+  EXPECT_EQ(out.sampled, in.sampled);
+  in.sampled = rt::monotonic_now() + std::chrono::seconds(1);  // a clock ahead of ours
+  buffer.publish(in);
+  buffer.read(out);
+  EXPECT_EQ(out.sampled, out.received);
 }

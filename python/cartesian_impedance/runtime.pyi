@@ -100,6 +100,15 @@ class ControlThreadStatistics:
     def latest_lateness_us(self) -> float:
         """[us] how late the most recent overrun ended (0 before any)"""
     @property
+    def measurement_age_max_us(self) -> float:
+        """[us] largest age of a measurement a cycle used"""
+    @property
+    def measurement_age_p50_us(self) -> float:
+        """[us] median age of the measurement each cycle used, from the driver's stamp (else its receipt) to the cycle's start"""
+    @property
+    def measurement_age_p99_us(self) -> float:
+        """[us] 99th percentile of the measurements' age"""
+    @property
     def overruns(self) -> int:
         """cycles that ended after the next cycle's deadline"""
     @property
@@ -144,6 +153,9 @@ class JointMeasurement:
     def received(self) -> float:
         """When it was published [s], on the clock of time.monotonic() (CLOCK_MONOTONIC)."""
     @property
+    def sampled(self) -> float:
+        """When the robot measured it [s], same clock: the driver's stamp, else received."""
+    @property
     def sequence(self) -> int:
         """1, 2, ... in order of publication; 0: nothing published yet."""
 
@@ -155,8 +167,8 @@ class MeasurementBuffer:
     def __repr__(self) -> str: ...
     @property
     def num_joints(self) -> int: ...
-    def publish(self, q: numpy.typing.ArrayLike, dq: numpy.typing.ArrayLike, effort: numpy.typing.ArrayLike = ...) -> None:
-        """Makes q (n,) [rad or m] and dq (n,) [rad/s or m/s] (and the measured joint torques effort (n,) [Nm or N], if any) the newest measurement, received now. Values that are not finite are passed on as measured: the control cycle then fails closed at once (status invalid_robot_state), the safe reaction to a bad measurement. One writer: refused (RuntimeError) while a SimulatedDriver publishes to this buffer."""
+    def publish(self, q: numpy.typing.ArrayLike, dq: numpy.typing.ArrayLike, effort: numpy.typing.ArrayLike = ..., sampled: object = ...) -> None:
+        """Makes q (n,) [rad or m] and dq (n,) [rad/s or m/s] (and the measured joint torques effort (n,) [Nm or N], if any) the newest measurement, received now; `sampled` is when the robot measured it [s] on time.monotonic()'s clock (its stamp; default: now), from which the control thread reports the measurements' age. Values that are not finite are passed on as measured: the control cycle then fails closed at once (status invalid_robot_state), the safe reaction to a bad measurement. One writer: refused (RuntimeError) while a SimulatedDriver publishes to this buffer."""
     def read(self) -> JointMeasurement:
         """The newest measurement (a JointMeasurement; sequence 0 before the first). Any thread."""
 

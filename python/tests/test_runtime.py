@@ -46,6 +46,11 @@ def test_measurement_buffer_publishes_the_newest_state_with_its_time():
     np.testing.assert_array_equal(newest.q, PANDA_READY + 0.01)
     np.testing.assert_array_equal(newest.effort, np.arange(7.0))
     assert before <= newest.received <= after  # time.monotonic()'s clock
+    assert newest.sampled == newest.received  # no stamp given
+    buffer.publish(PANDA_READY, np.zeros(7), sampled=before - 0.004)  # the driver's stamp
+    assert buffer.read().sampled == pytest.approx(before - 0.004, abs=1e-9)
+    with pytest.raises(ci.Error, match="sampled"):
+        buffer.publish(PANDA_READY, np.zeros(7), sampled=float("nan"))
 
 
 def test_torque_outbox_waits_until_the_timeout_or_a_wake():

@@ -17,6 +17,7 @@ ci::node::JointStateView joint_state_view(const sensor_msgs::JointState& message
   view.position = {message.position.data(), message.position.size()};
   view.velocity = {message.velocity.data(), message.velocity.size()};
   view.effort = {message.effort.data(), message.effort.size()};
+  view.stamp_ns = static_cast<std::int64_t>(message.header.stamp.toNSec());
   return view;
 }
 

@@ -5,7 +5,9 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <iterator>
 #include <limits>
@@ -58,6 +60,28 @@ TEST(JointStateMapper, ReordersAndIgnoresOtherJoints) {
   gripper.position = {0.1};
   gripper.velocity = {0.0};
   EXPECT_FALSE(mapper.map(cir::joint_state_view(gripper), sample));
+}
+
+// header.stamp (system clock) becomes the measurement's time on the control thread's clock.
+TEST(JointStateMapper, TakesWhenItWasMeasuredFromTheStamp) {
+  const ci::node::JointStateMapper mapper({"a"});
+  sensor_msgs::JointState message;
+  message.name = {"a"};
+  message.position = {0.1};
+  message.velocity = {0.0};
+  cir::JointSample sample;
+  ASSERT_TRUE(mapper.map(cir::joint_state_view(message), sample));
+  EXPECT_EQ(sample.sampled.time_since_epoch().count(), 0);  // no stamp
+
+  const auto now = std::chrono::system_clock::now().time_since_epoch();
+  message.header.stamp.fromNSec(static_cast<std::uint64_t>(
+      std::chrono::duration_cast<std::chrono::nanoseconds>(now - std::chrono::milliseconds(30))
+          .count()));
+  ASSERT_TRUE(mapper.map(cir::joint_state_view(message), sample));
+  const double age =
+      std::chrono::duration<double>(ci::runtime::monotonic_now() - sample.sampled).count();
+  EXPECT_GE(age, 0.030);
+  EXPECT_LT(age, 0.035);  // the few microseconds in between, with a loaded machine's margin
 }
 
 TEST(JointStateMapper, RejectsIncompleteMessages) {
@@ -219,6 +243,9 @@ TEST(Conversions, TimingOfTheControlThread) {
   statistics.period_max_us = 1520.0;
   statistics.stale_episodes = 2;
   statistics.realtime = true;
+  statistics.measurement_age_p50_us = 1210.0;
+  statistics.measurement_age_p99_us = 2450.5;
+  statistics.measurement_age_max_us = 8100.0;
   cir::ControllerState message;
   cir::fill_timing(statistics, message);
   EXPECT_EQ(message.overruns, 37u);
@@ -230,6 +257,9 @@ TEST(Conversions, TimingOfTheControlThread) {
   EXPECT_EQ(message.period_max_us, 1520.0);
   EXPECT_EQ(message.stale_episodes, 2u);
   EXPECT_TRUE(message.realtime);
+  EXPECT_EQ(message.measurement_age_p50_us, 1210.0);
+  EXPECT_EQ(message.measurement_age_p99_us, 2450.5);
+  EXPECT_EQ(message.measurement_age_max_us, 8100.0);
 
   EXPECT_EQ(ci::runtime::overrun_summary(statistics, 0.001, 5.004),
             "control cycle: 37 overruns of the 1 ms period in the last 5 s (worst 412 us late); "

@@ -54,6 +54,8 @@ TEST(Conversions, StateMessageCarriesTheLimitsAndTheSafetyLayer) {
   safety.payload_estimate_valid = true;
   safety.payload_estimate_mass = 1.28;
   safety.payload_estimate_center_of_mass = {0.029, 0.030, 0.031};
+  safety.oscillation_scale = 0.125;
+  safety.oscillations = 3;
 
   cir::ControllerState message;
   cir::fill_state_message(state, model.joint_names(), nullptr, message);
@@ -81,6 +83,8 @@ TEST(Conversions, StateMessageCarriesTheLimitsAndTheSafetyLayer) {
   EXPECT_EQ(message.payload_estimate_mass, 1.28);
   EXPECT_EQ(xyz(message.payload_estimate_center_of_mass),
             (std::vector<double>{0.029, 0.030, 0.031}));
+  EXPECT_EQ(message.oscillation_scale, 0.125);
+  EXPECT_EQ(message.oscillations, 3u);
 
   // And what a running loop reports at rest with the defaults: nothing capped, the tank full.
   cir::fill_state_message(loop.state(), model.joint_names(), nullptr, message);

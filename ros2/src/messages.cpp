@@ -173,6 +173,8 @@ ci::node::JointStateView joint_state_view(const JointStateMessage& message) {
   view.position = {message.position._buffer, message.position._length};
   view.velocity = {message.velocity._buffer, message.velocity._length};
   view.effort = {message.effort._buffer, message.effort._length};
+  view.stamp_ns =
+      std::int64_t{message.header.stamp.sec} * 1000000000 + message.header.stamp.nanosec;
   return view;
 }
 

@@ -582,9 +582,15 @@ TEST(Ros2Messages, FullStateCarriesTheLimitsAndTheSafetyLayer) {
   safety.payload_estimate_valid = true;
   safety.payload_estimate_mass = 2.58;
   safety.payload_estimate_center_of_mass = {0.059, 0.060, 0.061};
+  safety.oscillation_scale = 0.25;
+  safety.oscillations = 2;
+  ci::runtime::ControlThreadStatistics timing;
+  timing.measurement_age_p50_us = 1500.0;
+  timing.measurement_age_p99_us = 3250.0;
+  timing.measurement_age_max_us = 9000.5;
 
   OutgoingMessages messages(model, Frames{"panda_link0", "panda_link8", ""});
-  messages.fill(state, ci::runtime::ControlThreadStatistics{}, nullptr);
+  messages.fill(state, timing, nullptr);
   const FullState& m = messages.full_state();
   using V = std::vector<double>;
   const auto xyz = [](const geometry_msgs_msg_dds__Vector3_& v) { return V{v.x, v.y, v.z}; };
@@ -608,6 +614,11 @@ TEST(Ros2Messages, FullStateCarriesTheLimitsAndTheSafetyLayer) {
   EXPECT_TRUE(m.payload_estimate_valid);
   EXPECT_EQ(m.payload_estimate_mass, 2.58);
   EXPECT_EQ(xyz(m.payload_estimate_center_of_mass), (V{0.059, 0.060, 0.061}));
+  EXPECT_EQ(m.oscillation_scale, 0.25);
+  EXPECT_EQ(m.oscillations, 2u);
+  EXPECT_EQ(m.measurement_age_p50_us, 1500.0);
+  EXPECT_EQ(m.measurement_age_p99_us, 3250.0);
+  EXPECT_EQ(m.measurement_age_max_us, 9000.5);
 
   // A longer name in the same string field afterwards (its storage grows), then a shorter one.
   state.controller.limits.torque_shaping = ci::TorqueShaping::nullspace;

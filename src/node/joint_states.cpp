@@ -1,11 +1,22 @@
 #include "cartesian_impedance/node/joint_states.hpp"
 
+#include <chrono>
 #include <string>
 #include <utility>
 
 #include "cartesian_impedance/core/error.hpp"
 
 namespace cartesian_impedance::node {
+
+std::chrono::steady_clock::time_point sampled_time(std::int64_t stamp_ns) noexcept {
+  if (stamp_ns == 0) return {};
+  // The stamp is on the system clock (ROS time), the control thread's on the monotonic one: the
+  // measurement is as old on both.
+  const std::int64_t now_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                  std::chrono::system_clock::now().time_since_epoch())
+                                  .count();
+  return runtime::monotonic_now() - std::chrono::nanoseconds(now_ns - stamp_ns);
+}
 
 JointStateMapper::JointStateMapper(std::vector<std::string> joint_names)
     : joint_names_(std::move(joint_names)) {}
@@ -59,6 +70,7 @@ bool JointStateMapper::map(const JointStateView& message, runtime::JointMeasurem
     out.dq[i] = message.velocity.data[k];
     if (has_effort) out.effort[i] = message.effort.data[k];
   }
+  out.sampled = sampled_time(message.stamp_ns);
   return true;
 }
 

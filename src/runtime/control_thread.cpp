@@ -53,10 +53,11 @@ void check_range(const char* name, double value, const char* unit, double min, d
 class RobotCycle final : public Cycle {
  public:
   RobotCycle(ControlLoop& loop, const MeasurementBuffer& measurements, TorqueSink* sink,
-             double timeout)
+             double timeout, DurationHistogram& ages)
       : loop_(loop),
         measurements_(measurements),
         sink_(sink),
+        ages_(ages),
         timeout_(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
             std::chrono::duration<double>(timeout))),
         invalid_(
@@ -84,6 +85,11 @@ class RobotCycle final : public Cycle {
     // A lost robot connection is a bad measurement: the cycle reports invalid_robot_state and
     // ramps the torque toward zero within the rate limit, as for any invalid input.
     const bool fresh = time.now - measurement_.received <= timeout_;
+    if (fresh) {
+      ages_.record(
+          std::chrono::duration_cast<std::chrono::nanoseconds>(time.now - measurement_.sampled)
+              .count());
+    }
     const JointVector& tau = fresh ? loop_.step(measurement_.q, measurement_.dq, time.dt)
                                    : loop_.step(invalid_, invalid_, time.dt);
     if (sink_ != nullptr) sink_->write(tau, loop_.state().cycle);
@@ -94,6 +100,7 @@ class RobotCycle final : public Cycle {
   ControlLoop& loop_;
   const MeasurementBuffer& measurements_;
   TorqueSink* sink_;
+  DurationHistogram& ages_;
   std::chrono::steady_clock::duration timeout_;
   JointVector invalid_;
   JointMeasurement measurement_;
@@ -126,8 +133,8 @@ void ControlThread::start(ControlLoop& loop, const MeasurementBuffer& measuremen
                 std::to_string(measurements.num_joints()) + " joints, the control loop " +
                 std::to_string(loop.num_joints()));
   }
-  robot_cycle_ =
-      std::make_unique<RobotCycle>(loop, measurements, sink, options_.measurement_timeout);
+  robot_cycle_ = std::make_unique<RobotCycle>(loop, measurements, sink,
+                                              options_.measurement_timeout, measurement_age_);
   start(*robot_cycle_);
 }
 
@@ -151,6 +158,7 @@ void ControlThread::start(Cycle& cycle) {
   latest_lateness_ns_ = 0;
   period_.reset();
   lateness_.reset();
+  measurement_age_.reset();
   stale_ = false;
   stale_episodes_ = 0;
   realtime_ = false;
@@ -213,6 +221,7 @@ ControlThreadSnapshot ControlThread::snapshot() const noexcept {
   snapshot.realtime = realtime_.load(relaxed);
   snapshot.period = period_.snapshot();
   snapshot.lateness = lateness_.snapshot();
+  snapshot.measurement_age = measurement_age_.snapshot();
   return snapshot;
 }
 
@@ -221,7 +230,8 @@ namespace {
 // The fields that do not depend on the window.
 ControlThreadStatistics statistics_of(const ControlThreadSnapshot& snapshot,
                                       const DurationHistogram::Snapshot& period,
-                                      const DurationHistogram::Snapshot& lateness) noexcept {
+                                      const DurationHistogram::Snapshot& lateness,
+                                      const DurationHistogram::Snapshot& age) noexcept {
   ControlThreadStatistics statistics;
   statistics.latest_lateness_us = 1e-3 * static_cast<double>(snapshot.latest_lateness_ns);
   statistics.worst_lateness_us = lateness.max_us();
@@ -231,6 +241,9 @@ ControlThreadStatistics statistics_of(const ControlThreadSnapshot& snapshot,
   statistics.period_p50_us = period.quantile_us(0.5);
   statistics.period_p99_us = period.quantile_us(0.99);
   statistics.period_max_us = period.max_us();
+  statistics.measurement_age_p50_us = age.quantile_us(0.5);
+  statistics.measurement_age_p99_us = age.quantile_us(0.99);
+  statistics.measurement_age_max_us = age.max_us();
   return statistics;
 }
 
@@ -241,7 +254,7 @@ std::uint64_t difference(std::uint64_t later, std::uint64_t earlier) noexcept {
 }  // namespace
 
 ControlThreadStatistics ControlThreadSnapshot::statistics() const noexcept {
-  ControlThreadStatistics statistics = statistics_of(*this, period, lateness);
+  ControlThreadStatistics statistics = statistics_of(*this, period, lateness, measurement_age);
   statistics.cycles = cycles;
   statistics.overruns = overruns;
   statistics.stale_episodes = stale_episodes;
@@ -252,7 +265,8 @@ ControlThreadStatistics ControlThreadSnapshot::since(
     const ControlThreadSnapshot& earlier) const noexcept {
   if (earlier.start != start) return statistics();
   ControlThreadStatistics statistics =
-      statistics_of(*this, period.since(earlier.period), lateness.since(earlier.lateness));
+      statistics_of(*this, period.since(earlier.period), lateness.since(earlier.lateness),
+                    measurement_age.since(earlier.measurement_age));
   statistics.cycles = difference(cycles, earlier.cycles);
   statistics.overruns = difference(overruns, earlier.overruns);
   statistics.stale_episodes = difference(stale_episodes, earlier.stale_episodes);

@@ -42,6 +42,10 @@ void MeasurementBuffer::publish(const JointMeasurement& measurement) noexcept {
   staging_ = measurement;
   staging_.sequence = ++sequence_;
   staging_.received = monotonic_now();
+  // A stamp from the future (a driver's clock ahead of ours) would report a negative age.
+  if (staging_.sampled.time_since_epoch().count() == 0 || staging_.sampled > staging_.received) {
+    staging_.sampled = staging_.received;
+  }
   buffer_.publish(staging_);
 }
 

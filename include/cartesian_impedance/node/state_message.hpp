@@ -151,6 +151,8 @@ void fill_state_message(const LoopState& state, const std::vector<std::string>& 
   message.payload_estimate_valid = safety.payload_estimate_valid;
   message.payload_estimate_mass = safety.payload_estimate_mass;
   fill_vector3(safety.payload_estimate_center_of_mass, message.payload_estimate_center_of_mass);
+  message.oscillation_scale = safety.oscillation_scale;
+  message.oscillations = static_cast<std::uint64_t>(safety.oscillations);
 }
 
 /// The timing fields of ControllerState.msg from the control thread's statistics since it
@@ -166,6 +168,9 @@ void fill_timing(const runtime::ControlThreadStatistics& statistics, Message& me
   message.period_max_us = statistics.period_max_us;
   message.stale_episodes = statistics.stale_episodes;
   message.realtime = statistics.realtime;
+  message.measurement_age_p50_us = statistics.measurement_age_p50_us;
+  message.measurement_age_p99_us = statistics.measurement_age_p99_us;
+  message.measurement_age_max_us = statistics.measurement_age_max_us;
 }
 
 }  // namespace cartesian_impedance::node

@@ -121,10 +121,19 @@ struct ControlThreadStatistics {
   double period_p50_us = 0.0;
   double period_p99_us = 0.0;
   double period_max_us = 0.0;
+  /// [us] the age of the measurement each robot cycle used (start(loop, measurements, sink)):
+  /// from when the robot measured it (JointMeasurement::sampled, the driver's stamp, else when it
+  /// was received) to the cycle's start; median, 99th percentile and largest, within the same
+  /// bounds as the period's. The controller acts on the arm as it was this long ago, plus the
+  /// torque's way back: the delay that sets the stiffness the arm can hold (README, "No silent
+  /// limit cycle"). 0 before the first fresh measurement; stale cycles are not counted.
+  double measurement_age_p50_us = 0.0;
+  double measurement_age_p99_us = 0.0;
+  double measurement_age_max_us = 0.0;
 };
 
-/// Everything the thread counted, at one moment: ControlThread::snapshot(). About 30 kB of
-/// values (two histograms); taking one reads a few thousand atomics and allocates nothing.
+/// Everything the thread counted, at one moment: ControlThread::snapshot(). About 45 kB of
+/// values (three histograms); taking one reads a few thousand atomics and allocates nothing.
 struct ControlThreadSnapshot {
   std::uint64_t start = 0;  ///< which start() of the thread these counts are from (1, 2, ...)
   std::uint64_t cycles = 0;
@@ -133,8 +142,9 @@ struct ControlThreadSnapshot {
   bool stale = false;
   std::uint64_t stale_episodes = 0;
   bool realtime = false;
-  DurationHistogram::Snapshot period;    ///< [ns] between consecutive cycle starts
-  DurationHistogram::Snapshot lateness;  ///< [ns] of each overrun after the next deadline
+  DurationHistogram::Snapshot period;           ///< [ns] between consecutive cycle starts
+  DurationHistogram::Snapshot lateness;         ///< [ns] of each overrun after the next deadline
+  DurationHistogram::Snapshot measurement_age;  ///< [ns] of each fresh measurement used
 
   /// Since start().
   ControlThreadStatistics statistics() const noexcept;
@@ -236,8 +246,9 @@ class ControlThread {
   std::atomic<std::uint64_t> cycles_{0};
   std::atomic<std::uint64_t> overruns_{0};
   std::atomic<std::int64_t> latest_lateness_ns_{0};
-  DurationHistogram period_;    // between consecutive cycle starts
-  DurationHistogram lateness_;  // of each overrun
+  DurationHistogram period_;           // between consecutive cycle starts
+  DurationHistogram lateness_;         // of each overrun
+  DurationHistogram measurement_age_;  // of the measurement each robot cycle used
   std::atomic<bool> stale_{false};
   std::atomic<std::uint64_t> stale_episodes_{0};
   std::atomic<bool> realtime_{false};

@@ -29,6 +29,11 @@ struct JointMeasurement {
   JointVector effort;  ///< measured joint torques [Nm or N]; size 0 if the robot reports none
   std::uint64_t sequence = 0;  ///< 1, 2, ... in order of publication; 0: nothing received yet
   std::chrono::steady_clock::time_point received{};  ///< when it was published (monotonic_now)
+  /// When the robot measured it, on the same clock: a driver's stamp (a ROS header.stamp, the
+  /// time of a fieldbus frame). The default (the clock's epoch) means the driver gives none: then
+  /// it is `received`. The control thread reports the age of each measurement it uses from it
+  /// (ControlThreadStatistics::measurement_age_p50_us).
+  std::chrono::steady_clock::time_point sampled{};
 };
 
 /// Measurements from one writer thread (the driver) to any number of readers (the control thread,
@@ -44,7 +49,8 @@ class MeasurementBuffer {
   int num_joints() const noexcept { return num_joints_; }
 
   /// Makes a copy of `measurement` the newest, with the next sequence number and
-  /// received = monotonic_now() (its own sequence and received are ignored). q and dq are passed
+  /// received = monotonic_now() (its own sequence and received are ignored); its `sampled` is
+  /// kept if given and not later than `received`, else set to `received`. q and dq are passed
   /// on as they are, even wrongly sized or non-finite: the control cycle then fails closed, which
   /// is the safe reaction to a bad measurement. One writer thread at a time. Real-time safe:
   /// noexcept, lock-free, no allocation.

@@ -296,6 +296,11 @@ void visit(V& v, cartesian_impedance_msgs_msg_dds__ControllerState_& m) {
   v.boolean(m.payload_estimate_valid);
   v.float64(m.payload_estimate_mass);
   v.nested(m.payload_estimate_center_of_mass);  // geometry_msgs/Vector3
+  v.float64(m.measurement_age_p50_us);
+  v.float64(m.measurement_age_p99_us);
+  v.float64(m.measurement_age_max_us);
+  v.float64(m.oscillation_scale);
+  v.uint64(m.oscillations);
 }
 
 }  // namespace ros2_messages_test
