@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <string>
+#include <type_traits>
 
 #include "ros2_messages.hpp"
 
@@ -107,8 +108,9 @@ class Reader {
     reader_ = Entity(check(reader, "reader of " + dds_name));
   }
 
-  /// Takes every sample waiting (valid data only) and calls `each(const Message&)` for each, on
-  /// DDS's loaned memory. Returns how many were taken.
+  /// Takes every sample waiting (valid data only) and calls `each(const Message&)` (or
+  /// `each(const Message&, const dds_sample_info_t&)`, with the writer's source_timestamp) for
+  /// each, on DDS's loaned memory. Returns how many were taken.
   template <typename Each>
   int take(Each&& each) {
     int taken = 0;
@@ -119,7 +121,12 @@ class Reader {
       if (count <= 0) break;
       for (dds_return_t i = 0; i < count; ++i) {
         if (infos[i].valid_data) {
-          each(*static_cast<const Message*>(samples[i]));
+          const Message& message = *static_cast<const Message*>(samples[i]);
+          if constexpr (std::is_invocable_v<Each, const Message&, const dds_sample_info_t&>) {
+            each(message, infos[i]);
+          } else {
+            each(message);
+          }
           ++taken;
         }
       }

@@ -10,9 +10,9 @@
 #include <cartesian_impedance/core/error.hpp>
 #include <cartesian_impedance/node/startup_report.hpp>
 #include <cartesian_impedance/node/status_reports.hpp>
-#include <cartesian_impedance/node/temporary_file.hpp>
 
 #include "log.hpp"
+#include "simulated_arm.hpp"
 
 namespace cartesian_impedance_ros2 {
 
@@ -23,17 +23,6 @@ namespace {
 
 void log_line(const ci::node::ReportLine& line) {
   log(line.level == ci::node::ReportLine::Level::info ? LogLevel::info : LogLevel::warn, line.text);
-}
-
-// The engines' URDF loaders read a file: urdf_path itself, or robot_description's text in a
-// temporary one.
-ci::sim::Simulation simulate_urdf(const Ros2Configuration& configuration,
-                                  const ci::sim::SimulationOptions& options) {
-  if (configuration.urdf_source != "robot_description") {
-    return ci::sim::Simulation::from_urdf_file(configuration.urdf_source, options);
-  }
-  const ci::node::TemporaryFile file(configuration.urdf, ".urdf");
-  return ci::sim::Simulation::from_urdf_file(file.path(), options);
 }
 
 // Runs `make`, which creates DDS entities: its failure is the middleware's, not the
@@ -91,22 +80,7 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
   };
 
   if (settings_.mode == Mode::sim) {
-    ci::sim::SimulationOptions options;
-    options.timestep = 1.0 / settings_.control_rate;  // one simulation step per control cycle
-    options.joint_names = model_->joint_names();
-    // The simulated firmware compensates gravity like the real robots, unless the controller is
-    // configured to do it itself (then it would be compensated twice).
-    options.gravity_compensation = !configuration_.common.parameters.dynamics.gravity_compensation;
-    options.engine = settings_.engine;
-    const ci::node::SimulationStart start = ci::node::simulation_start(settings_, *model_);
-    options.start_q = start.q;
-    if (!start.message.empty()) {
-      log(start.warning ? LogLevel::warn : LogLevel::info, start.message);
-    }
-    // Without an MJCF, the engine simulates the URDF itself.
-    simulation_.emplace(settings_.mjcf_path.empty()
-                            ? simulate_urdf(configuration_, options)
-                            : ci::sim::Simulation::from_mjcf_file(settings_.mjcf_path, options));
+    simulation_.emplace(simulate_arm(configuration_, *model_));
     runner_.emplace(*simulation_, *loop_);
     writer(joint_state_writer_, "joint_states");
     log_startup_report(&simulation_->q());

@@ -44,16 +44,19 @@ inline void use_private_domain() {
   ::setenv("ROS_DOMAIN_ID", std::to_string(1 + ::getpid() % 200).c_str(), 1);
 }
 
-/// The node as a child process, stopped with SIGTERM (then SIGKILL) when the object goes.
+/// The node (or another program: the simulated robot) as a child process, stopped with SIGTERM
+/// (then SIGKILL) when the object goes.
 class NodeProcess {
  public:
-  explicit NodeProcess(const std::vector<std::string>& ros_arguments) {
+  explicit NodeProcess(const std::vector<std::string>& ros_arguments)
+      : NodeProcess(CARTESIAN_IMPEDANCE_ROS2_NODE, ros_arguments) {}
+  NodeProcess(const std::string& program, const std::vector<std::string>& arguments) {
     use_private_domain();
     static int count = 0;
     log_path_ = std::string(CARTESIAN_IMPEDANCE_BINARY_DIR) + "/node_" +
                 std::to_string(::getpid()) + "_" + std::to_string(++count) + ".log";
-    std::vector<std::string> args = {CARTESIAN_IMPEDANCE_ROS2_NODE};
-    args.insert(args.end(), ros_arguments.begin(), ros_arguments.end());
+    std::vector<std::string> args = {program};
+    args.insert(args.end(), arguments.begin(), arguments.end());
     pid_ = ::fork();
     if (pid_ == 0) {
       ::prctl(PR_SET_PDEATHSIG, SIGTERM);

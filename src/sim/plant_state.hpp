@@ -40,6 +40,8 @@ class PlantState {
   void actuate(const JointVector& command, JointVector& tau) noexcept;
   /// Whether actuate() changes anything (else the command acts as it is, at once).
   bool actuates() const noexcept { return actuates_; }
+  /// How many timesteps old a reading is.
+  int measurement_steps() const noexcept { return measurement_steps_; }
 
  private:
   PlantOptions plant_;

@@ -51,6 +51,8 @@ class SimulatedDriver::Tick final : public runtime::Cycle {
         torques_(torques),
         torque_timeout_(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
             std::chrono::duration<double>(torque_timeout))),
+        sensing_delay_(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+            std::chrono::duration<double>(simulation.measurement_age()))),
         zero_(JointVector::Zero(simulation.num_joints())) {
     incoming_.tau = zero_;
     measurement_.q = measurement_.dq = zero_;
@@ -69,7 +71,7 @@ class SimulatedDriver::Tick final : public runtime::Cycle {
   // A driver publishes the robot's state as soon as it connects: the control thread can start
   // before the first tick.
   bool prepare() override {
-    publish_measurement();
+    publish_measurement(runtime::monotonic_now());
     publish_state(false);
     return true;
   }
@@ -82,7 +84,7 @@ class SimulatedDriver::Tick final : public runtime::Cycle {
       ++counts_.steps;
     }
     const bool paused = nanoseconds_of(time.now) < pause_until_ns_.load(std::memory_order_relaxed);
-    if (!paused) publish_measurement();
+    if (!paused) publish_measurement(time.now);
     publish_state(paused);
     return runtime::Freshness::fresh;
   }
@@ -126,7 +128,9 @@ class SimulatedDriver::Tick final : public runtime::Cycle {
     }
   }
 
-  void publish_measurement() noexcept {
+  // Read at `now`, the reading is the plant's sensing delay old: its stamp says so.
+  void publish_measurement(std::chrono::steady_clock::time_point now) noexcept {
+    measurement_.sampled = now - sensing_delay_;
     measurement_.q = simulation_.q();
     measurement_.dq = simulation_.dq();
     measurements_.publish(measurement_);
@@ -149,6 +153,7 @@ class SimulatedDriver::Tick final : public runtime::Cycle {
   runtime::MeasurementBuffer& measurements_;
   runtime::TorqueOutbox& torques_;
   std::chrono::steady_clock::duration torque_timeout_;
+  std::chrono::steady_clock::duration sensing_delay_;
   JointVector zero_;
   runtime::TorqueSample incoming_;
   runtime::JointMeasurement measurement_;

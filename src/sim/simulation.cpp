@@ -521,6 +521,9 @@ const JointVector& Simulation::torque_upper_limits() const noexcept {
 const JointVector& Simulation::model_armature() const noexcept {
   return impl_->model_armature;
 }
+double Simulation::measurement_age() const noexcept {
+  return impl_->plant.measurement_steps() * timestep();
+}
 JointVector Simulation::armature() const {
   JointVector values(num_joints());
   for (int i = 0; i < num_joints(); ++i) {

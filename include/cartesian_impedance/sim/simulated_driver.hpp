@@ -8,7 +8,8 @@
 /// Each tick, on absolute deadlines one simulation timestep apart (1 kHz for a 1 ms timestep):
 /// take the newest torque from the TorqueOutbox (the driver is its one consumer), apply it, step
 /// the simulation once, publish the measured q and dq to the MeasurementBuffer (the driver is its
-/// one writer) and publish the state for readers (state()). The thread is a runtime::ControlThread
+/// one writer; stamped with when they were measured, Simulation::measurement_age() before the
+/// tick) and publish the state for readers (state()). The thread is a runtime::ControlThread
 /// running the tick as its cycle, so the ticks' timing is measured the same way (statistics()).
 ///
 /// Torques, like a Panda on FCI:

@@ -267,6 +267,9 @@ class Simulation {
   /// The rotor inertia before the plant's model error (armature() for the nominal plant): what
   /// the controller's dynamics.armature should be for this robot, as a datasheet gives it.
   const JointVector& model_armature() const noexcept;
+  /// [s] how old q() and dq() are when read: the plant's measurement delay in whole timesteps
+  /// (0 for the nominal plant). A driver stamps its readings with it.
+  double measurement_age() const noexcept;
   /// Coulomb friction (MuJoCo's frictionloss) per exchanged joint [Nm or N]: the torque below
   /// which a joint at rest does not move, so a spring holds it only up to this.
   JointVector friction_loss() const;
