@@ -112,6 +112,10 @@ void bind_simulated_driver(py::module_& sim) {
       .def_readonly("measurements", &State::measurements, "measurements published")
       .def_readonly("measurements_paused", &State::measurements_paused,
                     "the latest tick published no measurement (pause_measurements())")
+      .def_property_readonly(
+          "contact_wrench", [](const State& s) { return vector_array(s.contact_wrench); },
+          "(6,) [N; Nm] what touches the driver's contact_body and the bodies beyond it, world "
+          "frame, torque about the body's origin; zero without a contact body.")
       .def("__repr__", [](const State& s) {
         return "DriverState(time=" + ci::format_number(s.time) +
                " s, held=" + (s.held ? "True" : "False") + ", ticks=" + std::to_string(s.ticks) +
@@ -132,22 +136,27 @@ void bind_simulated_driver(py::module_& sim) {
       "return. While it runs the simulation is the driver's: read the arm with state(). A "
       "context manager: `with` stops it; so does dropping the last reference.")
       .def(py::init([](Sim& simulation, Measurements& measurements, Outbox& torques,
-                       Real torque_timeout, int realtime_priority) {
+                       Real torque_timeout, int realtime_priority, std::string contact_body) {
              ci::sim::SimulatedDriverOptions options;
              options.torque_timeout = read_scalar(torque_timeout, "torque_timeout");
              options.realtime_priority = realtime_priority;
+             options.contact_body = std::move(contact_body);
              return std::make_unique<Driver>(simulation, measurements, torques, options);
            }),
            py::arg("simulation"), py::arg("measurements"), py::arg("torques"),
            py::arg("torque_timeout") = defaults.torque_timeout,
            py::arg("realtime_priority") = defaults.realtime_priority,
+           py::arg("contact_body") = defaults.contact_body,
            "simulation: the arm (the control loop's model must have its joints, in its order); "
            "measurements, torques: the hand-offs given to ControlThread.start(), of the "
            "simulation's joint count; torque_timeout [s] in (0, 1e6]: after this long without a "
            "new torque the arm is braked (0.02: FCI's 20 lost packets at 1 kHz); "
-           "realtime_priority: SCHED_FIFO priority, 0 = normal scheduling. All three objects are "
-           "kept alive as long as the driver. Raises Error if the joint counts differ or an "
-           "option is out of range.")
+           "realtime_priority: SCHED_FIFO priority, 0 = normal scheduling; contact_body: a body "
+           "whose contact wrench each tick reports (DriverState.contact_wrench), '' for none. "
+           "Each measurement is stamped with when it was taken (Simulation.measurement_age "
+           "before the tick). All three objects are kept alive as long as the driver. Raises "
+           "Error if the joint counts differ, an option is out of range or the simulation has no "
+           "such body.")
       .def("start", &Driver::start,
            "Starts the thread: it publishes the current state at once, then ticks every "
            "timestep. Claims the simulation, the buffer's writing and the outbox's consuming "

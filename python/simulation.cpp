@@ -471,6 +471,10 @@ void bind_simulation(py::module_& m) {
           "Rotor inertia per joint (n,) [kg m^2] before the plant's model error: the value for "
           "the parameter dynamics.armature.")
       .def_property_readonly(
+          "measurement_age", [](Sim& s) { return s.get().measurement_age(); },
+          "[s] how old q and dq are when read: the plant's measurement delay in whole timesteps "
+          "(0 for the nominal plant).")
+      .def_property_readonly(
           "friction_loss", [](Sim& s) { return vector_array(s.get().friction_loss()); },
           "Coulomb friction per joint (n,) [Nm]")
       .def_property_readonly("model_name", [](Sim& s) { return s.get().model_name(); })

@@ -261,6 +261,51 @@ TEST(SimulatedDriver, HoldsTheArmBeforeTheFirstTorqueAndBrakesItWhenTorquesStop)
   EXPECT_EQ(simulation.q(), state.q);  // stopped: the simulation is the caller's again
 }
 
+// Each reading is stamped with when it was taken: the plant's sensing delay before the tick that
+// published it. The flange's contact wrench is reported, zero in free space.
+TEST(SimulatedDriver, StampsEachReadingWhenItWasTakenAndReportsTheFlangesContact) {
+  const ci::RobotModel model = robots::panda();
+  for (const bool realistic : {false, true}) {
+    SCOPED_TRACE(realistic ? "realistic plant" : "nominal plant");
+    sim::SimulationOptions options;
+    options.joint_names = model.joint_names();
+    if (realistic) options.plant = sim::PlantOptions::realistic();
+    sim::Simulation simulation = sim::Simulation::from_mjcf_file(kPandaMjcf, options);
+    EXPECT_EQ(simulation.measurement_age(), realistic ? 0.001 : 0.0);
+    rt::MeasurementBuffer measurements(7);
+    rt::TorqueOutbox torques(7);
+    sim::SimulatedDriverOptions driver_options;
+    driver_options.contact_body = kFlange;
+    driver_options.torque_timeout = 10.0;  // one torque drives it for the whole test
+    sim::SimulatedDriver driver(simulation, measurements, torques, driver_options);
+    driver.start();
+    torques.write(JointVector::Zero(7), 1);
+    ASSERT_TRUE(simulate_for(driver, 0.02));
+    rt::JointMeasurement measured;
+    measurements.read(measured);
+    const sim::SimulatedDriverState state = driver.state();
+    driver.stop();
+    // Published within the tick that read it: its age at publication is the sensing delay and
+    // the tick's step (tens of microseconds; 5 ms for a loaded machine's preemption).
+    const double age = std::chrono::duration<double>(measured.received - measured.sampled).count();
+    EXPECT_GE(age, simulation.measurement_age());
+    EXPECT_LT(age, simulation.measurement_age() + 0.005);
+    EXPECT_EQ(state.contact_wrench, ci::Vector6d::Zero());
+  }
+  sim::Simulation simulation = panda_simulation(model, true);
+  rt::MeasurementBuffer measurements(7);
+  rt::TorqueOutbox torques(7);
+  sim::SimulatedDriverOptions options;
+  options.contact_body = "gripper";
+  try {
+    sim::SimulatedDriver driver(simulation, measurements, torques, options);
+    FAIL() << "a contact body the simulation does not have was accepted";
+  } catch (const ci::Error& error) {
+    EXPECT_NE(std::string(error.what()).find("body 'gripper' not found"), std::string::npos)
+        << error.what();
+  }
+}
+
 TEST(SimulatedDriver, RejectsMismatchedJointCountsAndOptionsOutOfRange) {
   const ci::RobotModel model = robots::panda();
   sim::Simulation simulation = panda_simulation(model, true);
@@ -304,7 +349,9 @@ TEST(SimulatedDriver, TicksAllocateNothingWhileDrivingPausedAndBraked) {
   rt::MeasurementBuffer measurements(model.num_joints());
   rt::TorqueOutbox torques(model.num_joints());
   rt::ControlThread control({1000.0, 0.02, 0});
-  sim::SimulatedDriver driver(simulation, measurements, torques);
+  sim::SimulatedDriverOptions options;
+  options.contact_body = kFlange;  // its contact wrench each tick, too
+  sim::SimulatedDriver driver(simulation, measurements, torques, options);
   control.start(loop, measurements, &torques);
   driver.start();
   ASSERT_TRUE(simulate_for(driver, 0.05));

@@ -99,6 +99,9 @@ class DriverState:
     """The simulated arm and the driver's counters as of its latest tick."""
     def __repr__(self) -> str: ...
     @property
+    def contact_wrench(self) -> numpy.typing.NDArray[numpy.float64]:
+        """(6,) [N; Nm] what touches the driver's contact_body and the bodies beyond it, world frame, torque about the body's origin; zero without a contact body."""
+    @property
     def dq(self) -> numpy.typing.NDArray[numpy.float64]:
         """Joint velocities (n,) [rad/s]."""
     @property
@@ -217,8 +220,8 @@ class SimulatedDriver:
     def __enter__(self) -> object: ...
     def __exit__(self, exc_type: object, exc_value: object, traceback: object) -> bool:
         """Stops the driver."""
-    def __init__(self, simulation: Simulation, measurements: cartesian_impedance.runtime.MeasurementBuffer, torques: cartesian_impedance.runtime.TorqueOutbox, torque_timeout: float = ..., realtime_priority: int = ...) -> None:
-        """simulation: the arm (the control loop's model must have its joints, in its order); measurements, torques: the hand-offs given to ControlThread.start(), of the simulation's joint count; torque_timeout [s] in (0, 1e6]: after this long without a new torque the arm is braked (0.02: FCI's 20 lost packets at 1 kHz); realtime_priority: SCHED_FIFO priority, 0 = normal scheduling. All three objects are kept alive as long as the driver. Raises Error if the joint counts differ or an option is out of range."""
+    def __init__(self, simulation: Simulation, measurements: cartesian_impedance.runtime.MeasurementBuffer, torques: cartesian_impedance.runtime.TorqueOutbox, torque_timeout: float = ..., realtime_priority: int = ..., contact_body: str = ...) -> None:
+        """simulation: the arm (the control loop's model must have its joints, in its order); measurements, torques: the hand-offs given to ControlThread.start(), of the simulation's joint count; torque_timeout [s] in (0, 1e6]: after this long without a new torque the arm is braked (0.02: FCI's 20 lost packets at 1 kHz); realtime_priority: SCHED_FIFO priority, 0 = normal scheduling; contact_body: a body whose contact wrench each tick reports (DriverState.contact_wrench), '' for none. Each measurement is stamped with when it was taken (Simulation.measurement_age before the tick). All three objects are kept alive as long as the driver. Raises Error if the joint counts differ, an option is out of range or the simulation has no such body."""
     def __repr__(self) -> str: ...
     def pause_measurements(self, seconds: float) -> None:
         """Publishes no measurement for the next `seconds` [s] of wall-clock time (within [0, 1e6]; 0 ends a pause) while the arm goes on moving, as a driver that lost its connection: the control thread's measurements go stale and it fails closed, and resumes when they return."""
@@ -275,6 +278,9 @@ class Simulation:
     @property
     def joint_names(self) -> List[str]:
         """Joint names in the order q, dq and tau are exchanged."""
+    @property
+    def measurement_age(self) -> float:
+        """[s] how old q and dq are when read: the plant's measurement delay in whole timesteps (0 for the nominal plant)."""
     @property
     def model_armature(self) -> numpy.typing.NDArray[numpy.float64]:
         """Rotor inertia per joint (n,) [kg m^2] before the plant's model error: the value for the parameter dynamics.armature."""

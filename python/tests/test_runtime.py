@@ -287,7 +287,8 @@ def test_simulated_driver_and_control_thread_hold_the_arm(panda):
     loop = ci.ControlLoop(panda)
     measurements, torques = rt.MeasurementBuffer(7), rt.TorqueOutbox(7)
     with rt.ControlThread() as thread, \
-            ci.sim.SimulatedDriver(robot, measurements, torques) as driver:
+            ci.sim.SimulatedDriver(robot, measurements, torques,
+                                   contact_body="panda_link8") as driver:
         thread.start(loop, measurements, torques)
         driver.start()
         assert driver.running
@@ -305,6 +306,8 @@ def test_simulated_driver_and_control_thread_hold_the_arm(panda):
         state = driver.state()
         assert not state.held and state.torques > 0 and state.rejected_torques == 0
         assert state.q.shape == (7,) and state.tau.shape == (7,)
+        np.testing.assert_array_equal(state.contact_wrench, np.zeros(6))  # in free space
+        assert thread.statistics().measurement_age_p50_us > 0.0
     assert not driver.running and thread.state == rt.ControlThreadState.stopped
     # The simulated firmware holds the weight, the spring the pose: the arm stays put.
     assert np.linalg.norm(robot.body_pose("panda_link8").position - start) < 1e-3
@@ -343,6 +346,9 @@ def test_simulated_driver_rejects_mismatched_hand_offs_and_options(panda):
                                            rf"\(0, 1000000\]"):
             ci.sim.SimulatedDriver(robot, rt.MeasurementBuffer(7), rt.TorqueOutbox(7),
                                    torque_timeout=timeout)
+    with pytest.raises(ci.Error, match="body 'gripper' not found"):
+        ci.sim.SimulatedDriver(robot, rt.MeasurementBuffer(7), rt.TorqueOutbox(7),
+                               contact_body="gripper")
     driver = ci.sim.SimulatedDriver(robot, rt.MeasurementBuffer(7), rt.TorqueOutbox(7))
     with pytest.raises(ci.Error, match=r"seconds = -1 s is outside \[0, 1000000\]"):
         driver.pause_measurements(-1)

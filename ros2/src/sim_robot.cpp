@@ -6,6 +6,8 @@
 //   its reading was taken (the plant's sensing delay before it was published);
 // - in: `<effort_controller>/commands` (std_msgs/Float64MultiArray, one torque per joint in the
 //   model's order), as a ros2_control JointGroupEffortController takes them;
+// - out: `~/contact_wrench` (geometry_msgs/WrenchStamped, world frame) at 100 Hz: what touches
+//   the flange and the bodies beyond it (a table, with --table-under-flange);
 // - between the two, sim::SimulatedDriver: the arm held by its brakes until the first torque, the
 //   last torque held when one is late, the arm braked after --torque-timeout without one.
 //
@@ -56,6 +58,7 @@ struct RobotOptions {
   std::string plant = "nominal";
   std::uint64_t plant_seed = 1;
   double torque_timeout = 0.02;
+  double table_depth = 0.0;  // [m] a table's top this far under the flange at the start; 0: none
   bool help = false;
 };
 
@@ -70,7 +73,10 @@ std::string robot_usage() {
          "                        1 ms sensing and actuation delay, noise); default nominal\n"
          "  --plant-seed N        the realistic plant's draws (default 1)\n"
          "  --torque-timeout S    brake after S seconds without a command (default 0.02, as a\n"
-         "                        Panda's FCI after 20 lost packets)\n";
+         "                        Panda's FCI after 20 lost packets)\n"
+         "  --table-under-flange D  a table (30 x 30 cm) whose top is D m under the flange at\n"
+         "                        the start; the contact wrench on the flange and the bodies\n"
+         "                        beyond it is published on ~/contact_wrench at 100 Hz\n";
 }
 
 // The robot's own options, before --ros-args; the rest is ROS's.
@@ -98,13 +104,15 @@ std::vector<std::string> parse_robot_options(const std::vector<std::string>& arg
       if (used != text.size() || text.empty() || text[0] == '-') {
         throw UsageError("--plant-seed '" + text + "' is not a whole number >= 0");
       }
-    } else if (argument == "--torque-timeout") {
+    } else if (argument == "--torque-timeout" || argument == "--table-under-flange") {
       const std::string text = value(argument);
       char* end = nullptr;
-      options.torque_timeout = std::strtod(text.c_str(), &end);
-      if (end == text.c_str() || *end != '\0') {
-        throw UsageError("--torque-timeout '" + text + "' is not a number of seconds");
+      const double seconds_or_metres = std::strtod(text.c_str(), &end);
+      if (end == text.c_str() || *end != '\0' || !(seconds_or_metres > 0.0)) {
+        throw UsageError(argument + " '" + text + "' is not a number > 0");
       }
+      (argument == "--table-under-flange" ? options.table_depth : options.torque_timeout) =
+          seconds_or_metres;
     } else {
       throw UsageError("unknown argument '" + argument + "' (see --help)");
     }
@@ -160,17 +168,18 @@ class SimulatedRobot {
       : model_(ci::RobotModel::from_urdf_string(configuration.urdf,
                                                 configuration.common.settings.base_link,
                                                 configuration.common.settings.tip_link)),
-        simulation_(simulate_arm(configuration, model_,
-                                 ci::sim::plant_from_name(options.plant, options.plant_seed))),
+        simulation_(simulate(configuration, model_, options)),
         measurements_(model_.num_joints()),
         torques_(model_.num_joints()),
-        driver_(simulation_, measurements_, torques_, driver_options(options)),
+        driver_(simulation_, measurements_, torques_, driver_options(options, model_)),
         joint_states_topic_(arguments.resolve("joint_states")),
         commands_topic_(arguments.resolve(configuration.effort_controller + "/commands")),
         joint_states_(participant_, "rt" + joint_states_topic_,
                       configuration.publisher(joint_states_topic_)),
         commands_(participant_, "rt" + commands_topic_,
                   configuration.subscription(commands_topic_)),
+        contact_topic_(arguments.resolve("~/contact_wrench")),
+        contact_(participant_, "rt" + contact_topic_, configuration.publisher(contact_topic_)),
         wake_(check(dds_create_guardcondition(participant_.get()), "guard condition")) {
     log(LogLevel::info, "simulating " + std::to_string(model_.num_joints()) + " joints (plant " +
                             options.plant + "): " + joint_states_topic_ + " out, " +
@@ -199,23 +208,55 @@ class SimulatedRobot {
   }
 
  private:
-  static ci::sim::SimulatedDriverOptions driver_options(const RobotOptions& options) {
+  static ci::sim::Simulation simulate(const Ros2Configuration& configuration,
+                                      const ci::RobotModel& model, const RobotOptions& options) {
+    const ci::sim::PlantOptions plant = ci::sim::plant_from_name(options.plant, options.plant_seed);
+    if (options.table_depth == 0.0) return simulate_arm(configuration, model, plant);
+    const ci::Pose flange = simulate_arm(configuration, model).body_pose(model.tip_link());
+    if (options.table_depth >= flange.position.z()) {
+      throw ci::Error("--table-under-flange " + ci::format_number(options.table_depth) +
+                      " m: the flange is only " + ci::format_number(flange.position.z()) +
+                      " m above the floor");
+    }
+    const ci::sim::Box table =
+        ci::sim::Box::table(flange.position.head<2>(), Eigen::Vector2d::Constant(0.15),
+                            flange.position.z() - options.table_depth, "table");
+    return simulate_arm(configuration, model, plant, {table});
+  }
+
+  static ci::sim::SimulatedDriverOptions driver_options(const RobotOptions& options,
+                                                        const ci::RobotModel& model) {
     ci::sim::SimulatedDriverOptions driver;
     driver.torque_timeout = options.torque_timeout;
+    driver.contact_body = model.tip_link();
     return driver;
   }
 
-  // Each reading once, as soon as the driver published it (polled every 100 us).
+  // Each reading once, as soon as the driver published it (polled every 100 us); the contact
+  // wrench every 10 ms.
   void publish_joint_states() {
     JointStateArray message(model_.joint_names());
     ci::runtime::JointMeasurement measured;
     std::uint64_t published = 0;
     const timespec pause{0, 100000};
+    WrenchStamped contact{};
+    std::string world = "world";
+    contact.header.frame_id = world.data();
+    auto next_contact = std::chrono::steady_clock::now();
     while (!stop_) {
       measurements_.read(measured);
+      const auto now = ci::runtime::monotonic_now();
       if (measured.sequence != published) {
         published = measured.sequence;
-        joint_states_.write(message.set(measured, ci::runtime::monotonic_now()));
+        joint_states_.write(message.set(measured, now));
+      }
+      if (now >= next_contact) {
+        next_contact += std::chrono::milliseconds(10);
+        const ci::Vector6d wrench = driver_.state().contact_wrench;
+        contact.header.stamp = stamp_now();
+        contact.wrench.force = {wrench[0], wrench[1], wrench[2]};
+        contact.wrench.torque = {wrench[3], wrench[4], wrench[5]};
+        contact_.write(contact);
       }
       clock_nanosleep(CLOCK_MONOTONIC, 0, &pause, nullptr);
     }
@@ -273,6 +314,8 @@ class SimulatedRobot {
   Participant participant_;
   Writer<JointStateMessage> joint_states_;
   Reader<Float64MultiArray> commands_;
+  std::string contact_topic_;
+  Writer<WrenchStamped> contact_;
   Entity wake_;
   std::atomic<bool> stop_{false};
   ci::runtime::DurationHistogram latency_;  // [ns] the commands' source timestamp to their take
@@ -304,7 +347,8 @@ int main(int argc, char** argv) {
     ros2::set_logger_name(arguments.fully_qualified_name());
     configuration = ros2::read_configuration(arguments);
   } catch (const ros2::UsageError& error) {
-    std::cerr << "cartesian_impedance_ros2_sim_robot: " << error.what() << "\n" << ros2::robot_usage();
+    std::cerr << "cartesian_impedance_ros2_sim_robot: " << error.what() << "\n"
+              << ros2::robot_usage();
     return 2;
   } catch (const std::exception& error) {
     ros2::log(ros2::LogLevel::fatal, error.what());

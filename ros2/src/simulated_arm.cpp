@@ -10,21 +10,30 @@ namespace ci = cartesian_impedance;
 
 namespace {
 
-// The engines' URDF loaders read a file: urdf_path itself, or robot_description's text in a
-// temporary one.
-ci::sim::Simulation simulate_urdf(const Ros2Configuration& configuration,
-                                  const ci::sim::SimulationOptions& options) {
+// The robot's file (the MJCF, else the URDF) and the boxes around it. The engines' URDF loaders
+// read a file: urdf_path itself, or robot_description's text in a temporary one.
+ci::sim::Simulation simulate_file(const Ros2Configuration& configuration,
+                                  const ci::sim::SimulationOptions& options,
+                                  const std::vector<ci::sim::Box>& boxes) {
+  const auto simulate = [&](const std::string& path, bool urdf) {
+    if (!boxes.empty()) return ci::sim::make_scene(path, boxes, options);
+    return urdf ? ci::sim::Simulation::from_urdf_file(path, options)
+                : ci::sim::Simulation::from_mjcf_file(path, options);
+  };
+  const std::string& mjcf = configuration.common.settings.mjcf_path;
+  if (!mjcf.empty()) return simulate(mjcf, false);
   if (configuration.urdf_source != "robot_description") {
-    return ci::sim::Simulation::from_urdf_file(configuration.urdf_source, options);
+    return simulate(configuration.urdf_source, true);
   }
   const ci::node::TemporaryFile file(configuration.urdf, ".urdf");
-  return ci::sim::Simulation::from_urdf_file(file.path(), options);
+  return simulate(file.path(), true);
 }
 
 }  // namespace
 
 ci::sim::Simulation simulate_arm(const Ros2Configuration& configuration,
-                                 const ci::RobotModel& model, const ci::sim::PlantOptions& plant) {
+                                 const ci::RobotModel& model, const ci::sim::PlantOptions& plant,
+                                 const std::vector<ci::sim::Box>& boxes) {
   const ci::node::NodeSettings& settings = configuration.common.settings;
   ci::sim::SimulationOptions options;
   options.timestep = 1.0 / settings.control_rate;  // one simulation step per control cycle
@@ -37,10 +46,7 @@ ci::sim::Simulation simulate_arm(const Ros2Configuration& configuration,
   const ci::node::SimulationStart start = ci::node::simulation_start(settings, model);
   options.start_q = start.q;
   if (!start.message.empty()) log(start.warning ? LogLevel::warn : LogLevel::info, start.message);
-  // Without an MJCF, the engine simulates the URDF itself.
-  return settings.mjcf_path.empty()
-             ? simulate_urdf(configuration, options)
-             : ci::sim::Simulation::from_mjcf_file(settings.mjcf_path, options);
+  return simulate_file(configuration, options, boxes);
 }
 
 }  // namespace cartesian_impedance_ros2

@@ -189,5 +189,41 @@ TEST(Ros2Wire, ARealisticPlantSettlesOverTheWireAndItsReadingsAgeIsReported) {
       end.measurement_age_p50_us, end.measurement_age_p99_us, end.measurement_age_max_us);
 }
 
+// The demo's table scenario over the wire: a table 3 cm under the flange, the vertical stiffness
+// released, 10 N commanded down: the robot measures 10 N of contact.
+TEST(Ros2Wire, ACommandedForcePressesOnATableWithThatForce) {
+  Wire wire({"--table-under-flange", "0.03"});
+  const State start = wire.client.running();
+  Reader<WrenchStamped> contact(Client::participant(), "rt/robot/sim_robot/contact_wrench",
+                                TopicQos{});
+  std::vector<double> forces;  // z, in the order received
+  const auto receive = [&](std::size_t count) {
+    forces.clear();
+    return eventually(3.0, [&] {
+      contact.take([&](const WrenchStamped& m) { forces.push_back(m.wrench.force.z); });
+      return forces.size() >= count;
+    });
+  };
+  ASSERT_TRUE(receive(10));
+  EXPECT_EQ(forces.back(), 0.0);  // not touching yet
+  ci::Vector6d stiffness = start.commanded_stiffness;
+  stiffness[2] = 0.0;
+  wire.client.stiffness(stiffness);
+  wire.client.wrench((ci::Vector6d() << 0, 0, -10, 0, 0, 0).finished());
+  const State pressing = wire.client.settle(3.0);
+  // The flange is on the table, 3 cm down (the contact's give is a fraction of a millimetre).
+  EXPECT_NEAR(pressing.position.z() - start.position.z(), -0.03, 1e-3);
+  contact.take([](const WrenchStamped&) {});  // what queued up while the arm went down
+  ASSERT_TRUE(receive(100));                  // 1 s at 100 Hz
+  double mean = 0.0;
+  for (const double force : forces) mean += force / static_cast<double>(forces.size());
+  // The demo's bound for the Panda: 5 % and the joints' friction band along z (0.45 N), which
+  // may hold part of the force where the table stopped the arm.
+  EXPECT_NEAR(mean, 10.0, 0.95);
+  std::printf("table over the wire: flange %.2f mm down, contact force %.3f N for 10 N\n",
+              1e3 * (start.position.z() - pressing.position.z()), mean);
+  EXPECT_EQ(pressing.status, "ok");
+}
+
 }  // namespace
 }  // namespace cartesian_impedance_ros2::test

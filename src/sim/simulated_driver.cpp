@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <utility>
 
 #include "cartesian_impedance/core/error.hpp"
 #include "cartesian_impedance/core/mailbox.hpp"
@@ -45,8 +46,9 @@ runtime::ControlThreadOptions thread_options(const Simulation& simulation,
 class SimulatedDriver::Tick final : public runtime::Cycle {
  public:
   Tick(Simulation& simulation, runtime::MeasurementBuffer& measurements,
-       runtime::TorqueOutbox& torques, double torque_timeout)
+       runtime::TorqueOutbox& torques, double torque_timeout, std::string contact_body)
       : simulation_(simulation),
+        contact_body_(std::move(contact_body)),
         measurements_(measurements),
         torques_(torques),
         torque_timeout_(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
@@ -146,10 +148,15 @@ class SimulatedDriver::Tick final : public runtime::Cycle {
       state.tau = held_ ? zero_ : simulation_.torque();
       state.held = held_;
       state.measurements_paused = paused;
+      // The body was found at construction: this cannot throw.
+      state.contact_wrench = contact_body_.empty()
+                                 ? Vector6d::Zero()
+                                 : simulation_.contact_wrench_beyond(contact_body_);
     });
   }
 
   Simulation& simulation_;
+  std::string contact_body_;
   runtime::MeasurementBuffer& measurements_;
   runtime::TorqueOutbox& torques_;
   std::chrono::steady_clock::duration torque_timeout_;
@@ -176,7 +183,9 @@ SimulatedDriver::SimulatedDriver(Simulation& simulation, runtime::MeasurementBuf
                 " and the torque outbox " + std::to_string(torques.num_joints()) +
                 "; all three must have the same");
   }
-  tick_ = std::make_unique<Tick>(simulation, measurements, torques, options.torque_timeout);
+  if (!options.contact_body.empty()) simulation.contact_wrench_beyond(options.contact_body);
+  tick_ = std::make_unique<Tick>(simulation, measurements, torques, options.torque_timeout,
+                                 options.contact_body);
 }
 
 SimulatedDriver::~SimulatedDriver() {

@@ -33,6 +33,7 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <string>
 
 #include "cartesian_impedance/core/types.hpp"
 #include "cartesian_impedance/runtime/control_thread.hpp"
@@ -49,6 +50,10 @@ struct SimulatedDriverOptions {
   /// SCHED_FIFO priority of the driver's thread, 1..99; 0 = normal scheduling (as
   /// runtime::ControlThreadOptions::realtime_priority).
   int realtime_priority = 0;
+  /// A body of the simulation whose contact wrench each tick reports
+  /// (SimulatedDriverState::contact_wrench; Simulation::contact_wrench_beyond: the flange with
+  /// the hand and fingers beyond it); "" for none.
+  std::string contact_body;
 };
 
 inline constexpr double kMaxTorqueTimeout = 1e6;  ///< [s]
@@ -77,6 +82,9 @@ struct SimulatedDriverState {
   std::uint64_t rejected_torques = 0;  ///< torques not applied: wrong size or not finite
   std::uint64_t measurements = 0;      ///< measurements published since start()
   bool measurements_paused = false;    ///< the latest tick published none (pause_measurements())
+  /// [N; Nm] what everything else exerts on options.contact_body and the bodies beyond it, world
+  /// frame, torque about the body's origin; zero without a contact body.
+  Vector6d contact_wrench = Vector6d::Zero();
 };
 
 class SimulatedDriver {
@@ -85,7 +93,8 @@ class SimulatedDriver {
   /// `torques`. All three must outlive the driver and have the same joint count; the joint order
   /// is the simulation's (Simulation::joint_names()), which the control loop's model must share.
   /// Its period is the simulation's timestep.
-  /// @throws Error naming the joint counts if they differ, or the option out of range.
+  /// @throws Error naming the joint counts if they differ, the option out of range, or a
+  ///         contact_body the simulation does not have.
   SimulatedDriver(Simulation& simulation, runtime::MeasurementBuffer& measurements,
                   runtime::TorqueOutbox& torques, const SimulatedDriverOptions& options = {});
   /// Stops the driver (stop()).
