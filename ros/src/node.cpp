@@ -9,8 +9,8 @@
 #include <string>
 
 #include <cartesian_impedance/core/error.hpp>
+#include <cartesian_impedance/node/simulated_arm.hpp>
 #include <cartesian_impedance/node/startup_report.hpp>
-#include <cartesian_impedance/node/temporary_file.hpp>
 
 #include "node.hpp"
 
@@ -52,27 +52,14 @@ CartesianImpedanceNode::CartesianImpedanceNode(const ros::NodeHandle& node,
   const int n = model_->num_joints();
 
   if (settings_.mode == Mode::sim) {
-    ci::sim::SimulationOptions options;
-    options.timestep = 1.0 / settings_.control_rate;  // one simulation step per control cycle
-    options.joint_names = model_->joint_names();
-    // The simulated firmware compensates gravity like the real robots, unless the controller is
-    // configured to do it itself (then it would be compensated twice).
-    options.gravity_compensation = !configuration_.parameters.dynamics.gravity_compensation;
-    options.engine = settings_.engine;
-    const ci::node::SimulationStart start = ci::node::simulation_start(settings_, *model_);
-    options.start_q = start.q;
-    if (start.warning) {
-      ROS_WARN("%s", start.message.c_str());
-    } else if (!start.message.empty()) {
-      ROS_INFO("%s", start.message.c_str());
-    }
-    if (settings_.mjcf_path.empty()) {
-      // Without an MJCF the engine simulates the URDF itself; its loaders read files.
-      const ci::node::TemporaryFile file(urdf, ".urdf");
-      simulation_.emplace(ci::sim::Simulation::from_urdf_file(file.path(), options));
-    } else {
-      simulation_.emplace(ci::sim::Simulation::from_mjcf_file(settings_.mjcf_path, options));
-    }
+    simulation_.emplace(ci::node::simulate_arm(configuration_, *model_, urdf, "",
+                                               [](const ci::node::SimulationStart& start) {
+                                                 if (start.warning) {
+                                                   ROS_WARN("%s", start.message.c_str());
+                                                 } else {
+                                                   ROS_INFO("%s", start.message.c_str());
+                                                 }
+                                               }));
     runner_.emplace(*simulation_, *loop_);
     joint_state_publisher_ = node_.advertise<sensor_msgs::JointState>("joint_states", 10);
     log_startup_report(&simulation_->q());

@@ -35,6 +35,10 @@ from node_reconfigure_cases import (  # noqa: F401
     case_reconfigure_keeps_topic_commands, case_reconfigure_shows_topic_values,
     case_reconfigure_update_flag, case_safety_lock,
 )
+# the topics mode across processes, with the simulated robot, in a file of their own
+from node_wire_cases import (  # noqa: F401
+    case_wire_realistic_plant, case_wire_reference_step, case_wire_table,
+)
 
 
 def case_reference_pose(processes, args):
