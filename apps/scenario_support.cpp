@@ -355,8 +355,18 @@ Kinematics simulated_arm(Rig& rig) {
   return kinematics;
 }
 
-double noise_speed(Rig& rig, const sim::PlantOptions& plant) {
-  if (!(plant.torque_noise > 0.0) && !(plant.velocity_noise > 0.0)) return 0.0;
+namespace {
+
+// Per joint j of the rig now: the standard deviation sigma_j of the noise torque per step (torque
+// noise and the damping on the velocity noise), the mass m_j and the damping c_jj; empty on a
+// plant without either noise.
+struct NoiseDrive {
+  std::vector<double> sigma, mass, damping;
+};
+
+NoiseDrive noise_drive(Rig& rig, const sim::PlantOptions& plant) {
+  NoiseDrive drive;
+  if (!(plant.torque_noise > 0.0) && !(plant.velocity_noise > 0.0)) return drive;
   const Kinematics kinematics = simulated_arm(rig);
   const JointMatrix& mass = kinematics.mass;
   const Eigen::MatrixXd& jacobian = kinematics.jacobian;
@@ -368,16 +378,61 @@ double noise_speed(Rig& rig, const sim::PlantOptions& plant) {
     damping(j, j) += std::max(2.0 * state.filtered.nullspace_damping_ratio * std::sqrt(k_ns[j]),
                               parameters.minimum_damping.nullspace);
   }
-  double largest = 0.0;
   for (int j = 0; j < damping.rows(); ++j) {
-    const double c = damping(j, j);
-    if (!(c > 0.0)) continue;
-    const double sigma2 =
-        plant.torque_noise * plant.torque_noise +
-        plant.velocity_noise * plant.velocity_noise * damping.row(j).squaredNorm();
-    largest = std::max(largest, std::sqrt(sigma2 * kDt / (2.0 * mass(j, j) * c)));
+    drive.sigma.push_back(
+        std::sqrt(plant.torque_noise * plant.torque_noise +
+                  plant.velocity_noise * plant.velocity_noise * damping.row(j).squaredNorm()));
+    drive.mass.push_back(mass(j, j));
+    drive.damping.push_back(damping(j, j));
+  }
+  return drive;
+}
+
+}  // namespace
+
+double noise_speed(Rig& rig, const sim::PlantOptions& plant) {
+  const NoiseDrive drive = noise_drive(rig, plant);
+  double largest = 0.0;
+  for (std::size_t j = 0; j < drive.sigma.size(); ++j) {
+    if (!(drive.damping[j] > 0.0)) continue;
+    largest = std::max(largest,
+                       drive.sigma[j] * std::sqrt(kDt / (2.0 * drive.mass[j] * drive.damping[j])));
   }
   return largest;
+}
+
+double noise_power(Rig& rig, const sim::PlantOptions& plant) {
+  const NoiseDrive drive = noise_drive(rig, plant);
+  double power = 0.0;
+  for (std::size_t j = 0; j < drive.sigma.size(); ++j) {
+    power += drive.sigma[j] * drive.sigma[j] * kDt / (2.0 * drive.mass[j]);
+  }
+  return power;
+}
+
+double noise_rate_limited_cycles(Rig& rig, const sim::PlantOptions& plant) {
+  if (!(plant.velocity_noise > 0.0) && !(plant.position_noise > 0.0)) return 0.0;
+  const Kinematics kinematics = simulated_arm(rig);
+  const Eigen::MatrixXd& jacobian = kinematics.jacobian;
+  const ControllerState& state = rig.loop().state().controller;
+  const Parameters& parameters = rig.loop().controller().parameters();
+  Eigen::MatrixXd damping = jacobian.transpose() * state.damping_base() * jacobian;
+  const JointVector& k_ns = state.filtered.nullspace_stiffness;
+  for (int j = 0; j < damping.rows(); ++j) {
+    damping(j, j) += std::max(2.0 * state.filtered.nullspace_damping_ratio * std::sqrt(k_ns[j]),
+                              parameters.minimum_damping.nullspace);
+  }
+  const Eigen::MatrixXd spring = jacobian.transpose() * state.stiffness_base() * jacobian;
+  const JointVector rate =
+      per_joint(parameters.limits.joint_torque_rate, static_cast<int>(damping.rows()));
+  double cycles = 0.0;
+  for (int j = 0; j < damping.rows(); ++j) {
+    const double sigma = std::sqrt(
+        2.0 * (plant.velocity_noise * plant.velocity_noise * damping.row(j).squaredNorm() +
+               plant.position_noise * plant.position_noise * spring.row(j).squaredNorm()));
+    if (sigma > 0.0) cycles += std::erfc(rate[j] * kDt / (std::sqrt(2.0) * sigma)) / kDt;
+  }
+  return cycles;
 }
 
 // The largest mass a force along `direction` at the flange can meet: every other direction of

@@ -162,6 +162,21 @@ Kinematics simulated_arm(Rig& rig);
 /// mass under white force moves at sigma_j sqrt(dt / (2 m_j c_jj)).
 double noise_speed(Rig& rig, const sim::PlantOptions& plant);
 
+/// The energy the plant's noise puts into the arm per second [W], in expectation: each step a
+/// joint's noise torque (sigma_j as in noise_speed()) is an impulse sigma_j dt, which adds
+/// (sigma_j dt)^2 / (2 m_j) of kinetic energy whatever the joint's speed; summed over the joints,
+/// per second. 0 on the nominal plant.
+double noise_power(Rig& rig, const sim::PlantOptions& plant);
+
+/// How many cycles of a second at rest the torque-rate limit acts on for the plant's noise alone:
+/// the damping turns velocity noise (and the stiffness position noise) into a change of the
+/// commanded torque each cycle, per joint j Gaussian with sigma_j = sqrt(2) sqrt(velocity_noise^2
+/// sum_k C_jk^2 + position_noise^2 sum_k S_jk^2) (C = J^T D J + D_ns as in noise_speed(), S =
+/// J^T K J), which passes the joint's rate limit r_j dt with probability erfc(r_j dt / (sqrt(2)
+/// sigma_j)); summed over the joints and the cycles of a second. 0 on a plant without sensor
+/// noise.
+double noise_rate_limited_cycles(Rig& rig, const sim::PlantOptions& plant);
+
 /// Steps `rig` one cycle at a time for `seconds`, calling `each` after every cycle with the
 /// flange's speed over that cycle [m/s] (ground truth: the simulation's flange poses).
 void run_measured(Rig& rig, double seconds, const std::function<void(double speed)>& each);
