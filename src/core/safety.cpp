@@ -14,10 +14,17 @@ namespace cartesian_impedance {
 namespace {
 
 // The speed cap's governor starts taking the push along the motion away at this fraction of the
-// speed it holds (kSpeedCapAim x the cap) and has taken all of it there. The band keeps the loop
-// gain (push / band width, an extra damping near the cap) a few times the law's own damping, so the
-// discrete loop stays far from its stability limit.
+// speed it holds (kSpeedCapAim x the cap) and has taken all of it there. Across the band the drive
+// scale is a damper of push / width on the end effector's speed.
 constexpr double kGovernorBand = 0.8;
+
+// ... whose gain per cycle, dt x push / width / mass along the motion, is at most 1 / this: a
+// larger push starts the band lower. A damper that takes a whole cycle's worth of speed out acts
+// on a speed one cycle old at best; behind a loop's delay of a few cycles (measured: readings 1 ms
+// old and torques acting 1 ms late) one taking out more than about 0.4 of it per cycle
+// oscillates, and did: a 300 N spring's push across the 0.05 m/s band of a 0.25 m/s cap was a
+// 6000 N s/m damper, 1.2-2 of the speed per cycle on the Panda, which chattered at the cap.
+constexpr double kGovernorCycles = 4.0;
 
 // The governor's disturbance observer averages over this time [s]: a few cycles at 1 kHz, well
 // inside the brake's kBrakeTime.
@@ -516,8 +523,10 @@ void CartesianImpedanceController::govern_speed(const RobotState& robot, const J
     }
     const double reached =
         response > 0.0 && net > 0.0 ? speed + 0.5 * net * net * response / rate : speed;
-    if (std::max(reached, predicted) <= kGovernorBand * cap) continue;
-    drive_scale = std::clamp((cap - speed) / ((1.0 - kGovernorBand) * cap), 0.0, 1.0);
+    const double width = std::max((1.0 - kGovernorBand) * cap,
+                                  kGovernorCycles * dt * response * std::max(drive_push, 0.0));
+    if (std::max(reached, predicted) <= cap - width) continue;
+    drive_scale = std::clamp((cap - speed) / width, 0.0, 1.0);
     axis.target = net - (1.0 - drive_scale) * std::max(drive_push, 0.0);
     if (response > 0.0) {
       // Below the cap the net push may bring the speed up to it within the cycle, and no faster
