@@ -27,6 +27,7 @@
 #include <cstdio>
 #include <iostream>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
@@ -161,6 +162,22 @@ class JointStateArray {
   JointStateMessage message_{};
 };
 
+// DDS could not create an entity: the middleware's failure (exit code 1), not a fault of what the
+// robot was given (2).
+class MiddlewareFailure : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+template <typename Make>
+auto middleware(Make make) -> decltype(make()) {
+  try {
+    return make();
+  } catch (const ci::Error& error) {
+    throw MiddlewareFailure(error.what());
+  }
+}
+
 class SimulatedRobot {
  public:
   SimulatedRobot(const RosArguments& arguments, const Ros2Configuration& configuration,
@@ -174,13 +191,23 @@ class SimulatedRobot {
         driver_(simulation_, measurements_, torques_, driver_options(options, model_)),
         joint_states_topic_(arguments.resolve("joint_states")),
         commands_topic_(arguments.resolve(configuration.effort_controller + "/commands")),
-        joint_states_(participant_, "rt" + joint_states_topic_,
-                      configuration.publisher(joint_states_topic_)),
-        commands_(participant_, "rt" + commands_topic_,
-                  configuration.subscription(commands_topic_)),
         contact_topic_(arguments.resolve("~/contact_wrench")),
-        contact_(participant_, "rt" + contact_topic_, configuration.publisher(contact_topic_)),
-        wake_(check(dds_create_guardcondition(participant_.get()), "guard condition")) {
+        participant_(middleware([] { return Participant(); })),
+        joint_states_(middleware([&] {
+          return Writer<JointStateMessage>(participant_, "rt" + joint_states_topic_,
+                                           configuration.publisher(joint_states_topic_));
+        })),
+        commands_(middleware([&] {
+          return Reader<Float64MultiArray>(participant_, "rt" + commands_topic_,
+                                           configuration.subscription(commands_topic_));
+        })),
+        contact_(middleware([&] {
+          return Writer<WrenchStamped>(participant_, "rt" + contact_topic_,
+                                       configuration.publisher(contact_topic_));
+        })),
+        wake_(middleware([&] {
+          return Entity(check(dds_create_guardcondition(participant_.get()), "guard condition"));
+        })) {
     log(LogLevel::info, "simulating " + std::to_string(model_.num_joints()) + " joints (plant " +
                             options.plant + "): " + joint_states_topic_ + " out, " +
                             commands_topic_ + " in");
@@ -310,11 +337,10 @@ class SimulatedRobot {
   ci::runtime::MeasurementBuffer measurements_;
   ci::runtime::TorqueOutbox torques_;
   ci::sim::SimulatedDriver driver_;
-  std::string joint_states_topic_, commands_topic_;
+  std::string joint_states_topic_, commands_topic_, contact_topic_;
   Participant participant_;
   Writer<JointStateMessage> joint_states_;
   Reader<Float64MultiArray> commands_;
-  std::string contact_topic_;
   Writer<WrenchStamped> contact_;
   Entity wake_;
   std::atomic<bool> stop_{false};
@@ -359,10 +385,13 @@ int main(int argc, char** argv) {
   std::optional<ros2::SimulatedRobot> robot;
   try {
     robot.emplace(arguments, configuration, options);
-  } catch (const cartesian_impedance::Error& error) {
-    ros2::log(ros2::LogLevel::fatal, error.what());  // the model, the plant, an option
+  } catch (const ros2::UsageError& error) {
+    ros2::log(ros2::LogLevel::fatal, error.what());  // a topic name that is not valid
     return 2;
-  } catch (const std::exception& error) {
+  } catch (const cartesian_impedance::Error& error) {
+    ros2::log(ros2::LogLevel::fatal, error.what());  // the model, the plant, the table
+    return 2;
+  } catch (const std::exception& error) {  // DDS
     ros2::log(ros2::LogLevel::fatal, error.what());
     return 1;
   }

@@ -225,5 +225,21 @@ TEST(Ros2Wire, ACommandedForcePressesOnATableWithThatForce) {
   EXPECT_EQ(pressing.status, "ok");
 }
 
+// What the simulated robot cannot simulate ends it with exit code 2 and a message naming it.
+TEST(Ros2Wire, TheSimulatedRobotRefusesWhatItCannotSimulate) {
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"--plant", "wobbly"}, "wobbly"},
+      {{"--torque-timeout", "-1"}, "--torque-timeout '-1' is not a number > 0"},
+      {{"--table-under-flange", "5"}, "--table-under-flange 5 m: the flange is only"},
+      {{"--frobnicate"}, "unknown argument '--frobnicate'"},
+  };
+  for (const auto& [options, message] : cases) {
+    NodeProcess robot(CARTESIAN_IMPEDANCE_ROS2_SIM_ROBOT,
+                      Wire::with(options, {"--ros-args", "--params-file", sim_params()}));
+    EXPECT_EQ(robot.wait_for_exit(20.0), 2) << robot.log();
+    EXPECT_NE(robot.log().find(message), std::string::npos) << robot.log();
+  }
+}
+
 }  // namespace
 }  // namespace cartesian_impedance_ros2::test
