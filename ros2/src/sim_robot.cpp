@@ -39,6 +39,7 @@
 
 #include "arguments.hpp"
 #include "dds.hpp"
+#include "graph.hpp"
 #include "log.hpp"
 #include "messages.hpp"
 #include "parameters.hpp"
@@ -207,7 +208,13 @@ class SimulatedRobot {
         })),
         wake_(middleware([&] {
           return Entity(check(dds_create_guardcondition(participant_.get()), "guard condition"));
-        })) {
+        })),
+        graph_(middleware([&] { return GraphAnnouncer(participant_, configuration.ros_distro); })) {
+    // A node of ROS 2's graph, as a robot's driver is: `ros2 node list` shows it.
+    if (!graph_.announce(arguments.node_namespace, arguments.node_name, {commands_.get()},
+                         {joint_states_.get(), contact_.get()})) {
+      log(LogLevel::warn, "could not announce the robot on ros_discovery_info");
+    }
     log(LogLevel::info, "simulating " + std::to_string(model_.num_joints()) + " joints (plant " +
                             options.plant + "): " + joint_states_topic_ + " out, " +
                             commands_topic_ + " in");
@@ -343,6 +350,7 @@ class SimulatedRobot {
   Reader<Float64MultiArray> commands_;
   Writer<WrenchStamped> contact_;
   Entity wake_;
+  GraphAnnouncer graph_;
   std::atomic<bool> stop_{false};
   ci::runtime::DurationHistogram latency_;  // [ns] the commands' source timestamp to their take
   std::atomic<std::uint64_t> wrong_size_{0};

@@ -376,6 +376,19 @@ TEST(Ros2Graph, NodeListAndNodeInfoSeeTheNodeWithEveryTopicItUses) {
   EXPECT_TRUE(found) << "no ros_discovery_info writer of the node's participant";
 }
 
+// The simulated robot is a node of the graph too, as a robot's driver is.
+TEST(Ros2Graph, TheSimulatedRobotIsANodeWithItsTopics) {
+  NodeProcess robot(CARTESIAN_IMPEDANCE_ROS2_SIM_ROBOT,
+                    {"--ros-args", "-r", "__ns:=/robot", "--params-file", sim_params()});
+  GraphPeer peer(false);
+  const Guid participant = expect_node_and_endpoints(peer, "/robot", "sim_robot", 16);
+  const std::set<std::string> published = topics(of_participant(peer.publications(), participant));
+  EXPECT_EQ(published.count("rt/robot/joint_states"), 1u);
+  EXPECT_EQ(published.count("rt/robot/sim_robot/contact_wrench"), 1u);
+  EXPECT_EQ(topics(of_participant(peer.subscriptions(), participant)),
+            std::set<std::string>{"rt/robot/effort_controller/commands"});
+}
+
 TEST(Ros2Graph, HumbleLayoutHasTwentyFourOctetGidsAndNoTypeHash) {
   NodeProcess process({"--ros-args", "--params-file", sim_params(), "-p", "ros_distro:=humble"});
   GraphPeer peer(true);
