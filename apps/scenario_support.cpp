@@ -357,6 +357,20 @@ Kinematics simulated_arm(Rig& rig) {
 
 namespace {
 
+// The law's damping in joint space now, C = J^T D J + D_ns (the nullspace damping, or its
+// minimum), what acts on the readings' velocity noise.
+Eigen::MatrixXd joint_damping(Rig& rig, const Eigen::MatrixXd& jacobian) {
+  const ControllerState& state = rig.loop().state().controller;
+  const Parameters& parameters = rig.loop().controller().parameters();
+  Eigen::MatrixXd damping = jacobian.transpose() * state.damping_base() * jacobian;
+  const JointVector& k_ns = state.filtered.nullspace_stiffness;
+  for (int j = 0; j < damping.rows(); ++j) {
+    damping(j, j) += std::max(2.0 * state.filtered.nullspace_damping_ratio * std::sqrt(k_ns[j]),
+                              parameters.minimum_damping.nullspace);
+  }
+  return damping;
+}
+
 // Per joint j of the rig now: the standard deviation sigma_j of the noise torque per step (torque
 // noise and the damping on the velocity noise), the mass m_j and the damping c_jj; empty on a
 // plant without either noise.
@@ -369,15 +383,7 @@ NoiseDrive noise_drive(Rig& rig, const sim::PlantOptions& plant) {
   if (!(plant.torque_noise > 0.0) && !(plant.velocity_noise > 0.0)) return drive;
   const Kinematics kinematics = simulated_arm(rig);
   const JointMatrix& mass = kinematics.mass;
-  const Eigen::MatrixXd& jacobian = kinematics.jacobian;
-  const ControllerState& state = rig.loop().state().controller;
-  const Parameters& parameters = rig.loop().controller().parameters();
-  Eigen::MatrixXd damping = jacobian.transpose() * state.damping_base() * jacobian;
-  const JointVector& k_ns = state.filtered.nullspace_stiffness;
-  for (int j = 0; j < damping.rows(); ++j) {
-    damping(j, j) += std::max(2.0 * state.filtered.nullspace_damping_ratio * std::sqrt(k_ns[j]),
-                              parameters.minimum_damping.nullspace);
-  }
+  const Eigen::MatrixXd damping = joint_damping(rig, kinematics.jacobian);
   for (int j = 0; j < damping.rows(); ++j) {
     drive.sigma.push_back(
         std::sqrt(plant.torque_noise * plant.torque_noise +
@@ -414,15 +420,10 @@ double noise_rate_limited_cycles(Rig& rig, const sim::PlantOptions& plant) {
   if (!(plant.velocity_noise > 0.0) && !(plant.position_noise > 0.0)) return 0.0;
   const Kinematics kinematics = simulated_arm(rig);
   const Eigen::MatrixXd& jacobian = kinematics.jacobian;
-  const ControllerState& state = rig.loop().state().controller;
   const Parameters& parameters = rig.loop().controller().parameters();
-  Eigen::MatrixXd damping = jacobian.transpose() * state.damping_base() * jacobian;
-  const JointVector& k_ns = state.filtered.nullspace_stiffness;
-  for (int j = 0; j < damping.rows(); ++j) {
-    damping(j, j) += std::max(2.0 * state.filtered.nullspace_damping_ratio * std::sqrt(k_ns[j]),
-                              parameters.minimum_damping.nullspace);
-  }
-  const Eigen::MatrixXd spring = jacobian.transpose() * state.stiffness_base() * jacobian;
+  const Eigen::MatrixXd damping = joint_damping(rig, jacobian);
+  const Eigen::MatrixXd spring =
+      jacobian.transpose() * rig.loop().state().controller.stiffness_base() * jacobian;
   const JointVector rate =
       per_joint(parameters.limits.joint_torque_rate, static_cast<int>(damping.rows()));
   double cycles = 0.0;

@@ -86,6 +86,22 @@ inline std::string params_file(const std::string& name, const std::string& body)
   return path;
 }
 
+// A params file named `name` for the node in topics mode on the Panda's URDF, with `extra`
+// parameters (YAML lines indented by four spaces) after the common ones.
+inline std::string topics_params_file(const std::string& name, const std::string& extra = "") {
+  return params_file(name, R"(
+/**:
+  ros__parameters:
+    mode: topics
+    urdf_path: )" + repository() +
+                               R"(/models/panda/panda.urdf
+    base_link: panda_link0
+    tip_link: panda_link8
+    parameters_file: )" + repository() +
+                               R"(/config/panda.yaml
+)" + extra);
+}
+
 // A client of one node: its topics, as a ROS 2 node would use them.
 class Client {
  public:

@@ -468,16 +468,7 @@ class JointStatesPlayer {
 };
 
 std::string topics_params() {
-  return params_file("topics_panda.yaml", R"(
-/**:
-  ros__parameters:
-    mode: topics
-    urdf_path: )" + repository() + R"(/models/panda/panda.urdf
-    base_link: panda_link0
-    tip_link: panda_link8
-    parameters_file: )" + repository() + R"(/config/panda.yaml
-    filter: {pose: {time: 0.0}}
-)");
+  return topics_params_file("topics_panda.yaml", "    filter: {pose: {time: 0.0}}\n");
 }
 
 // Topics mode: joint_states in (as a robot's ros2_control would publish them), torques out to the

@@ -21,15 +21,7 @@ namespace cartesian_impedance_ros2::test {
 namespace {
 
 std::string topics_params() {
-  return params_file("wire_topics_panda.yaml", R"(
-/**:
-  ros__parameters:
-    mode: topics
-    urdf_path: )" + repository() + R"(/models/panda/panda.urdf
-    base_link: panda_link0
-    tip_link: panda_link8
-    parameters_file: )" + repository() + R"(/config/panda.yaml
-)");
+  return topics_params_file("wire_topics_panda.yaml");
 }
 
 // The robot (its own sim-mode params file: the Panda's MJCF at its ready pose) and the node on
