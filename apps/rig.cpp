@@ -113,6 +113,9 @@ Parameters for_simulation(Parameters parameters, const sim::Simulation& sim, Mut
   // the plant's error.
   if (!configures_armature(parameters)) parameters.dynamics.armature = sim.model_armature();
   if (mutation == Mutation::no_energy_tank) parameters.safety.energy_tank.enabled = false;
+  // The passivity observer pairs each torque with the velocity measured while it acted: here the
+  // plant's delays are known exactly (a real robot's are its measurement's age and its drive's).
+  parameters.safety.passivity.delay = sim.measurement_age() + sim.actuation_delay();
   return parameters;
 }
 }  // namespace
@@ -123,7 +126,10 @@ thread_local int oscillations_found = 0;
 }  // namespace
 
 Rig::~Rig() {
-  if (!oscillation_expected_) oscillations_found += loop_->state().controller.safety.oscillations;
+  if (!oscillation_expected_) {
+    const SafetyState& safety = loop_->state().controller.safety;
+    oscillations_found += safety.oscillations + safety.passivity_halvings;
+  }
 }
 
 Rig::Rig(const RobotSetup& robot, const Parameters& parameters, const std::vector<sim::Box>& boxes)

@@ -405,6 +405,18 @@ void bind_states(py::module_& m) {
                     "past the stiffness's margin) halves it, until start().")
       .def_readonly("oscillations", &ci::SafetyState::oscillations,
                     "Sustained oscillations found since start().")
+      .def_readonly("generated_energy", &ci::SafetyState::generated_energy,
+                    "[J] The energy the controller generated on its port to the arm within the "
+                    "last 0.5 s (the passivity observer, safety.passivity): at or below 0 while "
+                    "it is passive; behind a delay past the margin its springs put energy in.")
+      .def_property_readonly(
+          "passivity_scale",
+          [](const ci::SafetyState& s) { return vector_array(s.passivity_scale); },
+          "(3,) The fraction of the commanded stiffness the passivity controller left each "
+          "spring (translation, rotation, nullspace) [1/256, 1], on top of oscillation_scale: "
+          "halved where it generated energy, until start().")
+      .def_readonly("passivity_halvings", &ci::SafetyState::passivity_halvings,
+                    "Halvings by the passivity controller since start().")
       .def("__repr__", [](const ci::SafetyState& s) {
         return "SafetyState(drive_scale=" + ci::format_number(s.translation_drive_scale) + "/" +
                ci::format_number(s.rotation_drive_scale) +

@@ -475,6 +475,10 @@ void bind_simulation(py::module_& m) {
           "[s] how old q and dq are when read: the plant's measurement delay in whole timesteps "
           "(0 for the nominal plant).")
       .def_property_readonly(
+          "actuation_delay", [](Sim& s) { return s.get().actuation_delay(); },
+          "[s] how late a torque set acts: the plant's actuation delay in whole timesteps. With "
+          "measurement_age the loop's delay, the parameter safety.passivity.delay.")
+      .def_property_readonly(
           "friction_loss", [](Sim& s) { return vector_array(s.get().friction_loss()); },
           "Coulomb friction per joint (n,) [Nm]")
       .def_property_readonly("model_name", [](Sim& s) { return s.get().model_name(); })

@@ -45,6 +45,24 @@ TEST(StatusReports, AnOscillationIsReportedOnceWithTheStiffnessLeft) {
   EXPECT_NE(joined(reporter.update(state, timing)).find("0.5 of the commanded"), std::string::npos);
 }
 
+TEST(StatusReports, APassivityHalvingIsReportedOnceWithTheSpringsLeft) {
+  ci::node::StatusReporter reporter(0.001, 0.1, "joint_states");
+  ci::LoopState state;
+  state.controller.status = ci::Status::ok;
+  const ci::runtime::ControlThreadSnapshot timing;
+  EXPECT_EQ(joined(reporter.update(state, timing)), "");
+  state.controller.safety.passivity_halvings = 2;
+  state.controller.safety.passivity_scale = Eigen::Vector3d(1.0, 0.25, 0.5);
+  const std::string reported = joined(reporter.update(state, timing));
+  EXPECT_NE(reported.find("W the controller generated energy on its port"), std::string::npos)
+      << reported;
+  EXPECT_NE(reported.find("translation 1, rotation 0.25, nullspace 0.5 of the commanded (2 "
+                          "halving(s)"),
+            std::string::npos)
+      << reported;
+  EXPECT_EQ(joined(reporter.update(state, timing)), "") << "once per halving";
+}
+
 TEST(StatusReports, AStatusOtherThanOkNamesItsFault) {
   ci::node::StatusReporter reporter(0.001, 0.1, "joint_states");
   ci::LoopState state;

@@ -609,6 +609,9 @@ class SafetyState:
     def force_scale(self) -> float:
         """safety.max_force.force: fraction of the spring + commanded force kept [0, 1]."""
     @property
+    def generated_energy(self) -> float:
+        """[J] The energy the controller generated on its port to the arm within the last 0.5 s (the passivity observer, safety.passivity): at or below 0 while it is passive; behind a delay past the margin its springs put energy in."""
+    @property
     def joint_limit_wall(self) -> bool:
         """While teaching, a joint inside joint_limit_avoidance.margin is held off its limit by a joint-space wall."""
     @property
@@ -620,6 +623,12 @@ class SafetyState:
     @property
     def oscillations(self) -> int:
         """Sustained oscillations found since start()."""
+    @property
+    def passivity_halvings(self) -> int:
+        """Halvings by the passivity controller since start()."""
+    @property
+    def passivity_scale(self) -> numpy.typing.NDArray[numpy.float64]:
+        """(3,) The fraction of the commanded stiffness the passivity controller left each spring (translation, rotation, nullspace) [1/256, 1], on top of oscillation_scale: halved where it generated energy, until start()."""
     @property
     def payload_center_of_mass(self) -> numpy.typing.NDArray[numpy.float64]:
         """Its centre of mass (payload.center_of_mass, filtered) (3,) [m], end-effector frame."""

@@ -248,6 +248,9 @@ class Simulation:
     """A simulated robot (MuJoCo or DART). Not thread-safe: one thread drives it. Loaders and setters raise Error on bad input."""
     def __repr__(self) -> str: ...
     @property
+    def actuation_delay(self) -> float:
+        """[s] how late a torque set acts: the plant's actuation delay in whole timesteps. With measurement_age the loop's delay, the parameter safety.passivity.delay."""
+    @property
     def armature(self) -> numpy.typing.NDArray[numpy.float64]:
         """Rotor inertia per joint (n,) [kg m^2] as simulated (with a plant's model error, the drawn one)."""
     def body_pose(self, body: str) -> cartesian_impedance.Pose:

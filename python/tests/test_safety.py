@@ -38,12 +38,15 @@ SAFETY_FIELDS = {
     "payload_mismatch": "",
     "oscillation_scale": "[1/256, 1]",
     "oscillations": "since start()",
+    "generated_energy": "[J]",
+    "passivity_scale": "[1/256, 1]",
+    "passivity_halvings": "since start()",
     # The settings in force, as objects whose fields carry the units.
     "pose_error_in_force": "PoseErrorLimits",
     "workspace_in_force": "Workspace",
 }
 VECTORS = {"workspace_penetration", "wall_force", "payload_center_of_mass",
-           "payload_estimate_center_of_mass"}
+           "payload_estimate_center_of_mass", "passivity_scale"}
 FLAGS = {"reference_speed_limited", "braking", "reference_clipped", "payload_estimate_valid",
          "settings_held", "joint_limit_wall", "static_wrench_unexplained", "payload_mismatch"}
 # Their fields and units.
@@ -82,12 +85,13 @@ def test_a_loop_at_rest_reports_nothing_capped_and_a_full_tank(panda, ready):
         value = getattr(safety, name)
         if name in VECTORS:
             assert isinstance(value, np.ndarray) and value.shape == (3,) and value.dtype == float
-            assert np.all(value == 0.0), name
+            assert np.all(value == (1.0 if name == "passivity_scale" else 0.0)), name
         elif name in FLAGS:
             assert value is False, name
     assert safety.translation_drive_scale == safety.rotation_drive_scale == 1.0
     assert safety.force_scale == safety.torque_scale == safety.stiffness_change_scale == 1.0
     assert safety.nullspace_scale == 1.0
+    assert safety.passivity_halvings == 0 and safety.generated_energy <= 0.0
     # The settings in force are the parameters (nothing waits for the tank).
     defaults = ci.Parameters()
     assert safety.pose_error_in_force.translation == defaults["limits.pose_error.translation"]

@@ -56,6 +56,9 @@ TEST(Conversions, StateMessageCarriesTheLimitsAndTheSafetyLayer) {
   safety.payload_estimate_center_of_mass = {0.029, 0.030, 0.031};
   safety.oscillation_scale = 0.125;
   safety.oscillations = 3;
+  safety.generated_energy = 0.0625;
+  safety.passivity_scale = Eigen::Vector3d(1.0, 0.25, 0.5);
+  safety.passivity_halvings = 3;
 
   cir::ControllerState message;
   cir::fill_state_message(state, model.joint_names(), nullptr, message);
@@ -85,6 +88,11 @@ TEST(Conversions, StateMessageCarriesTheLimitsAndTheSafetyLayer) {
             (std::vector<double>{0.029, 0.030, 0.031}));
   EXPECT_EQ(message.oscillation_scale, 0.125);
   EXPECT_EQ(message.oscillations, 3u);
+  EXPECT_EQ(message.generated_energy, 0.0625);
+  EXPECT_EQ(message.passivity_scale_translation, 1.0);
+  EXPECT_EQ(message.passivity_scale_rotation, 0.25);
+  EXPECT_EQ(message.passivity_scale_nullspace, 0.5);
+  EXPECT_EQ(message.passivity_halvings, 3u);
 
   // And what a running loop reports at rest with the defaults: nothing capped, the tank full.
   cir::fill_state_message(loop.state(), model.joint_names(), nullptr, message);

@@ -584,6 +584,9 @@ TEST(Ros2Messages, FullStateCarriesTheLimitsAndTheSafetyLayer) {
   safety.payload_estimate_center_of_mass = {0.059, 0.060, 0.061};
   safety.oscillation_scale = 0.25;
   safety.oscillations = 2;
+  safety.generated_energy = -0.125;
+  safety.passivity_scale = Eigen::Vector3d(0.5, 0.125, 1.0);
+  safety.passivity_halvings = 4;
   ci::runtime::ControlThreadStatistics timing;
   timing.measurement_age_p50_us = 1500.0;
   timing.measurement_age_p99_us = 3250.0;
@@ -616,6 +619,11 @@ TEST(Ros2Messages, FullStateCarriesTheLimitsAndTheSafetyLayer) {
   EXPECT_EQ(xyz(m.payload_estimate_center_of_mass), (V{0.059, 0.060, 0.061}));
   EXPECT_EQ(m.oscillation_scale, 0.25);
   EXPECT_EQ(m.oscillations, 2u);
+  EXPECT_EQ(m.generated_energy, -0.125);
+  EXPECT_EQ(m.passivity_scale_translation, 0.5);
+  EXPECT_EQ(m.passivity_scale_rotation, 0.125);
+  EXPECT_EQ(m.passivity_scale_nullspace, 1.0);
+  EXPECT_EQ(m.passivity_halvings, 4u);
   EXPECT_EQ(m.measurement_age_p50_us, 1500.0);
   EXPECT_EQ(m.measurement_age_p99_us, 3250.0);
   EXPECT_EQ(m.measurement_age_max_us, 9000.5);

@@ -116,9 +116,11 @@ ci::Parameters native_parameters() {
   parameters.nullspace.pseudo_inverse_damping = 0.2;
   parameters.dynamics.inertia_shaped_damping = false;
   parameters.joint_limit_avoidance.stiffness = 0.0;
-  // The published library has no safety layer: its caps are off by default, and its tank is
-  // switched off here (schedule() bypasses it too), so the law stays the published one.
+  // The published library has no safety layer: its caps are off by default, and its tank and
+  // passivity controller are switched off here (schedule() bypasses the tank too), so the law
+  // stays the published one.
   parameters.safety.energy_tank.enabled = false;
+  parameters.safety.passivity.threshold = 0.0;
   // The published library has no such limits; these are the widest the library allows.
   parameters.limits.pose_error =
       ci::PoseErrorLimits{ci::parameter_info("limits.pose_error.translation").max,

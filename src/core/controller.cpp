@@ -305,6 +305,9 @@ void CartesianImpedanceController::start(const RobotState& robot,
   law_->oscillation_scale_filtered = 1.0;
   law_->oscillation_damping_scale = 1.0;
   forget_oscillation();
+  safety.passivity_scale.setOnes();
+  safety.passivity_halvings = 0;
+  forget_passivity();
   state_.limits.holding = false;
   started_ = true;
 }
@@ -469,13 +472,18 @@ void CartesianImpedanceController::filter_targets() noexcept {
   const double a_stiffness = gains_.stiffness;
   // The oscillation watch's scale enters the filter's target: the stiffness leaves as smoothly
   // as a command would take it away.
+  // So do the passivity controller's scales of its springs.
   const double scale = state_.safety.oscillation_scale;
+  const Eigen::Vector3d& springs = state_.safety.passivity_scale;
   if (stiffness_diagonal_) {
-    filtered.stiffness.diagonal() = (1.0 - a_stiffness) * filtered.stiffness.diagonal() +
-                                    (a_stiffness * scale) * commanded.stiffness.diagonal();
+    Vector6d target = (a_stiffness * scale) * commanded.stiffness.diagonal();
+    target.head<3>() *= springs[0];
+    target.tail<3>() *= springs[1];
+    filtered.stiffness.diagonal() = (1.0 - a_stiffness) * filtered.stiffness.diagonal() + target;
   } else {
-    filtered.stiffness =
-        (1.0 - a_stiffness) * filtered.stiffness + (a_stiffness * scale) * commanded.stiffness;
+    Matrix6d target = (a_stiffness * scale) * commanded.stiffness;
+    scale_stiffness_groups(target, springs);
+    filtered.stiffness = (1.0 - a_stiffness) * filtered.stiffness + target;
   }
   if (law_->oscillation_scale_filtered != scale) {  // only after the watch found something
     law_->oscillation_scale_filtered =
@@ -488,7 +496,7 @@ void CartesianImpedanceController::filter_targets() noexcept {
   filtered.nullspace_q =
       (1.0 - a_nullspace) * filtered.nullspace_q + a_nullspace * commanded.nullspace_q;
   filtered.nullspace_stiffness = (1.0 - a_nullspace) * filtered.nullspace_stiffness +
-                                 (a_nullspace * scale) * commanded.nullspace_stiffness;
+                                 (a_nullspace * scale * springs[2]) * commanded.nullspace_stiffness;
   filtered.nullspace_damping_ratio = (1.0 - a_nullspace) * filtered.nullspace_damping_ratio +
                                      a_nullspace * commanded.nullspace_damping_ratio;
   filtered.twist = commanded.twist;
@@ -519,8 +527,10 @@ void CartesianImpedanceController::schedule(const ScheduledImpedance& impedance)
   }
   // The oscillation watch's scale as far as it has come through the filter.
   const double scale = law_->oscillation_scale_filtered;
+  const Eigen::Vector3d& springs = state_.safety.passivity_scale;
   state_.filtered.stiffness *= scale;
-  state_.filtered.nullspace_stiffness *= scale;
+  scale_stiffness_groups(state_.filtered.stiffness, springs);
+  state_.filtered.nullspace_stiffness *= scale * springs[2];
   scheduled_damping_ = impedance.damping;
   scheduled_damping_diagonal_ = is_diagonal(impedance.damping);
   scheduled_nullspace_damping_ = impedance.nullspace_damping;
@@ -557,6 +567,8 @@ Status CartesianImpedanceController::fail_closed(Status status, const Fault& fau
   law_->wall_force_sent.setZero();
   law_->wall_spring_sent.setZero();
   law_->wall_damper_sent.setZero();
+  // Nor does the passivity observer: the torque it would pair is not the law's.
+  forget_passivity();
   limit_torque(dt);
   state_.status = status;
   state_.fault = fault;
@@ -674,6 +686,7 @@ Status CartesianImpedanceController::cycle(const RobotState& robot, double dt,
                                           "",
                                           Fault::Form::statement};
       time_ += dt;
+      forget_passivity();
       Fault fault;
       if (!evaluate_halt(robot, fault)) return fail_closed(Status::numerical_error, fault, dt);
       limit_torque(dt);
@@ -696,6 +709,7 @@ Status CartesianImpedanceController::cycle(const RobotState& robot, double dt,
   Fault fault;
   if (!evaluate_law(robot, dt, fault)) return fail_closed(Status::numerical_error, fault, dt);
   limit_torque(dt, &robot);
+  observe_passivity(robot, dt);
   expect_acceleration(robot);
   state_.status = Status::ok;
   state_.fault = Fault{};

@@ -252,39 +252,42 @@ void CartesianImpedanceController::pay_workspace_change() noexcept {
   law_->wall_energy = std::max(law_->wall_energy + paid, 0.0);
 }
 
-// What the damping dissipated this cycle fills the tank, as far as the torque sent carried the
-// damping: a term the torque shaping scaled counts scaled, and a cycle whose torque was clamped
-// or rate-limited counts nothing (its damping was not what the law computed; counting it would
-// let the tank pay out energy the arm never lost: measured 0.3 mJ per cycle against a stiff wall
-// on a weak arm).
-void CartesianImpedanceController::fill_tank(bool clamped) noexcept {
+// The fraction of the Cartesian and of the nullspace damping the torque sent carried: a term the
+// torque shaping scaled counts scaled, and a cycle whose torque was clamped or rate-limited counts
+// nothing (its damping was not what the law computed).
+Eigen::Vector2d CartesianImpedanceController::damping_sent(bool clamped,
+                                                           bool rate_limited) const noexcept {
+  const ActiveLimits& limits = state_.limits;
+  if (clamped || rate_limited) return Eigen::Vector2d::Zero();
+  switch (limits.torque_shaping) {
+    case TorqueShaping::none:
+      return Eigen::Vector2d::Ones();
+    case TorqueShaping::nullspace:
+      return {1.0, limits.torque_shaping_scale};
+    case TorqueShaping::spring:
+    case TorqueShaping::wrench:
+    case TorqueShaping::payload:
+      return {1.0, 0.0};
+    case TorqueShaping::damping:
+      return {limits.torque_shaping_scale, 0.0};
+    case TorqueShaping::gravity:
+      break;
+  }
+  return Eigen::Vector2d::Zero();
+}
+
+// What the damping dissipated this cycle fills the tank, as far as the torque sent carried it
+// (counting a clamped or rate-limited cycle would let the tank pay out energy the arm never lost:
+// measured 0.3 mJ per cycle against a stiff wall on a weak arm).
+void CartesianImpedanceController::fill_tank() noexcept {
   Law& law = *law_;
   const EnergyTankParameters& tank = parameters_.safety.energy_tank;
   const double cartesian = std::max(law.dissipated_cartesian, 0.0);
   const double nullspace = std::max(law.dissipated_nullspace, 0.0);
   law.dissipated_cartesian = law.dissipated_nullspace = 0.0;
   if (!tank.enabled || scheduled_) return;
-  const ActiveLimits& limits = state_.limits;
-  if (clamped || limits.torque_rate_limited) return;
-  double energy = 0.0;
-  switch (limits.torque_shaping) {
-    case TorqueShaping::none:
-      energy = cartesian + nullspace;
-      break;
-    case TorqueShaping::nullspace:
-      energy = cartesian + limits.torque_shaping_scale * nullspace;
-      break;
-    case TorqueShaping::spring:
-    case TorqueShaping::wrench:
-    case TorqueShaping::payload:
-      energy = cartesian;
-      break;
-    case TorqueShaping::damping:
-      energy = limits.torque_shaping_scale * cartesian;
-      break;
-    case TorqueShaping::gravity:
-      break;
-  }
+  const Eigen::Vector2d sent = damping_sent(law.torque_clamped, state_.limits.torque_rate_limited);
+  const double energy = sent[0] * cartesian + sent[1] * nullspace;
   SafetyState& safety = state_.safety;
   safety.tank_level = std::min(safety.tank_level + energy, tank.capacity);
 }

@@ -51,6 +51,7 @@ CartesianImpedanceController::Law::Law(int num_joints)
       nullspace_damping_torque(JointVector::Zero(num_joints)),
       nullspace_damping_projected(JointVector::Zero(num_joints)),
       governor_joint(JointVector::Zero(num_joints)) {
+  for (JointVector& torque : torque_sent) torque.setZero(num_joints);
   forget_damping();
 }
 
@@ -229,6 +230,23 @@ void CartesianImpedanceController::spring_damper(const RobotState& robot, double
     rotate_six(rotation, damping_frame, law.damping_force);
   }
   law.dissipated_cartesian = -damping_frame.dot(velocity_frame) * dt;
+  // What the damper takes out of the arm's own motion, -v^T D v (translation, rotation), for the
+  // passivity observer: its force on the reference's velocity, D v_ref, drives the arm along a
+  // moving reference as the spring's moving anchor does, and is no dissipation.
+  Vector6d twist_frame;
+  if (in_base) {
+    twist_frame = law.twist;
+  } else {
+    rotate_six_inverse(rotation, law.twist, twist_frame);
+  }
+  Vector6d damped;
+  if (law.damping_diagonal) {
+    damped = damping.diagonal().cwiseProduct(twist_frame);
+  } else {
+    damped.noalias() = damping * twist_frame;
+  }
+  law.damper_power = {-damped.head<3>().dot(twist_frame.head<3>()),
+                      -damped.tail<3>().dot(twist_frame.tail<3>())};
 }
 
 // tau_cartesian = J^T (spring + damping, walls and brake), after the safety layer, plus the
@@ -369,7 +387,8 @@ void CartesianImpedanceController::limit_torque(double dt, const RobotState* law
   limits.torque_rate_limited = limit_rate(tau_previous_, law_->max_step, state_.tau);
   saturate_torque(bound, state_.tau);
   tau_previous_ = state_.tau;
-  if (law_robot != nullptr) fill_tank(clamped);
+  law_->torque_clamped = clamped;
+  if (law_robot != nullptr) fill_tank();
 }
 
 // Clipping each joint's torque on its own turns the Cartesian force into one of another direction:

@@ -10,6 +10,9 @@
 
 namespace cartesian_impedance {
 
+// Cycles of torque the passivity observer keeps: safety.passivity.delay up to 0.1 s at 1 kHz.
+inline constexpr int kPassivityRing = 128;
+
 struct CartesianImpedanceController::Law {
   explicit Law(int num_joints);
 
@@ -85,7 +88,7 @@ struct CartesianImpedanceController::Law {
   // The nullspace damping torque, before and after the projection: what it dissipates fills the
   // tank (computed while the tank is not full).
   JointVector nullspace_damping_torque, nullspace_damping_projected;
-  // Scratch space of the speed governor (a joint torque).
+  // Scratch space of the speed governor and the passivity observer (a joint torque).
   JointVector governor_joint;
   // What the Cartesian and the nullspace damping dissipate this cycle [J], for the tank once the
   // torque is known (fill_tank()).
@@ -105,6 +108,22 @@ struct CartesianImpedanceController::Law {
   // low-passed (kStillFilterTime) for that test, so that sensor noise does not read as motion.
   double still_for = 0.0;
   Vector6d still_twist = Vector6d::Zero();
+
+  // The passivity observer (passivity.cpp): the drive's torque sent in the last kPassivityRing
+  // cycles (all but the gravity torque and the commanded wrench, which are the arm's own and the
+  // user's), oldest overwritten first; the power the Cartesian damper takes out of the arm's motion
+  // this cycle, translation and rotation [W]; the energy each spring's port generated in the window
+  // (translation, rotation, nullspace) and their sum [J]; how long the observer waits after a
+  // halving [s].
+  std::array<JointVector, kPassivityRing> torque_sent;
+  int sent_next = 0;
+  int sent_count = 0;
+  Eigen::Vector2d damper_power = Eigen::Vector2d::Zero();
+  // Whether the clamp acted on this cycle's torque (limit_torque()).
+  bool torque_clamped = false;
+  Eigen::Vector3d generated = Eigen::Vector3d::Zero();
+  double generated_sum = 0.0;
+  double passivity_wait = 0.0;
 
   // The damping must be computed anew at the next cycle (K, zeta or the mode changed).
   void forget_damping() noexcept {

@@ -66,12 +66,24 @@ void CartesianImpedanceController::watch_oscillation(double dt) noexcept {
     law.swing_peak[c] = magnitude;
     law.swing_began[c] = time_;
   }
-  if (oscillating && !halve_stiffness()) {
-    halted_ = true;
-    halted_oscillating_ = true;
-    at_rest_for_ = 0.0;
-    halted_for_ = 0.0;
+  if (!oscillating) return;
+  // Where the passivity observer names the springs that pump the oscillation, only they are
+  // halved; the others keep their stiffness.
+  bool halved = false;
+  if (parameters_.safety.passivity.threshold > 0.0 && law.generated.maxCoeff() > 0.0) {
+    ++state_.safety.oscillations;
+    halved = halve_generating_springs();
+  } else {
+    halved = halve_stiffness();
   }
+  if (!halved) halt_oscillating();
+}
+
+void CartesianImpedanceController::halt_oscillating() noexcept {
+  halted_ = true;
+  halted_oscillating_ = true;
+  at_rest_for_ = 0.0;
+  halted_for_ = 0.0;
 }
 
 bool CartesianImpedanceController::halve_stiffness() noexcept {

@@ -238,6 +238,16 @@ std::vector<ParameterInfo> make_table() {
       {"safety.energy_tank.initial", "J", 0, 1e3, false,
        "tank level at start (at most the capacity)",
        [](Parameters& p) { return field_of(&p.safety.energy_tank.initial); }},
+      {"safety.passivity.threshold", "J", 0, 1e3, false,
+       "energy the controller may generate on its port to the arm within 0.5 s (what a delay "
+       "makes its springs put in) before the stiffness of the springs that generated it is "
+       "halved; 0 = observe only (state.safety.generated_energy)",
+       [](Parameters& p) { return field_of(&p.safety.passivity.threshold); }},
+      {"safety.passivity.delay", "s", 0, 0.1, false,
+       "time from a joint measurement to its torque acting on the arm (the measurement's age "
+       "plus the drive's delay): the passivity observer pairs each torque with the velocity "
+       "measured while it acted",
+       [](Parameters& p) { return field_of(&p.safety.passivity.delay); }},
       {"payload.mass", "kg", 0, 1e3, false,
        "mass carried at the end effector: its gravity is compensated and its inertia shapes the "
        "damping; filtered with filter.wrench; its weight must fit under safety.max_force.force",

@@ -39,6 +39,17 @@ std::vector<ReportLine> StatusReporter::update(const LoopState& state,
              std::to_string(safety.oscillations) + " oscillation(s) since start)"});
   }
   oscillations_ = safety.oscillations;
+  // So does each halving by the passivity controller, of the springs that generated energy.
+  if (safety.passivity_halvings > passivity_halvings_) {
+    const Eigen::Vector3d& scale = safety.passivity_scale;
+    lines.push_back({Level::warning,
+                     "the controller generated energy on its port to the arm (a delay past the "
+                     "stiffness's margin): the springs that did are halved, now translation " +
+                         format_number(scale[0]) + ", rotation " + format_number(scale[1]) +
+                         ", nullspace " + format_number(scale[2]) + " of the commanded (" +
+                         std::to_string(safety.passivity_halvings) + " halving(s) since start)"});
+  }
+  passivity_halvings_ = safety.passivity_halvings;
   if (timing.stale != stale_) {
     if (timing.stale) {
       lines.push_back({Level::warning, "no " + measurements_ + " for more than " +

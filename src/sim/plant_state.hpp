@@ -42,6 +42,7 @@ class PlantState {
   bool actuates() const noexcept { return actuates_; }
   /// How many timesteps old a reading is.
   int measurement_steps() const noexcept { return measurement_steps_; }
+  int actuation_steps() const noexcept { return actuation_steps_; }
 
  private:
   PlantOptions plant_;

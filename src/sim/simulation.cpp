@@ -524,6 +524,9 @@ const JointVector& Simulation::model_armature() const noexcept {
 double Simulation::measurement_age() const noexcept {
   return impl_->plant.measurement_steps() * timestep();
 }
+double Simulation::actuation_delay() const noexcept {
+  return impl_->plant.actuation_steps() * timestep();
+}
 JointVector Simulation::armature() const {
   JointVector values(num_joints());
   for (int i = 0; i < num_joints(); ++i) {

@@ -296,6 +296,8 @@ inline ci::Parameters other_valid_parameters() {
   p.safety.energy_tank.enabled = false;
   p.safety.energy_tank.capacity = 0.02;
   p.safety.energy_tank.initial = 0.01;
+  p.safety.passivity.threshold = 0.25;
+  p.safety.passivity.delay = 0.004;
   p.payload.mass = 0.7;
   p.payload.center_of_mass = Eigen::Vector3d(0.0, 0.01, 0.05);
   return p;

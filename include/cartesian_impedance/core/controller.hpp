@@ -205,6 +205,17 @@ struct SafetyState {
   /// there.
   double oscillation_scale = 1.0;
   int oscillations = 0;
+  /// The passivity observer (safety.passivity): the energy the controller generated on its port
+  /// to the arm within the last kPassivityWindow [J] (what the torque sent put into the arm, less
+  /// what its springs stored; a passive controller keeps it at or below zero, its dampers taking
+  /// energy out), and the fraction of the commanded stiffness the passivity controller left each
+  /// spring: translation, rotation, nullspace [1/256, 1], on top of oscillation_scale. Each
+  /// halving of a spring that generated energy (by the observer past safety.passivity.threshold,
+  /// or by the oscillation watch where the observer names the springs) counts in
+  /// passivity_halvings; start() restores the stiffness.
+  double generated_energy = 0.0;
+  Eigen::Vector3d passivity_scale = Eigen::Vector3d::Ones();
+  int passivity_halvings = 0;
 };
 
 /// Snapshot written by every update().
@@ -282,6 +293,13 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   static constexpr double kOscillationSustain = 0.8;
   static constexpr double kOscillationHalfPeriod = 0.5;
   static constexpr double kOscillationFloor = 1.0 / 256.0;
+  /// The passivity observer's window [s]: what the port generated decays with this time
+  /// constant, so that the dissipation of a past motion does not hide a generation now, and a
+  /// bias too slow to matter (0.01 W measured at rest on the realistic Panda) never adds up.
+  /// After a halving, it looks again kPassivitySettle [s] after the torques sent before it have
+  /// acted (safety.passivity.delay).
+  static constexpr double kPassivityWindow = 0.5;
+  static constexpr double kPassivitySettle = 0.05;
   /// The payload estimate (SafetyState) is valid after the end effector has been still (slower
   /// than kStillSpeed [m/s] and kStillAngularSpeed [rad/s]) for this long [s]. The speeds are
   /// of its twist low-passed with the time constant kStillFilterTime [s]: a real arm's joint
@@ -462,7 +480,8 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   void pay_workspace_change() noexcept;
   double spring_energy(const Vector6d& error, const Matrix6d& stiffness,
                        const PoseErrorLimits& clip) const noexcept;
-  void fill_tank(bool clamped) noexcept;
+  Eigen::Vector2d damping_sent(bool clamped, bool rate_limited) const noexcept;
+  void fill_tank() noexcept;
   const JointMatrix& mass_with_payload(const RobotState& robot) noexcept;
   void safety_layer(const RobotState& robot, const JointMatrix& mass, double dt) noexcept;
   void walls(const RobotState& robot, double dt) noexcept;
@@ -475,11 +494,21 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   void expect_acceleration(const RobotState& robot) noexcept;
   Vector6d payload_holding_wrench() const noexcept;
   void estimate_payload(double dt) noexcept;
+  // The passivity observer and controller (passivity.cpp).
+  void observe_passivity(const RobotState& robot, double dt) noexcept;
+  void forget_passivity() noexcept;
+  // Halves the springs the observer finds generating (all of them where it finds none); false
+  // where a spring would go below kOscillationFloor (and nothing is halved).
+  bool halve_generating_springs() noexcept;
+  // The passivity controller's scales applied to a stiffness: translation and rotation blocks.
+  void scale_stiffness_groups(Matrix6d& stiffness, const Eigen::Vector3d& scale) const noexcept;
   // The oscillation watch (oscillation.cpp).
   void watch_oscillation(double dt) noexcept;
   void forget_oscillation() noexcept;
   // Halves SafetyState::oscillation_scale; false (and nothing halved) at kOscillationFloor.
   bool halve_stiffness() noexcept;
+  // Past the floor: Status::motion_halted, the springs off until the arm is at rest.
+  void halt_oscillating() noexcept;
   void limit_torque(double dt, const RobotState* law_robot = nullptr) noexcept;
   void shape_torque(const RobotState& robot, const JointVector& bound) noexcept;
   void bound_joint_drive(const RobotState& robot) noexcept;

@@ -153,6 +153,11 @@ void fill_state_message(const LoopState& state, const std::vector<std::string>& 
   fill_vector3(safety.payload_estimate_center_of_mass, message.payload_estimate_center_of_mass);
   message.oscillation_scale = safety.oscillation_scale;
   message.oscillations = static_cast<std::uint64_t>(safety.oscillations);
+  message.generated_energy = safety.generated_energy;
+  message.passivity_scale_translation = safety.passivity_scale[0];
+  message.passivity_scale_rotation = safety.passivity_scale[1];
+  message.passivity_scale_nullspace = safety.passivity_scale[2];
+  message.passivity_halvings = static_cast<std::uint64_t>(safety.passivity_halvings);
 }
 
 /// The timing fields of ControllerState.msg from the control thread's statistics since it

@@ -270,6 +270,9 @@ class Simulation {
   /// [s] how old q() and dq() are when read: the plant's measurement delay in whole timesteps
   /// (0 for the nominal plant). A driver stamps its readings with it.
   double measurement_age() const noexcept;
+  /// [s] how late a torque set acts: the plant's actuation delay in whole timesteps. With
+  /// measurement_age() the loop's delay, the controller's safety.passivity.delay.
+  double actuation_delay() const noexcept;
   /// Coulomb friction (MuJoCo's frictionloss) per exchanged joint [Nm or N]: the torque below
   /// which a joint at rest does not move, so a spring holds it only up to this.
   JointVector friction_loss() const;

@@ -301,6 +301,11 @@ void visit(V& v, cartesian_impedance_msgs_msg_dds__ControllerState_& m) {
   v.float64(m.measurement_age_max_us);
   v.float64(m.oscillation_scale);
   v.uint64(m.oscillations);
+  v.float64(m.generated_energy);
+  v.float64(m.passivity_scale_translation);
+  v.float64(m.passivity_scale_rotation);
+  v.float64(m.passivity_scale_nullspace);
+  v.uint64(m.passivity_halvings);
 }
 
 }  // namespace ros2_messages_test
