@@ -3,10 +3,12 @@
 
 Each cell is one run on the realistic plant (sim.Plant.realistic: model error, noise, 1 ms of
 actuation delay) with the measurement delay of its column: a 5 cm reference step along x at the
-stiffness of its row (rotation a tenth of it, in Nm/rad), 12 s. The controller's oscillation watch
-halves the stiffness each time it finds a sustained oscillation; the cell shows how many times it
-did (0: the loop held the stiffness as commanded) and whether the arm was at rest in the last
-second. Writes docs/images/delay_map.png and prints the map as Markdown.
+stiffness of its row (rotation a tenth of it, in Nm/rad), 12 s, the controller told the loop's
+delay (safety.passivity.delay). The passivity controller halves the springs that generate energy,
+and the oscillation watch what still oscillates; the cell shows how many times the translation's
+and the rotation's stiffness were halved (0/0: the loop held the stiffness as commanded) and
+whether the arm was at rest in the last second. Writes docs/images/delay_map.png and prints the
+map as Markdown.
 
     PYTHONPATH=build/python /usr/bin/python3 apps/delay_map.py [--out FILE]
 """
@@ -37,7 +39,8 @@ def run_cell(robot, model, shaped, stiffness, delay):
     sim = ci.sim.Simulation.from_mjcf_file(SOURCE / "models" / mjcf, plant=plant)
     loop = ci.ControlLoop(model, {"stiffness.translation": stiffness,
                                   "stiffness.rotation": stiffness / 10.0,
-                                  "dynamics.inertia_shaped_damping": shaped})
+                                  "dynamics.inertia_shaped_damping": shaped,
+                                  "safety.passivity.delay": delay + plant.actuation_delay})
     loop.start(sim.q, sim.dq)
     pose = loop.state.controller.pose
     loop.set_reference_pose((np.asarray(pose.position) + [0.05, 0.0, 0.0], pose.orientation))
@@ -49,8 +52,9 @@ def run_cell(robot, model, shaped, stiffness, delay):
         fastest = max(fastest, float(np.abs(sim.true_dq).max()))
         ok = ok and loop.state.controller.status == ci.Status.ok
     safety = loop.state.controller.safety
-    halvings = round(-math.log2(safety.oscillation_scale))
-    return halvings, ok and fastest <= SETTLED_SPEED
+    kept = safety.oscillation_scale * np.asarray(safety.passivity_scale)
+    translation, rotation = (round(-math.log2(k)) for k in kept[:2])
+    return translation, rotation, ok and fastest <= SETTLED_SPEED
 
 
 def main():
@@ -75,12 +79,13 @@ def main():
             for i, stiffness in enumerate(STIFFNESS):
                 cells = []
                 for j, delay_ms in enumerate(DELAYS_MS):
-                    halvings, settled = run_cell(robot, model, shaped, stiffness, delay_ms * 1e-3)
-                    grid[i, j] = halvings
-                    text = str(halvings) if settled else f"{halvings}*"
+                    translation, rotation, settled = run_cell(robot, model, shaped, stiffness,
+                                                              delay_ms * 1e-3)
+                    grid[i, j] = translation
+                    text = f"{translation}/{rotation}" + ("" if settled else "*")
                     cells.append(text)
-                    ax.text(j, i, text, ha="center", va="center", fontsize=9,
-                            color="white" if halvings >= 4 else "black")
+                    ax.text(j, i, text, ha="center", va="center", fontsize=8,
+                            color="white" if translation >= 4 else "black")
                 print(f"| {robot} | {'inertia-shaped' if shaped else 'unit-mass'} | "
                       f"{stiffness:.0f} | " + " | ".join(cells) + " |")
             ax.imshow(grid, cmap="Reds", vmin=0, vmax=8, aspect="auto", origin="lower")
@@ -89,9 +94,9 @@ def main():
             ax.set_xlabel("measurement delay [ms] (+1 ms actuation)")
             ax.set_ylabel("commanded stiffness [N/m]")
             ax.set_title(f"{robot}, {title}", fontsize=10)
-    fig.suptitle("Halvings of the stiffness the oscillation watch needed for a 5 cm step to "
-                 "settle\n(0: held as commanded; * not at rest after 12 s; realistic plant)",
-                 fontsize=11)
+    fig.suptitle("Halvings of the translation / rotation stiffness a 5 cm step needed to settle\n"
+                 "(colour: translation; 0/0: held as commanded; * not at rest after 12 s; "
+                 "realistic plant)", fontsize=11)
     fig.tight_layout()
     pathlib.Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(args.out, dpi=90)

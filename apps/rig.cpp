@@ -376,8 +376,8 @@ Outcome run_scenario(const std::string& name, const RobotSetup& robot,
                      const MomentCallback& moment) {
   for (const auto& [known, scenario] : registry()) {
     if (known != name) continue;
-    // Every scenario's loop is stable, on the realistic plant too: a limit cycle the watch
-    // finds (and stops, so that the other lines may pass) fails the scenario.
+    // Every scenario's loop is stable, on the realistic plant too: a limit cycle the watch or the
+    // passivity controller finds (and stops, so that the other lines may pass) fails the scenario.
     oscillations_found = 0;
     Outcome outcome = scenario(robot, moment);
     const bool applies = std::any_of(outcome.results.begin(), outcome.results.end(),
@@ -385,7 +385,7 @@ Outcome run_scenario(const std::string& name, const RobotSetup& robot,
     if (!applies) return outcome;  // nothing ran that could oscillate (a nullspace on 6 joints)
     outcome.results.push_back(detail::at_most(
         name, "sustained oscillations of the closed loop", 0.0, oscillations_found, "",
-        "found by the controller's oscillation watch; each halves the stiffness"));
+        "found by the oscillation watch or the passivity controller; each halves a stiffness"));
     return outcome;
   }
   std::string names;

@@ -122,6 +122,38 @@ TEST(AllocationFree, TheOscillationWatchAllocatesNothingFromSwingToHold) {
   EXPECT_TRUE(controller.state().limits.holding);
 }
 
+// The passivity controller through all it does: on the Cartesian robot (J = I) an undamped spring
+// 20 ms late under an imposed motion along x (1.5 mm at 5 Hz) generates energy whatever it is
+// halved to; eight halvings, the ninth failing closed, the halt and the hold.
+TEST(AllocationFree, ThePassivityControllerAllocatesNothingFromGenerationToHold) {
+  ci::Parameters parameters;
+  parameters.dynamics.inertia_shaped_damping = false;
+  parameters.stiffness.translation.setConstant(3000.0);
+  parameters.damping_ratio.translation.setZero();
+  parameters.minimum_damping = {0.0, 0.0, 0.0};
+  parameters.safety.passivity.delay = 0.02;
+  parameters.safety.passivity.threshold = 1e-5;
+  ci::RobotState robot = ci::make_robot_state(6);
+  robot.jacobian = ci::Jacobian::Identity(6, 6);
+  ci::CartesianImpedanceController controller(6, parameters);
+  controller.start(robot);
+  const Eigen::Vector3d start = robot.pose.position;
+  bool halted = false;
+  allocation_counter::Scope scope;
+  for (int k = 1; k <= 6000 && !halted; ++k) {
+    const double w = 2.0 * M_PI * 5.0;
+    robot.pose.position.x() = start.x() + 0.0015 * std::sin(w * k * 0.001);
+    robot.dq[0] = 0.0015 * w * std::cos(w * k * 0.001);
+    halted = controller.update(robot, 0.001) == ci::Status::motion_halted;
+  }
+  robot.dq.setZero();
+  for (int k = 0; k < 200; ++k) controller.update(robot, 0.001);
+  EXPECT_EQ(scope.allocations(), 0);
+  EXPECT_TRUE(halted);
+  EXPECT_EQ(controller.state().safety.passivity_halvings, 9);
+  EXPECT_TRUE(controller.state().limits.holding);
+}
+
 // The controller's safety layer with every part acting (support/safety_caps.hpp), on the Panda's
 // model: the default diagonal stiffness in the base frame, and a full (coupled) stiffness raise
 // in the end-effector frame, which the tank charges through the whole matrix and the rotated

@@ -90,7 +90,9 @@ bool CartesianImpedanceController::halve_stiffness() noexcept {
   forget_oscillation();
   SafetyState& safety = state_.safety;
   ++safety.oscillations;
-  if (!(safety.oscillation_scale * 0.5 >= kOscillationFloor)) return false;
+  // The floor bounds what any spring keeps, the passivity controller's halvings included.
+  const double least = safety.oscillation_scale * safety.passivity_scale.minCoeff();
+  if (!(least * 0.5 >= kOscillationFloor)) return false;
   safety.oscillation_scale *= 0.5;
   return true;
 }
