@@ -206,13 +206,13 @@ struct SafetyState {
   double oscillation_scale = 1.0;
   int oscillations = 0;
   /// The passivity observer (safety.passivity): the energy the controller generated on its port
-  /// to the arm within the last kPassivityWindow [J] (what the torque sent put into the arm, less
-  /// what its springs stored; a passive controller keeps it at or below zero, its dampers taking
-  /// energy out), and the fraction of the commanded stiffness the passivity controller left each
-  /// spring: translation, rotation, nullspace [1/256, 1], on top of oscillation_scale. Each
-  /// halving of a spring that generated energy (by the observer past safety.passivity.threshold,
-  /// or by the oscillation watch where the observer names the springs) counts in
-  /// passivity_halvings; start() restores the stiffness.
+  /// to the arm within the last kPassivityWindow [J]: what the torque sent put into the arm beyond
+  /// what the same controller without the loop's delay would have, less what its damper took out
+  /// (at or below zero while it is passive; a delay makes its springs pump). The fraction of the
+  /// commanded stiffness the passivity controller left each spring: translation, rotation,
+  /// nullspace [1/256, 1], on top of oscillation_scale; start() restores it. passivity_halvings
+  /// counts the observer's halvings past safety.passivity.threshold (the oscillation watch's,
+  /// of the springs the observer names, count in oscillations).
   double generated_energy = 0.0;
   Eigen::Vector3d passivity_scale = Eigen::Vector3d::Ones();
   int passivity_halvings = 0;
@@ -294,10 +294,9 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   static constexpr double kOscillationHalfPeriod = 0.5;
   static constexpr double kOscillationFloor = 1.0 / 256.0;
   /// The passivity observer's window [s]: what the port generated decays with this time
-  /// constant, so that the dissipation of a past motion does not hide a generation now, and a
-  /// bias too slow to matter (0.01 W measured at rest on the realistic Panda) never adds up.
-  /// After a halving, it looks again kPassivitySettle [s] after the torques sent before it have
-  /// acted (safety.passivity.delay).
+  /// constant, so that the dissipation of a past motion does not hide a generation now. After a
+  /// halving, it looks again kPassivitySettle [s] after the torques sent before it have acted
+  /// (safety.passivity.delay).
   static constexpr double kPassivityWindow = 0.5;
   static constexpr double kPassivitySettle = 0.05;
   /// The payload estimate (SafetyState) is valid after the end effector has been still (slower

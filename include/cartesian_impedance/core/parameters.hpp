@@ -188,12 +188,12 @@ struct EnergyTankParameters {
 };
 
 /// The passivity observer on the controller's port to the arm: the energy the torque sent puts
-/// into the arm (paired with the joint velocity measured when that torque acted, `delay` later)
-/// and what the controller's springs store, over a window of
-/// CartesianImpedanceController::kPassivityWindow. A passive controller (springs and dampers
-/// acting on the arm as it is) never generates energy; behind a delay its springs push with
-/// where the arm was and do. Past `threshold` the passivity controller halves the stiffness of
-/// the springs that generated it (translation, rotation, nullspace), keeping the others.
+/// into the arm (each torque paired with the joint velocity measured while it acted, `delay`
+/// later) beyond what the same controller without the delay would have, less what its damper
+/// takes out, over a window of CartesianImpedanceController::kPassivityWindow. A passive
+/// controller never generates energy; behind a delay its springs push with where the arm was and
+/// do. Past `threshold` the passivity controller halves the stiffness of the springs that
+/// generated it (translation, rotation, nullspace), keeping the others.
 struct PassivityParameters {
   double threshold = 0.2;  ///< [J] generated energy that halves; 0: observe only
   double delay = 0.002;    ///< [s] from the measurement to its torque acting on the arm
