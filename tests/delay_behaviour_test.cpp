@@ -110,6 +110,17 @@ struct DelayCase {
 
 class PastTheMargin : public ::testing::TestWithParam<DelayCase> {};
 
+Step step_of(const DelayCase& c) {
+  Step step;
+  step.inertia_shaped = c.inertia_shaped;
+  step.measurement_delay = c.delay;
+  return step;
+}
+
+std::string case_name(const ::testing::TestParamInfo<DelayCase>& info) {
+  return info.param.name;
+}
+
 }  // namespace
 
 // The table, re-measured: every case limit-cycled with status ok before. Now the passivity
@@ -117,10 +128,7 @@ class PastTheMargin : public ::testing::TestWithParam<DelayCase> {};
 // and in the last second of eight the arm is at rest, status ok, at the reference (within what
 // the joints' friction holds against the stiffness left: 3 mm at 1/32 of 3000 N/m).
 TEST_P(PastTheMargin, TheLimitCycleIsFoundAndTheArmSettles) {
-  const DelayCase& c = GetParam();
-  Step step;
-  step.inertia_shaped = c.inertia_shaped;
-  step.measurement_delay = c.delay;
+  Step step = step_of(GetParam());
   const Outcome outcome = step_behind_delay(step);
   EXPECT_GE(outcome.oscillations + outcome.passivity_halvings, 1);
   EXPECT_LT(outcome.kept.minCoeff(), 1.0);
@@ -138,9 +146,7 @@ INSTANTIATE_TEST_SUITE_P(Delays, PastTheMargin,
                                            DelayCase{"InertiaShaped50ms", true, 0.050},
                                            DelayCase{"UnitMass2ms", false, 0.002},
                                            DelayCase{"UnitMass4ms", false, 0.004}),
-                         [](const ::testing::TestParamInfo<DelayCase>& info) {
-                           return std::string(info.param.name);
-                         });
+                         case_name);
 
 // The margin of the translation's stiffness: the rotation's spring (a light wrist behind 300
 // Nm/rad) is what a delay makes pump first, and the passivity observer names it, so that only it
@@ -155,10 +161,7 @@ INSTANTIATE_TEST_SUITE_P(Delays, PastTheMargin,
 class KeepsTheTranslation : public ::testing::TestWithParam<DelayCase> {};
 
 TEST_P(KeepsTheTranslation, OnlyTheSpringThatPumpsIsHalved) {
-  const DelayCase& c = GetParam();
-  Step step;
-  step.inertia_shaped = c.inertia_shaped;
-  step.measurement_delay = c.delay;
+  Step step = step_of(GetParam());
   const Outcome outcome = step_behind_delay(step);
   EXPECT_EQ(outcome.kept[0], 1.0) << "translation stiffness lowered";
   EXPECT_LT(outcome.kept[1], 1.0);
@@ -183,9 +186,7 @@ INSTANTIATE_TEST_SUITE_P(Delays, KeepsTheTranslation,
                                            DelayCase{"UnitMass2ms", false, 0.002},
                                            DelayCase{"UnitMass4ms", false, 0.004},
                                            DelayCase{"UnitMass10ms", false, 0.010}),
-                         [](const ::testing::TestParamInfo<DelayCase>& info) {
-                           return std::string(info.param.name);
-                         });
+                         case_name);
 
 // Inside the default design's margin (measured: it settles up to 4 ms at 3000 N/m) a loop must
 // never be taken for an oscillation: 16 seeded draws of plant, measurement delay (0-3 ms),
