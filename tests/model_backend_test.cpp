@@ -219,8 +219,9 @@ Errors compare_backends(const ci::RobotModel& model, int configurations, unsigne
   Errors worst;
   for (int k = 0; k < configurations; ++k) {
     random_state(model, rng, q, dq);
-    EXPECT_TRUE(native.compute(q, dq, a, ci::ModelTerms::all));
-    EXPECT_TRUE(kdl.compute(q, dq, b, ci::ModelTerms::all));
+    // C^T dq has its own test (KDL has no solver for it; the backend takes it from differences).
+    EXPECT_TRUE(native.compute(q, dq, a, true));
+    EXPECT_TRUE(kdl.compute(q, dq, b, true));
     update(worst, a, b);
     ci::Pose pose_a, pose_b;
     EXPECT_TRUE(native.compute_pose(q, pose_a));
@@ -263,6 +264,45 @@ TEST_P(NativeMatchesKdl, WithAToolAndTiltedGravity) {
 INSTANTIATE_TEST_SUITE_P(Robots, NativeMatchesKdl, ::testing::ValuesIn(backend_cases()),
                          [](const auto& info) { return std::string(info.param.name); });
 
+// C(q, dq)^T dq, the momentum observer's term, two ways no native code computes: KDL's M(q)
+// differenced along each joint (the kdl backend: C^T dq = dT/dq = 1/2 dq^T dM/dq_k dq), and the
+// Christoffel identity dM/dt = C + C^T, with dM/dt dq from the native M(q) differenced along dq
+// and checked against the native C dq + C^T dq. Central differences of step h = 1e-6 err by
+// about eps |M| |dq|^2 / h (1e-10 of the scale |M| |dq|^2) plus h^2 times M's third derivative:
+// 1e-7 of the scale leaves a thousandfold margin; a wrong sign, joint or body is of order 1.
+TEST_P(NativeMatchesKdl, CoriolisTransposedIsTheKineticEnergysGradient) {
+  const BackendCase& robot = GetParam();
+  const ci::RobotModel model = ci::RobotModel::from_urdf_string(
+      robot.xml(), robot.base, robot.tip, test_tool(), Eigen::Vector3d(1.5, -2.5, -9.0));
+  ci::ModelWorkspace native(model), kdl(model.with_backend(ci::ModelBackend::kdl));
+  ci::Kinematics a = native.make_kinematics(), b = kdl.make_kinematics();
+  ci::Kinematics plus = a, minus = a;
+  std::mt19937 rng(13);
+  ci::JointVector q, dq;
+  double worst_kdl = 0.0, worst_identity = 0.0, largest = 0.0;
+  constexpr double h = 1e-6;
+  for (int k = 0; k < 300; ++k) {
+    random_state(model, rng, q, dq);
+    ASSERT_TRUE(native.compute(q, dq, a, ci::ModelTerms::all));
+    ASSERT_TRUE(kdl.compute(q, dq, b, ci::ModelTerms::coriolis_transposed));
+    ASSERT_TRUE(native.compute(q + h * dq, dq, plus, ci::ModelTerms::mass));
+    ASSERT_TRUE(native.compute(q - h * dq, dq, minus, ci::ModelTerms::mass));
+    const ci::JointVector mass_rate_dq = (plus.mass - minus.mass) / (2.0 * h) * dq;
+    const double scale = std::max(1.0, a.mass.cwiseAbs().maxCoeff() * dq.squaredNorm());
+    worst_kdl = std::max(
+        worst_kdl, (a.coriolis_transposed - b.coriolis_transposed).cwiseAbs().maxCoeff() / scale);
+    worst_identity =
+        std::max(worst_identity,
+                 (a.coriolis + a.coriolis_transposed - mass_rate_dq).cwiseAbs().maxCoeff() / scale);
+    largest = std::max(largest, a.coriolis_transposed.cwiseAbs().maxCoeff() / scale);
+  }
+  std::printf("%-20s C^T dq: relative to KDL's dM/dq %.1e, to dM/dt - C %.1e (largest %.2f)\n",
+              robot.name, worst_kdl, worst_identity, largest);
+  EXPECT_LE(worst_kdl, 1e-7);
+  EXPECT_LE(worst_identity, 1e-7);
+  EXPECT_GE(largest, 1e-3) << "the states must exercise the term";
+}
+
 TEST(ModelBackend, ChosenPerModelAndKeptByCopies) {
   const ci::RobotModel& native = panda();
   EXPECT_EQ(native.backend(), ci::ModelBackend::native);
@@ -281,9 +321,12 @@ TEST(ModelBackend, ChosenPerModelAndKeptByCopies) {
 
 TEST(ModelTermsSet, CombinesAndTests) {
   using ci::ModelTerms;
-  EXPECT_EQ(ModelTerms::mass | ModelTerms::gravity | ModelTerms::coriolis, ModelTerms::all);
+  EXPECT_EQ(ModelTerms::mass | ModelTerms::gravity | ModelTerms::coriolis |
+                ModelTerms::coriolis_transposed,
+            ModelTerms::all);
   EXPECT_EQ(ModelTerms::all & ModelTerms::gravity, ModelTerms::gravity);
-  EXPECT_EQ(~ModelTerms::gravity, ModelTerms::mass | ModelTerms::coriolis);
+  EXPECT_EQ(~ModelTerms::gravity,
+            ModelTerms::mass | ModelTerms::coriolis | ModelTerms::coriolis_transposed);
   EXPECT_EQ(~ModelTerms::all, ModelTerms::none);
   EXPECT_TRUE(ci::includes(ModelTerms::all, ModelTerms::mass | ModelTerms::coriolis));
   EXPECT_FALSE(ci::includes(ModelTerms::mass, ModelTerms::mass | ModelTerms::gravity));
@@ -302,6 +345,8 @@ TEST(ModelTermsSet, OnlyTheRequestedTermsChange) {
                                    ModelTerms::mass | ModelTerms::gravity,
                                    ModelTerms::mass | ModelTerms::coriolis,
                                    ModelTerms::gravity | ModelTerms::coriolis,
+                                   ModelTerms::coriolis_transposed,
+                                   ModelTerms::mass | ModelTerms::coriolis_transposed,
                                    ModelTerms::all};
   const ci::JointVector q_old = vector_of({0.1, -0.4, 0.2, -2.0, 0.3, 1.5, 0.6});
   const ci::JointVector dq_old = vector_of({0.3, -0.2, 0.1, 0.4, -0.5, 0.2, 0.1});
@@ -320,7 +365,8 @@ TEST(ModelTermsSet, OnlyTheRequestedTermsChange) {
       ci::Kinematics k = old_full;
       ASSERT_TRUE(workspace.compute(q_new, dq_new, k, terms));
       EXPECT_EQ(k.terms, terms);
-      EXPECT_EQ(k.has_dynamics, terms == ModelTerms::all);
+      EXPECT_EQ(k.has_dynamics,
+                ci::includes(terms, ModelTerms::mass | ModelTerms::gravity | ModelTerms::coriolis));
       EXPECT_EQ(k.pose.position, new_full.pose.position);
       EXPECT_EQ(k.jacobian, new_full.jacobian);
       const auto expect_term = [&](ModelTerms term, const auto& actual, const auto& fresh,
@@ -334,6 +380,8 @@ TEST(ModelTermsSet, OnlyTheRequestedTermsChange) {
       expect_term(ModelTerms::mass, k.mass, new_full.mass, old_full.mass);
       expect_term(ModelTerms::gravity, k.gravity, new_full.gravity, old_full.gravity);
       expect_term(ModelTerms::coriolis, k.coriolis, new_full.coriolis, old_full.coriolis);
+      expect_term(ModelTerms::coriolis_transposed, k.coriolis_transposed,
+                  new_full.coriolis_transposed, old_full.coriolis_transposed);
     }
     // The bool overload is all or none.
     ci::Kinematics k = old_full;
@@ -342,7 +390,7 @@ TEST(ModelTermsSet, OnlyTheRequestedTermsChange) {
     EXPECT_FALSE(k.has_dynamics);
     EXPECT_EQ(k.mass, old_full.mass);
     ASSERT_TRUE(workspace.compute(q_new, dq_new, k, true));
-    EXPECT_EQ(k.terms, ModelTerms::all);
+    EXPECT_EQ(k.terms, ModelTerms::mass | ModelTerms::gravity | ModelTerms::coriolis);
     EXPECT_EQ(k.coriolis, new_full.coriolis);
   }
 }

@@ -300,4 +300,32 @@ void ChainSolver::coriolis(const JointVector& dq, JointVector& c) const noexcept
   }
 }
 
+void ChainSolver::coriolis_transposed(const JointVector& dq, JointVector& ct) const noexcept {
+  const ChainModel& model = *model_;
+  ct.resize(model.n);
+  // S_k x V_k (the motion cross product; S_k x S_k = 0, so V_k may include joint k itself) and
+  // each body's spatial momentum, at the base origin.
+  std::array<Eigen::Vector3d, kMaxJoints> turn_angular, turn_linear;
+  std::array<Eigen::Vector3d, kMaxJoints> momentum_angular, momentum_linear;
+  Eigen::Vector3d vw = Eigen::Vector3d::Zero(), vv = Eigen::Vector3d::Zero();
+  for (int i = 0; i < model.n; ++i) {
+    const std::size_t k = static_cast<std::size_t>(i);
+    vw += w_[k] * dq[i];
+    vv += v_[k] * dq[i];
+    turn_angular[k] = w_[k].cross(vw);
+    turn_linear[k] = w_[k].cross(vv) + v_[k].cross(vw);
+    const double m = model.joints[k].mass;
+    const Eigen::Vector3d h = m * com_[k];
+    momentum_angular[k] = inertia_[k] * vw + h.cross(vv);
+    momentum_linear[k] = m * vv - h.cross(vw);
+  }
+  Eigen::Vector3d n = Eigen::Vector3d::Zero(), f = Eigen::Vector3d::Zero();
+  for (int i = model.n - 1; i >= 0; --i) {
+    const std::size_t k = static_cast<std::size_t>(i);
+    n += momentum_angular[k];
+    f += momentum_linear[k];
+    ct[i] = -(turn_angular[k].dot(n) + turn_linear[k].dot(f));
+  }
+}
+
 }  // namespace cartesian_impedance::detail

@@ -70,6 +70,11 @@ class ChainSolver {
   /// C(q, dq) dq by recursive Newton-Euler without gravity and acceleration (after
   /// bodies(true)).
   void coriolis(const JointVector& dq, JointVector& c) const noexcept;
+  /// C(q, dq)^T dq = dT/dq, the kinetic energy's gradient (after bodies(true)): joint k turns
+  /// every body after it, and its velocity V_i with it, about its axis S_k, which changes
+  /// the kinetic energy by -(S_k x V_k) . H_k, H_k the spatial momentum of the bodies k..n-1.
+  /// One pass out and one back, as the Coriolis term.
+  void coriolis_transposed(const JointVector& dq, JointVector& ct) const noexcept;
 
  private:
   const ChainModel* model_;

@@ -258,7 +258,9 @@ struct KdlSolvers {
         jacobian(static_cast<unsigned int>(n)),
         mass(static_cast<unsigned int>(n)),
         gravity(static_cast<unsigned int>(n)),
-        coriolis(static_cast<unsigned int>(n)) {}
+        coriolis(static_cast<unsigned int>(n)),
+        q_shifted(static_cast<unsigned int>(n)),
+        mass_shifted(static_cast<unsigned int>(n)) {}
 
   // The solvers keep references to `chain`, so this never moves (it lives behind a pointer).
   KdlSolvers(const KdlSolvers&) = delete;
@@ -289,7 +291,32 @@ struct KdlSolvers {
   KDL::JntSpaceInertiaMatrix mass;
   KDL::JntArray gravity;
   KDL::JntArray coriolis;
+  KDL::JntArray q_shifted;
+  KDL::JntSpaceInertiaMatrix mass_shifted;
   KDL::Frame frame;
+
+  // C^T dq = dT/dq = 1/2 dq^T (dM/dq_k) dq, with dM/dq_k from central differences of KDL's M
+  // (steps of 1e-6: truncation near 1e-12, rounding near 1e-10 of M's scale).
+  bool coriolis_transposed(const JointVector& dq_in, JointVector& out) noexcept {
+    constexpr double kStep = 1e-6;
+    const int n = static_cast<int>(q.rows());
+    out.resize(n);
+    for (int k = 0; k < n; ++k) {
+      double side[2];
+      for (int s = 0; s < 2; ++s) {
+        q_shifted.data = q.data;
+        q_shifted(static_cast<unsigned int>(k)) += s == 0 ? kStep : -kStep;
+        if (dynamics_solver.JntToMass(q_shifted, mass_shifted) < 0) return false;
+        double energy = 0.0;  // a product expression would allocate its dynamic temporary
+        for (int a = 0; a < n; ++a) {
+          for (int b = 0; b < n; ++b) energy += dq_in[a] * mass_shifted.data(a, b) * dq_in[b];
+        }
+        side[s] = energy;
+      }
+      out[k] = 0.5 * (side[0] - side[1]) / (2.0 * kStep);
+    }
+    return out.allFinite();
+  }
 };
 
 template <typename Rotation>
@@ -328,6 +355,7 @@ struct ModelWorkspace::Impl {
   JointMatrix mass;
   JointVector gravity;
   JointVector coriolis;
+  JointVector coriolis_transposed;
 };
 
 bool ModelWorkspace::Impl::compute_native(const JointVector& q, const JointVector& dq,
@@ -339,7 +367,9 @@ bool ModelWorkspace::Impl::compute_native(const JointVector& q, const JointVecto
   const bool want_mass = includes(terms, ModelTerms::mass);
   const bool want_gravity = includes(terms, ModelTerms::gravity);
   const bool want_coriolis = includes(terms, ModelTerms::coriolis);
-  if (want_mass || want_gravity || want_coriolis) native.bodies(want_mass || want_coriolis);
+  const bool want_transposed = includes(terms, ModelTerms::coriolis_transposed);
+  const bool inertias = want_mass || want_coriolis || want_transposed;
+  if (inertias || want_gravity) native.bodies(inertias);
   if (want_mass) {
     native.mass(mass);
     if (!mass.allFinite()) return false;
@@ -352,12 +382,17 @@ bool ModelWorkspace::Impl::compute_native(const JointVector& q, const JointVecto
     native.coriolis(dq, coriolis);
     if (!coriolis.allFinite()) return false;
   }
+  if (want_transposed) {
+    native.coriolis_transposed(dq, coriolis_transposed);
+    if (!coriolis_transposed.allFinite()) return false;
+  }
   // Everything is finite: only now is `out` overwritten.
   write_pose(native.tool_rotation(), native.tool_position(), out.pose);
   out.jacobian = jacobian;
   if (want_mass) out.mass = mass;
   if (want_gravity) out.gravity = gravity;
   if (want_coriolis) out.coriolis = coriolis;
+  if (want_transposed) out.coriolis_transposed = coriolis_transposed;
   return true;
 }
 
@@ -388,11 +423,14 @@ bool ModelWorkspace::Impl::compute_kdl(const JointVector& q, const JointVector& 
       return false;
     }
   }
+  const bool want_transposed = includes(terms, ModelTerms::coriolis_transposed);
+  if (want_transposed && !w.coriolis_transposed(dq, coriolis_transposed)) return false;
   write_pose(w.rotation(), w.position(), out.pose);
   out.jacobian = w.jacobian.data;
   if (want_mass) out.mass = w.mass.data;
   if (want_gravity) out.gravity = w.gravity.data;
   if (want_coriolis) out.coriolis = w.coriolis.data;
+  if (want_transposed) out.coriolis_transposed = coriolis_transposed;
   return true;
 }
 
@@ -417,7 +455,14 @@ void make_terms_sized_and_finite(int n, Kinematics& out, ModelTerms fresh,
     out.coriolis.setZero(n);
     out.terms &= ~ModelTerms::coriolis;
   }
-  out.has_dynamics = out.terms == ModelTerms::all;
+  if (!includes(fresh, ModelTerms::coriolis_transposed) &&
+      (out.coriolis_transposed.size() != n ||
+       (check_values && !out.coriolis_transposed.allFinite()))) {
+    out.coriolis_transposed.setZero(n);
+    out.terms &= ~ModelTerms::coriolis_transposed;
+  }
+  out.has_dynamics =
+      includes(out.terms, ModelTerms::mass | ModelTerms::gravity | ModelTerms::coriolis);
 }
 
 // The same for all of `out`, so that a failed compute() still leaves a usable (if stale) result.
@@ -474,7 +519,9 @@ bool ModelWorkspace::compute(const JointVector& q, const JointVector& dq, Kinema
 
 bool ModelWorkspace::compute(const JointVector& q, const JointVector& dq, Kinematics& out,
                              bool dynamics) noexcept {
-  return compute(q, dq, out, dynamics ? ModelTerms::all : ModelTerms::none);
+  return compute(
+      q, dq, out,
+      dynamics ? ModelTerms::mass | ModelTerms::gravity | ModelTerms::coriolis : ModelTerms::none);
 }
 
 bool ModelWorkspace::compute_pose(const JointVector& q, Pose& T_base_ee) noexcept {

@@ -2,7 +2,7 @@
 /// @file
 /// Robot model: the serial chain between a base link and a tip link of a URDF, loaded once, and a
 /// per-cycle workspace that computes the end-effector pose, the geometric Jacobian and, on
-/// request, the joint-space mass matrix, gravity and Coriolis torques.
+/// request, the joint-space mass matrix, gravity and Coriolis torques (C dq and C^T dq).
 ///
 /// The model is constant after construction and cheap to copy (copies share the loaded chain).
 /// Each control loop or thread owns one ModelWorkspace, whose compute() allocates nothing, takes
@@ -49,7 +49,11 @@ enum class ModelTerms : unsigned {
   mass = 1,      ///< M(q)
   gravity = 2,   ///< g(q)
   coriolis = 4,  ///< C(q, dq) dq
-  all = 7
+  /// C(q, dq)^T dq: what the generalized momentum M dq gains from the motion itself (dp/dt =
+  /// tau - g + C^T dq + tau_ext), for a momentum observer. C is the Christoffel matrix, so that
+  /// dM/dt = C + C^T.
+  coriolis_transposed = 8,
+  all = 15
 };
 
 constexpr ModelTerms operator|(ModelTerms a, ModelTerms b) noexcept {
@@ -83,7 +87,7 @@ enum class ModelBackend {
 const char* to_string(ModelBackend backend) noexcept;
 
 /// What one call of ModelWorkspace::compute produces. Pose and Jacobian always; of mass, gravity
-/// and Coriolis only those requested (the others keep their previous values).
+/// and the Coriolis terms only those requested (the others keep their previous values).
 struct Kinematics {
   Pose pose;             ///< T_base_ee: tip link times the tool offset, in the base frame
   Jacobian jacobian;     ///< geometric, 6 x n, rows [linear; angular], reference point the
@@ -91,9 +95,12 @@ struct Kinematics {
   JointMatrix mass;      ///< M(q) [kg m^2, kg m or kg], symmetric positive definite
   JointVector gravity;   ///< g(q) [Nm or N]: torques that hold the arm still against gravity
   JointVector coriolis;  ///< C(q, dq) dq [Nm or N]: Coriolis and centrifugal torques
-  /// The terms among mass, gravity and coriolis that belong to the same q (and dq) as pose.
+  JointVector coriolis_transposed;  ///< C(q, dq)^T dq [Nm or N] (ModelTerms::coriolis_transposed)
+  /// The terms among mass, gravity and the Coriolis terms that belong to the same q (and dq) as
+  /// pose.
   ModelTerms terms = ModelTerms::none;
-  bool has_dynamics = false;  ///< true if all three (terms == ModelTerms::all)
+  /// true if mass, gravity and coriolis are current (C^T dq need not be: only an observer asks).
+  bool has_dynamics = false;
 };
 
 namespace detail {
@@ -228,9 +235,10 @@ class ModelWorkspace {
   /// A Kinematics sized for the model: identity pose, zero Jacobian and dynamics.
   Kinematics make_kinematics() const;
 
-  /// Computes the pose and Jacobian at `q` and the dynamic `terms` among M(q), g(q) and
-  /// C(q, dq) dq; the other terms of `out` are left as they were and out.terms says which are
-  /// current. Allocates nothing, takes no lock, never throws.
+  /// Computes the pose and Jacobian at `q` and the dynamic `terms` among M(q), g(q), C(q, dq) dq
+  /// and C(q, dq)^T dq (the KDL backend, which has no solver for it, takes the latter from
+  /// central differences of its M(q): 2n mass matrices); the other terms of `out` are left as they
+  /// were and out.terms says which are current. Allocates nothing, takes no lock, never throws.
   /// @param q  joint positions [rad or m], size num_joints()
   /// @param dq  joint velocities [rad/s or m/s], size num_joints() (checked even when
   ///            Coriolis is not requested)
@@ -240,7 +248,8 @@ class ModelWorkspace {
   bool compute(const JointVector& q, const JointVector& dq, Kinematics& out,
                ModelTerms terms) noexcept;
 
-  /// As compute(q, dq, out, ModelTerms::all) if `dynamics`, else with ModelTerms::none.
+  /// As compute(q, dq, out, ModelTerms::mass | gravity | coriolis) if `dynamics`, else with
+  /// ModelTerms::none.
   bool compute(const JointVector& q, const JointVector& dq, Kinematics& out,
                bool dynamics = false) noexcept;
 
