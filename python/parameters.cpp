@@ -199,6 +199,7 @@ py::list parameter_table_list() {
                        : std::holds_alternative<Eigen::Vector3d*>(field) ? "xyz"
                        : std::holds_alternative<ci::JointVector*>(field) ? "per_joint"
                        : std::holds_alternative<ci::Frame*>(field)       ? "frame"
+                       : !ci::choice_names(field).empty()                ? "choice"
                                                                          : "switch";
     py::dict row;
     row["name"] = std::string(info.name);
@@ -208,9 +209,13 @@ py::list parameter_table_list() {
     row["min"] = info.min;
     row["max"] = info.max;
     row["min_exclusive"] = info.min_exclusive;
-    row["range"] = std::holds_alternative<ci::Frame*>(field) ? std::string("base, end_effector")
-                   : std::holds_alternative<bool*>(field)    ? std::string("true, false")
-                                                             : info.range_text();
+    std::string choices;
+    for (const std::string_view name : ci::choice_names(field)) {
+      choices += (choices.empty() ? "" : ", ") + std::string(name);
+    }
+    row["range"] = !choices.empty()                       ? choices
+                   : std::holds_alternative<bool*>(field) ? std::string("true, false")
+                                                          : info.range_text();
     row["description"] = std::string(info.description);
     rows.append(row);
   }

@@ -84,6 +84,8 @@ ci::Parameters every_field_changed() {
       **joints = ci::JointVector::LinSpaced(7, at(0.25), at(0.75));
     } else if (auto* frame = std::get_if<ci::Frame*>(&field)) {
       **frame = ci::Frame::end_effector;
+    } else if (auto* reaction = std::get_if<ci::CollisionReaction*>(&field)) {
+      **reaction = ci::CollisionReaction::retract;
     } else if (auto* flag = std::get_if<bool*>(&field)) {
       **flag = !**flag;
     }
@@ -249,7 +251,8 @@ TEST(ParameterTree, UnknownRepeatedAndMisplacedKeysAreNamed) {
   EXPECT_EQ(decode_error(map({{"stifness", map({{"translation", number(1)}})}})),
             "unknown parameter 'stifness' (did you mean 'stiffness'? valid top-level names: "
             "stiffness, damping_ratio, minimum_damping, nullspace, wrench, filter, limits, "
-            "dynamics, joint_limit_avoidance, trajectory, plausibility, safety, payload)");
+            "dynamics, joint_limit_avoidance, trajectory, plausibility, safety, payload, "
+            "collision)");
   EXPECT_EQ(decode_error(map({{"limits", map({{"stiffness", map({{"mxa", number(1)}})}})}})),
             "unknown parameter 'limits.stiffness.mxa' (valid in 'limits.stiffness': "
             "translation, rotation)");

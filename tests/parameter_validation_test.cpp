@@ -47,8 +47,8 @@ TEST(ParameterValidation, EveryTableRowRejectsNanAndInfinityInEveryElement) {
       }
     });
   }
-  // 9 three-axis rows, 5 per-joint rows of 7, 43 single numbers.
-  EXPECT_EQ(elements_checked, 9 * 3 + 5 * 7 + 43);
+  // 9 three-axis rows, 6 per-joint rows of 7, 49 single numbers.
+  EXPECT_EQ(elements_checked, 9 * 3 + 6 * 7 + 49);
 }
 
 TEST(ParameterValidation, EveryTableRowRejectsValuesOutsideItsRange) {

@@ -147,9 +147,7 @@ TEST(YamlConfig, EveryTableRowRejectsNanAndInfinityWithItsLine) {
   for (const ci::ParameterInfo& info : ci::parameter_table()) {
     ci::Parameters defaults;
     const ci::ParameterField field = info.in(defaults);
-    if (std::holds_alternative<ci::Frame*>(field) || std::holds_alternative<bool*>(field)) {
-      continue;
-    }
+    if (!ci::choice_names(field).empty() || std::holds_alternative<bool*>(field)) continue;
     const bool three = std::holds_alternative<Eigen::Vector3d*>(field);
     const bool per_joint = std::holds_alternative<ci::JointVector*>(field);
     const int count = three ? 3 : per_joint ? kJoints : 1;
@@ -173,7 +171,7 @@ TEST(YamlConfig, EveryTableRowRejectsNanAndInfinityWithItsLine) {
       }
     }
   }
-  EXPECT_EQ(elements_checked, 9 * 3 + 5 * 7 + 43);
+  EXPECT_EQ(elements_checked, 9 * 3 + 6 * 7 + 49);
 }
 
 TEST(YamlConfig, OutOfRangeValueIsReportedWithFileAndLine) {
@@ -430,8 +428,10 @@ TEST(YamlConfig, RoundTripOfSeededRandomParameters) {
     ci::Parameters p;
     for (const ci::ParameterInfo& info : ci::parameter_table()) {
       const ci::ParameterField field = info.in(p);
-      if (auto* frame = std::get_if<ci::Frame*>(&field)) {
-        **frame = unit(random) < 0.5 ? ci::Frame::base : ci::Frame::end_effector;
+      if (const std::vector<std::string_view> names = ci::choice_names(field); !names.empty()) {
+        const auto pick =
+            static_cast<std::size_t>(unit(random) * static_cast<double>(names.size()));
+        ci::set_choice(field, info.name, names[std::min(pick, names.size() - 1)]);
         continue;
       }
       if (auto* flag = std::get_if<bool*>(&field)) {

@@ -122,6 +122,8 @@ TEST(RosParameters, EveryRowOfTheTableIsRead) {
       **flag = !**flag;
     } else if (auto* frame = std::get_if<ci::Frame*>(&field)) {
       **frame = ci::Frame::end_effector;
+    } else if (auto* reaction = std::get_if<ci::CollisionReaction*>(&field)) {
+      **reaction = ci::CollisionReaction::reflex;
     }
   }
   // Limits stay ordered (min <= max), and the default control period (1 ms) fits plausibility.dt.

@@ -23,7 +23,7 @@ std::uint8_t ros_type_of(const ci::ParameterInfo& row) {
   const ci::ParameterField field = row.in(probe);
   if (std::holds_alternative<double*>(field)) return ros_type::kDouble;
   if (std::holds_alternative<bool*>(field)) return ros_type::kBool;
-  if (std::holds_alternative<ci::Frame*>(field)) return ros_type::kString;
+  if (!ci::choice_names(field).empty()) return ros_type::kString;
   return ros_type::kDoubleArray;  // three axes, per joint
 }
 

@@ -119,6 +119,7 @@ ValidCommand validate_command(Command command, int num_joints) {
             validate(c.values, num_joints);
             return num_joints;
           },
+          [](Resume&) { return 0; },
       },
       command);
   return ValidCommand(std::move(command), joints);

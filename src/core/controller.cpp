@@ -308,6 +308,12 @@ void CartesianImpedanceController::start(const RobotState& robot,
   safety.passivity_scale.setOnes();
   safety.passivity_halvings = 0;
   forget_passivity();
+  state_.collision = CollisionState{};
+  state_.collision.residual.setZero(num_joints_);
+  state_.collision.unexpected.setZero(num_joints_);
+  state_.collision.threshold.setZero(num_joints_);
+  forget_collision_observer();
+  resume_pending_ = false;
   state_.limits.holding = false;
   started_ = true;
 }
@@ -336,10 +342,22 @@ bool CartesianImpedanceController::apply(const ValidCommand& valid) noexcept {
   std::visit(
       Overloaded{
           [this](const ReferencePose& c) {
+            // A collision's reaction holds the arm until Resume, whoever streams references.
+            if (collision_latched()) {
+              ++state_.collision.commands_held;
+              return;
+            }
             state_.commanded.pose = c.pose_base;
             state_.limits.holding = false;
           },
-          [this](const NullspaceTarget& c) { state_.commanded.nullspace_q = c.q_desired; },
+          [this](const NullspaceTarget& c) {
+            if (collision_latched()) {
+              ++state_.collision.commands_held;
+              return;
+            }
+            state_.commanded.nullspace_q = c.q_desired;
+          },
+          [this](const Resume&) { resume_pending_ = collision_latched(); },
           [&](const Stiffness& c) {
             change(Commanded::stiffness, [&](Parameters& parameters, Targets& commanded) {
               // parameters() keeps the diagonal; a full matrix lives in the commanded targets.
@@ -509,6 +527,7 @@ void CartesianImpedanceController::filter_targets() noexcept {
 void CartesianImpedanceController::track(const Pose& pose_base, const Vector6d& twist_base,
                                          const JointVector& q_desired,
                                          const JointVector& dq_desired) noexcept {
+  if (collision_latched()) return;  // the reaction holds the reference until Resume
   for (Targets* targets : {&state_.commanded, &state_.filtered}) {
     targets->pose = pose_base;
     targets->twist = twist_base;
@@ -518,10 +537,13 @@ void CartesianImpedanceController::track(const Pose& pose_base, const Vector6d& 
 }
 
 void CartesianImpedanceController::schedule(const ScheduledImpedance& impedance) noexcept {
+  const bool latched = collision_latched();  // the reaction holds the reference until Resume
   for (Targets* targets : {&state_.commanded, &state_.filtered}) {
-    targets->pose = impedance.reference;
+    if (!latched) {
+      targets->pose = impedance.reference;
+      targets->nullspace_q = impedance.nullspace_q;
+    }
     targets->stiffness = impedance.stiffness;
-    targets->nullspace_q = impedance.nullspace_q;
     targets->nullspace_stiffness = impedance.nullspace_stiffness;
     targets->wrench = impedance.wrench;
   }
@@ -567,8 +589,10 @@ Status CartesianImpedanceController::fail_closed(Status status, const Fault& fau
   law_->wall_force_sent.setZero();
   law_->wall_spring_sent.setZero();
   law_->wall_damper_sent.setZero();
-  // Nor does the passivity observer: the torque it would pair is not the law's.
+  // Nor does the passivity observer: the torque it would pair is not the law's. The collision
+  // monitor starts again from the next measurement.
   forget_passivity();
+  forget_collision_observer();
   limit_torque(dt);
   state_.status = status;
   state_.fault = fault;
@@ -687,6 +711,7 @@ Status CartesianImpedanceController::cycle(const RobotState& robot, double dt,
                                           Fault::Form::statement};
       time_ += dt;
       forget_passivity();
+      forget_collision_observer();
       Fault fault;
       if (!evaluate_halt(robot, fault)) return fail_closed(Status::numerical_error, fault, dt);
       limit_torque(dt);
@@ -697,6 +722,9 @@ Status CartesianImpedanceController::cycle(const RobotState& robot, double dt,
     hold_where_the_arm_is(robot);
   }
   time_ += dt;
+  observe_collision(robot, dt);
+  const bool reflex = collision_latched() && state_.collision.reaction == CollisionReaction::reflex;
+  if (reflex) hold_where_the_arm_is(robot);
 
   update_gains(dt);
   // The reference is clipped into the box before it is filtered and held to the speed cap: a box
@@ -704,6 +732,14 @@ Status CartesianImpedanceController::cycle(const RobotState& robot, double dt,
   // clipped 6 cm in one cycle, with a full stiffness matrix, turned the wrist at 1.1 x its cap).
   clip_reference_to_workspace(false);
   filter_targets();
+  if (collision_latched()) {
+    // Nothing presses on toward the contact; the reflex lets the arm comply, damped.
+    state_.filtered.wrench.setZero();
+    if (reflex) {
+      state_.filtered.stiffness.setZero();
+      state_.filtered.nullspace_stiffness.setZero();
+    }
+  }
   limit_reference_speed(dt);
   if (!(parameters_.safety.max_speed.translation > 0.0)) clip_reference_to_workspace(true);
   Fault fault;

@@ -98,8 +98,9 @@ void decode_field(const ParameterInfo& row, const ParameterValue& value, Paramet
     **axes = decode_axes(value, row);
   } else if (auto* joints = std::get_if<JointVector*>(&field)) {
     **joints = decode_joints(value, row);
-  } else if (auto* frame = std::get_if<Frame*>(&field)) {
-    **frame = decode_frame(value, row.name);
+  } else if (const std::vector<std::string_view> names = choice_names(field); !names.empty()) {
+    const char* what = std::holds_alternative<Frame*>(field) ? "a frame" : "a collision reaction";
+    set_choice(field, row.name, decode_name(value, row.name, what, names));
   } else if (auto* flag = std::get_if<bool*>(&field)) {
     **flag = decode_switch(value, row.name);
   }
@@ -400,7 +401,7 @@ int decode_integer(const ParameterValue& value, const ParameterInfo& row,
 }
 
 std::string decode_name(const ParameterValue& value, std::string_view element,
-                        std::string_view what, std::initializer_list<std::string_view> valid) {
+                        std::string_view what, const std::vector<std::string_view>& valid) {
   require_value(value, element, value.location);
   const bool is_string = value.is(ParameterValue::Kind::string);
   bool listed = valid.size() == 0;
@@ -479,9 +480,7 @@ ParameterValue encode_parameter(const Parameters& parameters, const ParameterInf
   if (auto* number = std::get_if<double*>(&field)) return ParameterValue::number(**number);
   if (auto* axes = std::get_if<Eigen::Vector3d*>(&field)) return numbers(**axes);
   if (auto* joints = std::get_if<JointVector*>(&field)) return numbers(**joints);
-  if (auto* frame = std::get_if<Frame*>(&field)) {
-    return ParameterValue::string(std::string(frame_name(**frame)));
-  }
+  if (!choice_name(field).empty()) return ParameterValue::string(std::string(choice_name(field)));
   return ParameterValue::boolean(*std::get<bool*>(field));
 }
 

@@ -255,6 +255,42 @@ std::vector<ParameterInfo> make_table() {
       {"payload.center_of_mass", "m", -10, 10, false,
        "centre of mass of the payload in the end-effector frame",
        [](Parameters& p) { return field_of(&p.payload.center_of_mass); }},
+      {"collision.detection", "", 0, 0, false,
+       "collision monitor: a momentum observer estimates the external torque on each joint; one "
+       "beyond what is expected by its threshold is a collision (state.collision), with the link "
+       "it hit",
+       [](Parameters& p) { return field_of(&p.collision.detection); }},
+      {"collision.reaction", "", 0, 0, false,
+       "what a collision does: report; stop (hold where the arm was, braked by the damping); "
+       "reflex (Cartesian and nullspace stiffness to zero: the arm complies); retract (back off "
+       "by collision.retract_distance); all but report latch until a resume command",
+       [](Parameters& p) { return field_of(&p.collision.reaction); }},
+      {"collision.observer_gain", "1/s", 0, 1000, true,
+       "gain K_O of the momentum observer: its estimate follows the external torque with time "
+       "constant 1/K_O (faster detection, more noise)",
+       [](Parameters& p) { return field_of(&p.collision.observer_gain); }},
+      {"collision.threshold", "Nm", 0, kMaxJointTorque, true,
+       "external torque per joint beyond what is expected that is a collision; one value or one "
+       "per joint",
+       [](Parameters& p) { return field_of(&p.collision.threshold); }},
+      {"collision.threshold_fraction", "-", 0, 10, false,
+       "added to the threshold per unit of the torque the joint's drive applies (filtered like "
+       "the estimate): the model's error grows with it",
+       [](Parameters& p) { return field_of(&p.collision.threshold_fraction); }},
+      {"collision.velocity_noise", "rad/s", 0, 1, false,
+       "standard deviation of the measured joint velocities: the observer passes it on as "
+       "K_O M_ii times it, and the threshold adds 4 times that",
+       [](Parameters& p) { return field_of(&p.collision.velocity_noise); }},
+      {"collision.contact_force", "N", 0, kMaxForce, false,
+       "force the end effector may meet without a collision (a tool on a surface); the "
+       "commanded wrench's reaction is expected besides",
+       [](Parameters& p) { return field_of(&p.collision.contact_force); }},
+      {"collision.contact_torque", "Nm", 0, kMaxTorque, false,
+       "torque the end effector may meet without a collision",
+       [](Parameters& p) { return field_of(&p.collision.contact_torque); }},
+      {"collision.retract_distance", "m", 0, 1, false,
+       "how far the retract reaction moves the end effector away from the contact",
+       [](Parameters& p) { return field_of(&p.collision.retract_distance); }},
   };
 }
 
@@ -346,6 +382,61 @@ std::string_view frame_name(Frame frame) {
 
 Frame frame_from_name(std::string_view field, std::string_view name) {
   return decode_frame(ParameterValue::string(std::string(name)), field);
+}
+
+std::string_view reaction_name(CollisionReaction reaction) {
+  switch (reaction) {
+    case CollisionReaction::stop:
+      return "stop";
+    case CollisionReaction::reflex:
+      return "reflex";
+    case CollisionReaction::retract:
+      return "retract";
+    case CollisionReaction::report:
+      break;
+  }
+  return "report";
+}
+
+namespace {
+
+constexpr CollisionReaction kReactions[] = {CollisionReaction::report, CollisionReaction::stop,
+                                            CollisionReaction::reflex, CollisionReaction::retract};
+
+}  // namespace
+
+std::vector<std::string_view> choice_names(const ParameterField& field) {
+  if (std::holds_alternative<Frame*>(field)) {
+    return {frame_name(Frame::base), frame_name(Frame::end_effector)};
+  }
+  std::vector<std::string_view> names;
+  if (std::holds_alternative<CollisionReaction*>(field)) {
+    for (const CollisionReaction reaction : kReactions) names.push_back(reaction_name(reaction));
+  }
+  return names;
+}
+
+std::string_view choice_name(const ParameterField& field) {
+  if (const auto* frame = std::get_if<Frame*>(&field)) return frame_name(**frame);
+  if (const auto* reaction = std::get_if<CollisionReaction*>(&field)) {
+    return reaction_name(**reaction);
+  }
+  return "";
+}
+
+void set_choice(const ParameterField& field, std::string_view element, std::string_view name) {
+  const ParameterValue value = ParameterValue::string(std::string(name));
+  if (const auto* frame = std::get_if<Frame*>(&field)) {
+    **frame = decode_frame(value, element);
+  } else if (const auto* reaction = std::get_if<CollisionReaction*>(&field)) {
+    const std::string chosen =
+        decode_name(value, element, "a collision reaction", choice_names(field));
+    for (const CollisionReaction candidate : kReactions) {
+      if (reaction_name(candidate) == chosen) **reaction = candidate;
+    }
+  } else {
+    throw Error(std::string(element) + " takes no name");
+  }
 }
 
 bool may_come_from_the_robot(std::string_view name) {
@@ -550,7 +641,8 @@ ParameterNames changed_parameters(const Parameters& a, const Parameters& b) noex
 }
 
 bool is_safety_setting(std::string_view name) {
-  for (const std::string_view group : {"safety", "limits", "plausibility", "payload"}) {
+  for (const std::string_view group :
+       {"safety", "limits", "plausibility", "payload", "collision"}) {
     if (name == group || (name.size() > group.size() && name.substr(0, group.size()) == group &&
                           name[group.size()] == '.')) {
       return true;
@@ -588,8 +680,8 @@ std::string value_text(const Parameters& parameters, const ParameterInfo& info) 
       }
       text << "]";
     }
-  } else if (auto* frame = std::get_if<Frame*>(&field)) {
-    text << frame_name(**frame);
+  } else if (!choice_name(field).empty()) {
+    text << choice_name(field);
   } else if (auto* flag = std::get_if<bool*>(&field)) {
     text << (**flag ? "true" : "false");
   }
@@ -603,13 +695,16 @@ std::string parameter_table_markdown() {
   text << "|---|---|---|---|---|\n";
   for (const ParameterInfo& info : parameter_table()) {
     const ParameterField field = info.in(const_cast<Parameters&>(defaults));
-    const bool is_frame = std::holds_alternative<Frame*>(field);
+    std::string choices;
+    for (const std::string_view name : choice_names(field)) {
+      choices += (choices.empty() ? "" : ", ") + std::string(name);
+    }
     const bool is_switch = std::holds_alternative<bool*>(field);
     text << "| `" << info.name << "` | " << (info.unit.empty() ? "" : info.unit) << " | "
          << value_text(defaults, info) << " | "
-         << (is_frame    ? "base, end_effector"
-             : is_switch ? "true, false"
-                         : info.range_text())
+         << (!choices.empty() ? choices
+             : is_switch      ? std::string("true, false")
+                              : info.range_text())
          << " | " << info.description << " |\n";
   }
   return text.str();

@@ -566,12 +566,16 @@ const JointVector& ControlLoop::step(const JointVector& q, const JointVector& dq
   // Only the terms the options use: the model computes nothing else (never Coriolis). The speed
   // caps' governor measures a push by the acceleration it causes, through M(q).
   const MaxSpeedParameters& speed_cap = parameters.safety.max_speed;
-  const bool need_mass = dynamics.inertia_shaped_damping ||
-                         dynamics.dynamically_consistent_nullspace || speed_cap.translation > 0.0 ||
-                         speed_cap.rotation > 0.0;
+  const bool need_mass_for_law = dynamics.inertia_shaped_damping ||
+                                 dynamics.dynamically_consistent_nullspace ||
+                                 speed_cap.translation > 0.0 || speed_cap.rotation > 0.0;
+  // The collision monitor's momentum observer needs M(q) and C^T dq.
+  const bool need_collision = parameters.collision.detection;
+  const bool need_mass = need_mass_for_law || need_collision;
   const bool need_gravity = dynamics.gravity_compensation;
   const ModelTerms terms = (need_mass ? ModelTerms::mass : ModelTerms::none) |
-                           (need_gravity ? ModelTerms::gravity : ModelTerms::none);
+                           (need_gravity ? ModelTerms::gravity : ModelTerms::none) |
+                           (need_collision ? ModelTerms::coriolis_transposed : ModelTerms::none);
   const bool dt_plausible =
       dt >= parameters.plausibility.dt.min && dt <= parameters.plausibility.dt.max;
   // A bad measurement, or one the model cannot be evaluated at, fails the cycle closed before
@@ -603,13 +607,24 @@ const JointVector& ControlLoop::step(const JointVector& q, const JointVector& dq
     } else {
       robot_.gravity.resize(0);
     }
+    if (need_collision) {
+      robot_.coriolis_transposed = kinematics_.coriolis_transposed;
+    } else {
+      robot_.coriolis_transposed.resize(0);
+    }
     joint_limit_torque();
     controller_.update_measured(robot_, dt);
   }
   // The controller stopped pulling the arm back into a motion it could not make: a running
   // trajectory would pull it on, so it ends here (aborted, holding where the arm is).
   const bool holding = controller_.state().limits.holding;
-  if (holding && !was_holding_ && active_buffer_ >= 0) {
+  // A collision's reaction (other than report) holds the reference until Resume: a trajectory
+  // ends there, and one started meanwhile at once (the reaction chose where the arm holds).
+  const CollisionState& collision = controller_.state().collision;
+  if (collision.detected && collision.reaction != CollisionReaction::report &&
+      active_buffer_ >= 0) {
+    end_trajectory(TrajectoryState::aborted, false);
+  } else if (holding && !was_holding_ && active_buffer_ >= 0) {
     end_trajectory(TrajectoryState::aborted, true);
   }
   was_holding_ = holding;

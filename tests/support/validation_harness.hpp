@@ -116,6 +116,9 @@ inline bool same_value(ci::JointVector* a, ci::JointVector* b) {
 inline bool same_value(ci::Frame* a, ci::Frame* b) {
   return *a == *b;
 }
+inline bool same_value(ci::CollisionReaction* a, ci::CollisionReaction* b) {
+  return *a == *b;
+}
 inline bool same_value(bool* a, bool* b) {
   return *a == *b;
 }
@@ -300,6 +303,15 @@ inline ci::Parameters other_valid_parameters() {
   p.safety.passivity.delay = 0.004;
   p.payload.mass = 0.7;
   p.payload.center_of_mass = Eigen::Vector3d(0.0, 0.01, 0.05);
+  p.collision.detection = false;
+  p.collision.reaction = ci::CollisionReaction::stop;
+  p.collision.observer_gain = 80.0;
+  p.collision.threshold = joints({6, 6, 5, 5, 3, 3, 3});
+  p.collision.threshold_fraction = 0.25;
+  p.collision.velocity_noise = 0.004;
+  p.collision.contact_force = 5.0;
+  p.collision.contact_torque = 0.5;
+  p.collision.retract_distance = 0.04;
   return p;
 }
 

@@ -91,12 +91,21 @@ struct Wrench {
       : wrench(wrench_), frame(frame_) {}
 };
 
+/// Ends a collision's reaction (CollisionState::detected, collision.reaction other than report):
+/// the arm holds where it is now, with the stiffness and wrench as commanded (a stiffness the
+/// reflex dropped comes back through its filter and the energy tank), and follows the reference
+/// poses, nullspace targets and trajectories sent from now on. Without a latched collision it
+/// does nothing.
+struct Resume {
+  static constexpr const char* kName = "resume";
+};
+
 /// Any command (each alternative's kName names it). `Parameters` replaces the whole configuration,
 /// including the commanded stiffness (as a diagonal), damping ratios, nullspace stiffness and
 /// damping and the wrench; `ParameterUpdate` (parameters.hpp) sets only the rows it names.
 using Command =
     std::variant<ReferencePose, Stiffness, DampingRatio, NullspaceTarget, NullspaceStiffness,
-                 NullspaceDampingRatio, Wrench, Parameters, ParameterUpdate>;
+                 NullspaceDampingRatio, Wrench, Parameters, ParameterUpdate, Resume>;
 
 /// A visitor made of one lambda per alternative: std::visit(Overloaded{[](const Wrench&) {...},
 /// ...}, command). A missing alternative does not compile.

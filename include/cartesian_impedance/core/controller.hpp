@@ -218,6 +218,34 @@ struct SafetyState {
   int passivity_halvings = 0;
 };
 
+/// What the collision monitor (collision.*) sees and did.
+struct CollisionState {
+  /// The momentum observer's estimate of the external torque on each joint [Nm or N], and the
+  /// part of it nobody expected (beyond the commanded wrench's reaction and a declared contact),
+  /// against the threshold in force this cycle. Zero while the monitor does not run.
+  JointVector residual;
+  JointVector unexpected;
+  JointVector threshold;
+  /// A collision was found. With a reaction other than `report` it is latched, and the reaction
+  /// holds, until a Resume command; with `report` it clears once every joint's unexpected torque
+  /// is below half its threshold, and the next crossing is a new collision.
+  bool detected = false;
+  double time = 0.0;  ///< [s] controller time of the detection
+  /// The link it hit: the last joint whose unexpected torque crossed its threshold (a contact on
+  /// a link acts on the joints before it only), updated for kCollisionIsolationTime after the
+  /// detection; -1: none. The control loop names its link (RobotModel::joint_links()).
+  int joint = -1;
+  /// |unexpected| / threshold of that joint at detection: how far past it the contact was.
+  double ratio = 0.0;
+  /// The wrench at the end effector that explains the residual, (J^T)^+ r [N; Nm], base frame:
+  /// the contact's wrench where it is on the last link.
+  Vector6d contact_wrench = Vector6d::Zero();
+  CollisionReaction reaction = CollisionReaction::report;  ///< the reaction taken
+  int collisions = 0;                                      ///< found since start()
+  /// Reference poses and nullspace targets not followed while a reaction was latched.
+  int commands_held = 0;
+};
+
 /// Snapshot written by every update().
 struct ControllerState {
   Status status = Status::not_started;
@@ -240,6 +268,7 @@ struct ControllerState {
   JointVector joint_torque_limit;
   ActiveLimits limits;
   SafetyState safety;
+  CollisionState collision;
   /// Why the last cycle failed closed (empty when status is ok): the input ("dq", index 4, ...),
   /// or the term of the law that could not be evaluated ("damping", "tau_nullspace", ...).
   Fault fault;
@@ -299,6 +328,10 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   /// (safety.passivity.delay).
   static constexpr double kPassivityWindow = 0.5;
   static constexpr double kPassivitySettle = 0.05;
+  /// After a collision is found, its link is the last joint past its threshold within this time
+  /// [s]: a contact far out on the arm may first show on a joint nearer the base, whose residual
+  /// has the longer lever.
+  static constexpr double kCollisionIsolationTime = 0.02;
   /// The payload estimate (SafetyState) is valid after the end effector has been still (slower
   /// than kStillSpeed [m/s] and kStillAngularSpeed [rad/s]) for this long [s]. The speeds are
   /// of its twist low-passed with the time constant kStillFilterTime [s]: a real arm's joint
@@ -501,6 +534,12 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   bool halve_generating_springs() noexcept;
   // The passivity controller's scales applied to a stiffness: translation and rotation blocks.
   void scale_stiffness_groups(Matrix6d& stiffness, const Eigen::Vector3d& scale) const noexcept;
+  // The collision monitor (collision.cpp).
+  void observe_collision(const RobotState& robot, double dt) noexcept;
+  void react_to_collision(const RobotState& robot) noexcept;
+  void record_applied_torque() noexcept;
+  void forget_collision_observer() noexcept;
+  bool collision_latched() const noexcept;
   // The oscillation watch (oscillation.cpp).
   void watch_oscillation(double dt) noexcept;
   void forget_oscillation() noexcept;
@@ -558,6 +597,15 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
     std::unique_ptr<Law> law_;
   };
   LawHandle law_;
+  // The momentum observer (collision.cpp): the momentum of the last cycle, the filtered torque
+  // the drives applied (for the thresholds) and the commanded wrench's reaction as the estimate
+  // would show it; the end effector's filtered velocity (where it came from).
+  bool observer_running_ = false;
+  bool resume_pending_ = false;  // a Resume command, carried out with the next measurement
+  JointVector observer_momentum_;
+  JointVector observer_applied_filtered_;
+  JointVector observer_wrench_filtered_;
+  Eigen::Vector3d motion_direction_ = Eigen::Vector3d::Zero();  // low-passed end-effector velocity
 };
 
 }  // namespace cartesian_impedance

@@ -255,7 +255,7 @@ int decode_integer(const ParameterValue& value, const ParameterInfo& row, std::s
 /// A string naming `what` ("a frame", "a link name"); if `valid` is not empty, one of those
 /// ("element = 'tool' is not a frame (valid: base, end_effector)"). @throws ParameterError.
 std::string decode_name(const ParameterValue& value, std::string_view element,
-                        std::string_view what, std::initializer_list<std::string_view> valid = {});
+                        std::string_view what, const std::vector<std::string_view>& valid = {});
 
 /// "base" or "end_effector" (see decode_name()); frame_from_name() for a plain string.
 Frame decode_frame(const ParameterValue& value, std::string_view element);

@@ -199,6 +199,50 @@ struct PassivityParameters {
   double delay = 0.002;    ///< [s] from the measurement to its torque acting on the arm
 };
 
+/// What the controller does when the collision monitor finds a contact nobody commanded
+/// (collision.reaction). Every reaction but `report` latches until a Resume command: the
+/// reference pose and nullspace targets sent meanwhile are not followed, a running trajectory is
+/// aborted, and the commanded wrench is dropped.
+enum class CollisionReaction {
+  report,  ///< reported in the state (and by the nodes); the motion goes on
+  stop,    ///< the reference holds where the arm was: the law's damping brakes it, its spring holds
+  reflex,  ///< the Cartesian and nullspace stiffness drop to zero: the arm complies, damped
+  retract  ///< the reference moves collision.retract_distance away from the contact, and holds
+};
+
+/// The collision threshold's margin over the velocity noise the observer lets through, in its
+/// standard deviations (CollisionParameters): the residual of free motion on the realistic
+/// plant peaks near 3 of them (measured).
+inline constexpr double kCollisionNoiseSigmas = 4.0;
+
+/// "report", "stop", "reflex", "retract".
+std::string_view reaction_name(CollisionReaction reaction);
+
+/// The collision monitor: a generalized momentum observer (De Luca; Haddadin et al. 2017)
+/// estimates the external joint torque r from what the model says the arm should do with the
+/// torque it was sent, r = K_O (M dq - integral(tau - g + C^T dq + r) dt): a first-order filter
+/// of the torque that something outside presses on the joints, with time constant 1/K_O. A
+/// joint whose |r| leaves what is expected (the commanded wrench's reaction, a declared contact)
+/// by more than its threshold is a collision; the last such joint names the link. The threshold
+/// of joint i is `threshold` + `threshold_fraction` |tau_i| (the model's error grows with the
+/// torque its drive applies, filtered like r) + kCollisionNoiseSigmas K_O M_ii
+/// `velocity_noise` (r carries the noise of the measured velocity through M dq, as much as
+/// the observer's gain lets through).
+struct CollisionParameters {
+  bool detection = true;
+  CollisionReaction reaction = CollisionReaction::report;
+  double observer_gain = 100.0;  ///< [1/s] K_O
+  /// [Nm or N] per joint: one value for every joint, or one per joint.
+  JointVector threshold = JointVector::Constant(1, 5.0);
+  double threshold_fraction = 0.3;  ///< [-] of the (filtered) torque each drive applies
+  double velocity_noise = 0.005;    ///< [rad/s or m/s] standard deviation of a measured dq
+  /// A contact the end effector is expected to make (a tool on a surface): the force and torque
+  /// it may meet there without a collision [N; Nm].
+  double contact_force = 0.0;
+  double contact_torque = 0.0;
+  double retract_distance = 0.05;  ///< [m] for CollisionReaction::retract
+};
+
 /// The safety layer: caps on what any valid command can make the arm do.
 struct SafetyParameters {
   MaxSpeedParameters max_speed;
@@ -234,6 +278,7 @@ struct Parameters {
   PlausibilityParameters plausibility;
   SafetyParameters safety;
   PayloadParameters payload;
+  CollisionParameters collision;
 };
 
 /// Which rows of parameter_table() a ParameterUpdate names: bit i is row i (parameter_index()).
@@ -262,7 +307,17 @@ struct ParameterUpdate {
 };
 
 /// Pointer to the storage of one parameter inside a Parameters object.
-using ParameterField = std::variant<double*, Eigen::Vector3d*, JointVector*, Frame*, bool*>;
+using ParameterField =
+    std::variant<double*, Eigen::Vector3d*, JointVector*, Frame*, bool*, CollisionReaction*>;
+
+/// The fields that take one of a few names (a frame, collision.reaction): the names, in order;
+/// empty for every other field.
+std::vector<std::string_view> choice_names(const ParameterField& field);
+/// The name of a choice field's value; "" for every other field.
+std::string_view choice_name(const ParameterField& field);
+/// Sets a choice field to the value called `name`.
+/// @throws Error naming `element`, the name and the valid names, if it is none of them.
+void set_choice(const ParameterField& field, std::string_view element, std::string_view name);
 
 /// Description of one parameter: the single definition everything else is served from.
 struct ParameterInfo {
@@ -323,7 +378,8 @@ void copy_parameters(const Parameters& from, Parameters& to, const ParameterName
 /// differs). noexcept and allocation-free.
 ParameterNames changed_parameters(const Parameters& a, const Parameters& b) noexcept;
 
-/// The safety settings: the rows under safety.*, limits.*, plausibility.* and payload.*, which a
+/// The safety settings: the rows under safety.*, limits.*, plausibility.*, payload.* and
+/// collision.*, which a
 /// running ControlLoop refuses to change unless its owner allowed it before start
 /// (ControlLoop::allow_runtime_safety_changes()).
 const ParameterNames& safety_settings();

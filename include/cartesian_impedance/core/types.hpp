@@ -52,6 +52,9 @@ struct RobotState {
   // loop with a model fills them as its options require.
   JointMatrix mass;     ///< M(q) [kg m^2], for the dynamic options of the law
   JointVector gravity;  ///< g(q) [Nm], added when gravity_compensation is on
+  /// C(q, dq)^T dq [Nm], for the collision monitor's momentum observer (collision.detection);
+  /// without it (or without mass) the monitor does not run.
+  JointVector coriolis_transposed;
   /// Torque of a secondary task [Nm] (e.g. joint-limit avoidance), added to the nullspace
   /// torque tau_0 before the projection, so it acts only in the nullspace.
   JointVector secondary_torque;
