@@ -129,11 +129,12 @@ void def_commands(py::class_<Self>& binding, Target& (*target)(Self&), const std
               "as update_parameters). A Parameters object (or None: the defaults) replaces the "
               "whole configuration. The commanded stiffness, damping, nullspace and wrench "
               "follow what is set through their filters." +
-              std::string(verb == "Queues"
-                              ? " While the loop runs, a change of a safety setting (safety.*, "
-                                "limits.*, plausibility.*, payload.*) raises Error unless the "
-                                "loop was made with allow_runtime_safety_changes=True."
-                              : ""))
+              std::string(
+                  verb == "Queues"
+                      ? " While the loop runs, a change of a safety setting (safety.*, "
+                        "limits.*, plausibility.*, payload.*, collision.*) raises Error unless the "
+                        "loop was made with allow_runtime_safety_changes=True."
+                      : ""))
               .c_str())
       .def(
           "update_parameters",
@@ -155,6 +156,12 @@ void def_commands(py::class_<Self>& binding, Target& (*target)(Self&), const std
           py::arg("keep_nullspace") = false,
           doc("kinesthetic teaching: zero Cartesian stiffness (and nullspace stiffness unless "
               "keep_nullspace). Any later stiffness command ends it.")
+              .c_str())
+      .def(
+          "resume", [target](Self& self) { target(self).resume(); },
+          doc("the end of a collision's reaction (state.collision.detected with "
+              "collision.reaction other than 'report'): the arm holds where it is and follows "
+              "the reference poses, nullspace targets and trajectories sent from now on.")
               .c_str());
 }
 

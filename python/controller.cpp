@@ -427,6 +427,47 @@ void bind_states(py::module_& m) {
                " J, payload_mass=" + ci::format_number(s.payload_mass) + " kg)";
       });
 
+  py::enum_<ci::CollisionReaction>(m, "CollisionReaction",
+                                   "What a collision does (the parameter collision.reaction).")
+      .value("report", ci::CollisionReaction::report)
+      .value("stop", ci::CollisionReaction::stop)
+      .value("reflex", ci::CollisionReaction::reflex)
+      .value("retract", ci::CollisionReaction::retract);
+
+  py::class_<ci::CollisionState>(m, "CollisionState",
+                                 "What the collision monitor (collision.*) sees and did.")
+      .def_property_readonly(
+          "residual", [](const ci::CollisionState& c) { return vector_array(c.residual); },
+          "(n,) The momentum observer's estimate of the external torque on each joint [Nm].")
+      .def_property_readonly(
+          "unexpected", [](const ci::CollisionState& c) { return vector_array(c.unexpected); },
+          "(n,) The part of it beyond the commanded wrench's reaction and a declared contact.")
+      .def_property_readonly(
+          "threshold", [](const ci::CollisionState& c) { return vector_array(c.threshold); },
+          "(n,) The threshold in force this cycle [Nm].")
+      .def_readonly("detected", &ci::CollisionState::detected,
+                    "A collision was found (a reaction other than report holds until resume()).")
+      .def_readonly("time", &ci::CollisionState::time, "[s] controller time of the detection.")
+      .def_readonly("joint", &ci::CollisionState::joint,
+                    "The last joint past its threshold: the contact is on its link or on one "
+                    "after it whose joints cannot feel it (-1: none).")
+      .def_readonly("ratio", &ci::CollisionState::ratio,
+                    "|unexpected| / threshold of that joint at detection.")
+      .def_property_readonly(
+          "contact_wrench",
+          [](const ci::CollisionState& c) { return vector_array(c.contact_wrench); },
+          "(6,) The end-effector wrench that explains the residual [N; Nm], base frame.")
+      .def_readonly("reaction", &ci::CollisionState::reaction)
+      .def_readonly("collisions", &ci::CollisionState::collisions, "Found since start().")
+      .def_readonly("commands_held", &ci::CollisionState::commands_held,
+                    "References not followed while a reaction held the arm.")
+      .def("__repr__", [](const ci::CollisionState& c) {
+        return "CollisionState(detected=" + std::string(c.detected ? "True" : "False") +
+               ", joint=" + std::to_string(c.joint) +
+               ", reaction=" + std::string(ci::reaction_name(c.reaction)) +
+               ", collisions=" + std::to_string(c.collisions) + ")";
+      });
+
   py::class_<ci::Fault>(m, "Fault", "Which input made a cycle fail closed.")
       .def_property_readonly(
           "input", [](const ci::Fault& f) { return std::string(f.input); },
@@ -484,6 +525,8 @@ void bind_states(py::module_& m) {
           "tau", [](const ci::ControllerState& s) { return vector_array(s.tau); },
           "Commanded torque after the torque and rate limits (n,) [Nm].")
       .def_readonly("limits", &ci::ControllerState::limits)
+      .def_readonly("collision", &ci::ControllerState::collision,
+                    "The collision monitor: the external torque estimate and what it found.")
       .def_readonly("safety", &ci::ControllerState::safety,
                     "What the safety layer (safety.*, payload.*) did in the last cycle.")
       .def(

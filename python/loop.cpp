@@ -322,7 +322,8 @@ void bind_control_loop(py::module_& m) {
            "model: RobotModel; parameters: Parameters, dict or None (defaults). Raises Error if "
            "the parameters are invalid for the model's joint count.\n\n"
            "allow_runtime_safety_changes: let set_parameters / update_parameters change safety "
-           "settings (safety.*, limits.*, plausibility.*, payload.*) after start(). By default "
+           "settings (safety.*, limits.*, plausibility.*, payload.*, collision.*) after start(). "
+           "By default "
            "they are locked once the loop runs: a change of one raises Error naming the "
            "setting, the value in force and the lock, so that no other code (a learning script, "
            "a remote client) can switch a cap off; configure them before start().")

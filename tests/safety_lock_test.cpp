@@ -1,6 +1,6 @@
-// The control loop's safety settings (safety.*, limits.*, plausibility.*, payload.*) are locked
-// once it runs unless its owner allowed changes before start(), and partial updates change only
-// what they name, also when they race with other commands (issue 40).
+// The control loop's safety settings (safety.*, limits.*, plausibility.*, payload.*, collision.*)
+// are locked once it runs unless its owner allowed changes before start(), and partial updates
+// change only what they name, also when they race with other commands (issue 40).
 
 #include <gtest/gtest.h>
 

@@ -63,6 +63,26 @@ TEST(StatusReports, APassivityHalvingIsReportedOnceWithTheSpringsLeft) {
   EXPECT_EQ(joined(reporter.update(state, timing)), "") << "once per halving";
 }
 
+TEST(StatusReports, ACollisionIsReportedOnceWithItsJointAndReaction) {
+  ci::node::StatusReporter reporter(0.001, 0.1, "joint_states");
+  ci::LoopState state;
+  state.controller.status = ci::Status::ok;
+  const ci::runtime::ControlThreadSnapshot timing;
+  EXPECT_EQ(joined(reporter.update(state, timing)), "");
+  state.controller.collision.collisions = 1;
+  state.controller.collision.joint = 2;
+  state.controller.collision.ratio = 1.5;
+  state.controller.collision.reaction = ci::CollisionReaction::stop;
+  const std::string reported = joined(reporter.update(state, timing));
+  EXPECT_NE(reported.find("W collision: the external torque on joint 3 passed its threshold 1.5 "
+                          "times"),
+            std::string::npos)
+      << reported;
+  EXPECT_NE(reported.find("reaction stop, holding until resume (1 collision(s)"), std::string::npos)
+      << reported;
+  EXPECT_EQ(joined(reporter.update(state, timing)), "") << "once per collision";
+}
+
 TEST(StatusReports, AStatusOtherThanOkNamesItsFault) {
   ci::node::StatusReporter reporter(0.001, 0.1, "joint_states");
   ci::LoopState state;

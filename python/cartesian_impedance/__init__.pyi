@@ -61,6 +61,8 @@ class CartesianImpedanceController:
     @property
     def parameters(self) -> Parameters:
         """A copy of the configuration in force."""
+    def resume(self) -> None:
+        """Sets the end of a collision's reaction (state.collision.detected with collision.reaction other than 'report'): the arm holds where it is and follows the reference poses, nullspace targets and trajectories sent from now on."""
     def set_damping_ratio(self, damping_ratio: numpy.typing.ArrayLike) -> None:
         """Sets the damping ratio per axis of the stiffness frame (6,) [-]."""
     def set_nullspace_damping_ratio(self, damping_ratio: float) -> None:
@@ -95,6 +97,77 @@ class CartesianImpedanceController:
         """Sets the parameters a dict names (dotted names or nested), all or none; every other parameter keeps the value in force when the update is applied. Raises TypeError for a value of the wrong type, Error for an unknown name, a value out of range or an update that breaks a rule tying parameters together."""
 
 
+class CollisionReaction:
+    """What a collision does (the parameter collision.reaction).
+
+    Members:
+
+      report
+
+      stop
+
+      reflex
+
+      retract
+    """
+    def __eq__(self, other: object) -> bool: ...
+    def __getstate__(self) -> int: ...
+    def __hash__(self) -> int: ...
+    def __index__(self) -> int: ...
+    def __init__(self, value: int) -> None: ...
+    def __int__(self) -> int: ...
+    __members__: ClassVar[dict[str, CollisionReaction]]
+    def __ne__(self, other: object) -> bool: ...
+    def __repr__(self) -> str: ...
+    def __setstate__(self, state: int) -> None: ...
+    def __str__(self) -> str: ...
+    @property
+    def name(self) -> str: ...
+    reflex: ClassVar[CollisionReaction]  # value = 2
+    report: ClassVar[CollisionReaction]  # value = 0
+    retract: ClassVar[CollisionReaction]  # value = 3
+    stop: ClassVar[CollisionReaction]  # value = 1
+    @property
+    def value(self) -> int: ...
+
+
+class CollisionState:
+    """What the collision monitor (collision.*) sees and did."""
+    def __repr__(self) -> str: ...
+    @property
+    def collisions(self) -> int:
+        """Found since start()."""
+    @property
+    def commands_held(self) -> int:
+        """References not followed while a reaction held the arm."""
+    @property
+    def contact_wrench(self) -> numpy.typing.NDArray[numpy.float64]:
+        """(6,) The end-effector wrench that explains the residual [N; Nm], base frame."""
+    @property
+    def detected(self) -> bool:
+        """A collision was found (a reaction other than report holds until resume())."""
+    @property
+    def joint(self) -> int:
+        """The last joint past its threshold: the contact is on its link or on one after it whose joints cannot feel it (-1: none)."""
+    @property
+    def ratio(self) -> float:
+        """|unexpected| / threshold of that joint at detection."""
+    @property
+    def reaction(self) -> CollisionReaction: ...
+    @property
+    def residual(self) -> numpy.typing.NDArray[numpy.float64]:
+        """(n,) The momentum observer's estimate of the external torque on each joint [Nm]."""
+    @property
+    def threshold(self) -> numpy.typing.NDArray[numpy.float64]:
+        """(n,) The threshold in force this cycle [Nm]."""
+    @property
+    def time(self) -> float:
+        """[s] controller time of the detection."""
+    @property
+    def unexpected(self) -> numpy.typing.NDArray[numpy.float64]:
+        """(n,) The part of it beyond the commanded wrench's reaction and a declared contact."""
+
+
 class ControlLoop:
     """A robot model, the controller and a trajectory executor behind step(q, dq, dt) -> tau.
 
@@ -103,7 +176,7 @@ class ControlLoop:
     def __init__(self, model: object, parameters: Parameters | dict | None = ..., command_capacity: int = ..., max_trajectory_points: int = ..., *, allow_runtime_safety_changes: bool = ...) -> None:
         """model: RobotModel; parameters: Parameters, dict or None (defaults). Raises Error if the parameters are invalid for the model's joint count.
 
-        allow_runtime_safety_changes: let set_parameters / update_parameters change safety settings (safety.*, limits.*, plausibility.*, payload.*) after start(). By default they are locked once the loop runs: a change of one raises Error naming the setting, the value in force and the lock, so that no other code (a learning script, a remote client) can switch a cap off; configure them before start().
+        allow_runtime_safety_changes: let set_parameters / update_parameters change safety settings (safety.*, limits.*, plausibility.*, payload.*, collision.*) after start(). By default they are locked once the loop runs: a change of one raises Error naming the setting, the value in force and the lock, so that no other code (a learning script, a remote client) can switch a cap off; configure them before start().
         """
     def __repr__(self) -> str: ...
     def _benchmark_steps(self, q: numpy.typing.ArrayLike, dq: numpy.typing.ArrayLike, dt: float, count: int) -> tuple:
@@ -123,6 +196,8 @@ class ControlLoop:
         """The RobotModel."""
     @property
     def num_joints(self) -> int: ...
+    def resume(self) -> None:
+        """Queues the end of a collision's reaction (state.collision.detected with collision.reaction other than 'report'): the arm holds where it is and follows the reference poses, nullspace targets and trajectories sent from now on."""
     @property
     def runtime_safety_changes_allowed(self) -> bool:
         """True if safety settings may change after start() (allow_runtime_safety_changes)."""
@@ -135,7 +210,7 @@ class ControlLoop:
     def set_nullspace_target(self, q_desired: numpy.typing.ArrayLike) -> None:
         """Queues the nullspace target configuration (n,) [rad]. Ends a running trajectory."""
     def set_parameters(self, parameters: Parameters | dict | None) -> None:
-        """Queues parameters. A dict (dotted names or nested) is a partial update: only the parameters it names change, everything else stays as it is in force (the same as update_parameters). A Parameters object (or None: the defaults) replaces the whole configuration. The commanded stiffness, damping, nullspace and wrench follow what is set through their filters. While the loop runs, a change of a safety setting (safety.*, limits.*, plausibility.*, payload.*) raises Error unless the loop was made with allow_runtime_safety_changes=True."""
+        """Queues parameters. A dict (dotted names or nested) is a partial update: only the parameters it names change, everything else stays as it is in force (the same as update_parameters). A Parameters object (or None: the defaults) replaces the whole configuration. The commanded stiffness, damping, nullspace and wrench follow what is set through their filters. While the loop runs, a change of a safety setting (safety.*, limits.*, plausibility.*, payload.*, collision.*) raises Error unless the loop was made with allow_runtime_safety_changes=True."""
     def set_reference_pose(self, pose: Pose | tuple[numpy.typing.ArrayLike, numpy.typing.ArrayLike] | numpy.typing.ArrayLike) -> None:
         """Queues the reference pose T_base_ref. A pose is a Pose, a pair (position (3,) [m], quaternion (4,) in the order x, y, z, w) or a 4x4 homogeneous transform, expressed in the base frame. The quaternion must have unit norm within 1e-3. Ends a running trajectory."""
     def set_stiffness(self, stiffness: numpy.typing.ArrayLike, frame: str | Frame | None = ...) -> None:
@@ -164,6 +239,9 @@ class ControlLoop:
 class ControllerState:
     """Snapshot written by every update()."""
     def __repr__(self) -> str: ...
+    @property
+    def collision(self) -> CollisionState:
+        """The collision monitor: the external torque estimate and what it found."""
     @property
     def commanded(self) -> Targets:
         """Targets as last commanded (after validation and saturation)."""

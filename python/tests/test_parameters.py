@@ -27,6 +27,8 @@ def other_value(row):
         return "end_effector" if default == "base" else "base"
     if row["kind"] == "switch":
         return not default
+    if row["kind"] == "choice":
+        return next(name for name in row["range"].split(", ") if name != default)
     if row["name"] in UPPER_BOUNDS:
         return (default + row["max"]) / 2
 
@@ -58,7 +60,7 @@ def test_the_table_lists_every_parameter_with_its_default():
     for row in table:
         assert row["name"] in defaults
         assert same(defaults[row["name"]], row["default"]), row["name"]
-        assert row["kind"] in ("number", "xyz", "per_joint", "frame", "switch")
+        assert row["kind"] in ("number", "xyz", "per_joint", "frame", "choice", "switch")
         assert row["description"]
         assert row["name"] in ci.parameter_table_markdown()
     assert ci.Parameters.table() == table

@@ -59,6 +59,14 @@ TEST(Conversions, StateMessageCarriesTheLimitsAndTheSafetyLayer) {
   safety.generated_energy = 0.0625;
   safety.passivity_scale = Eigen::Vector3d(1.0, 0.25, 0.5);
   safety.passivity_halvings = 3;
+  ci::CollisionState& collision = state.controller.collision;
+  collision.detected = true;
+  collision.time = 2.5;
+  collision.joint = 3;
+  collision.reaction = ci::CollisionReaction::reflex;
+  collision.collisions = 2;
+  collision.residual = ci::JointVector::LinSpaced(7, 1.0, 7.0);
+  collision.threshold = ci::JointVector::Constant(7, 5.5);
 
   cir::ControllerState message;
   cir::fill_state_message(state, model.joint_names(), nullptr, message);
@@ -93,6 +101,13 @@ TEST(Conversions, StateMessageCarriesTheLimitsAndTheSafetyLayer) {
   EXPECT_EQ(message.passivity_scale_rotation, 0.25);
   EXPECT_EQ(message.passivity_scale_nullspace, 0.5);
   EXPECT_EQ(message.passivity_halvings, 3u);
+  EXPECT_TRUE(message.collision_detected);
+  EXPECT_EQ(message.collision_time, 2.5);
+  EXPECT_EQ(message.collision_joint, "panda_joint4");
+  EXPECT_EQ(message.collision_reaction, "reflex");
+  EXPECT_EQ(message.collisions, 2u);
+  EXPECT_EQ(message.collision_residual, (std::vector<double>{1, 2, 3, 4, 5, 6, 7}));
+  EXPECT_EQ(message.collision_threshold, std::vector<double>(7, 5.5));
 
   // And what a running loop reports at rest with the defaults: nothing capped, the tank full.
   cir::fill_state_message(loop.state(), model.joint_names(), nullptr, message);

@@ -170,12 +170,12 @@ void check_control_period(double control_rate, const Range& plausible) {
 
 std::string safety_lock_line(const NodeSettings& settings) {
   if (settings.allow_runtime_safety_changes) {
-    return "safety settings (safety.*, limits.*, plausibility.*, payload.*) may change while the "
-           "controller runs (allow_runtime_safety_changes: true): every accepted change is "
-           "logged as a warning";
+    return "safety settings (safety.*, limits.*, plausibility.*, payload.*, collision.*) may "
+           "change while the controller runs (allow_runtime_safety_changes: true): every accepted "
+           "change is logged as a warning";
   }
-  return "safety settings (safety.*, limits.*, plausibility.*, payload.*) are locked while the "
-         "controller runs: commands that would change one are refused (to allow them, "
+  return "safety settings (safety.*, limits.*, plausibility.*, payload.*, collision.*) are locked "
+         "while the controller runs: commands that would change one are refused (to allow them, "
          "start the node with allow_runtime_safety_changes: true)";
 }
 

@@ -50,6 +50,21 @@ std::vector<ReportLine> StatusReporter::update(const LoopState& state,
                          std::to_string(safety.passivity_halvings) + " halving(s) since start)"});
   }
   passivity_halvings_ = safety.passivity_halvings;
+  // And each collision the monitor finds, with what the controller does about it.
+  const CollisionState& collision = state.controller.collision;
+  if (collision.collisions > collisions_ && collision.joint >= 0) {
+    const bool holds = collision.reaction != CollisionReaction::report;
+    lines.push_back({Level::warning, "collision: the external torque on joint " +
+                                         std::to_string(collision.joint + 1) +
+                                         " passed its threshold " + format_number(collision.ratio) +
+                                         " times (the contact is on its link "
+                                         "or a later one); reaction " +
+                                         std::string(reaction_name(collision.reaction)) +
+                                         (holds ? ", holding until resume" : "") + " (" +
+                                         std::to_string(collision.collisions) +
+                                         " collision(s) since start)"});
+  }
+  collisions_ = collision.collisions;
   if (timing.stale != stale_) {
     if (timing.stale) {
       lines.push_back({Level::warning, "no " + measurements_ + " for more than " +

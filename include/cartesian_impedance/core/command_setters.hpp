@@ -59,6 +59,9 @@ class CommandSetters {
     submit(Stiffness{});
     if (!keep_nullspace) submit(NullspaceStiffness(JointVector::Zero(1)));
   }
+  /// Ends a collision's reaction (see Resume): the arm holds where it is and follows the
+  /// references sent from now on.
+  void resume() { submit(Resume{}); }
 
  private:
   void submit(const Command& command) { static_cast<Owner&>(*this).submit_command(command); }

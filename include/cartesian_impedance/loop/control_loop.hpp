@@ -58,8 +58,8 @@ struct LoopState {
   double time = 0.0;                   ///< [s] sum of the plausible dt since start()
   std::uint64_t commands_applied = 0;  ///< commands taken from the inbox since construction
   /// Parameter commands applied after start() that changed a safety setting (safety_settings():
-  /// safety.*, limits.*, plausibility.*, payload.*), which only a loop whose owner allowed it
-  /// accepts (ControlLoop::allow_runtime_safety_changes()).
+  /// safety.*, limits.*, plausibility.*, payload.*, collision.*), which only a loop whose owner
+  /// allowed it accepts (ControlLoop::allow_runtime_safety_changes()).
   std::uint64_t safety_changes = 0;
   /// ParameterUpdates the cycle refused because, merged into the parameters then in force, they
   /// broke a rule tying parameters together (consistency_fault()): another update that came first
@@ -92,11 +92,11 @@ class ControlLoop : public CommandSetters<ControlLoop> {
   int num_joints() const noexcept;
 
   /// Lets commands change safety settings (safety_settings(): safety.*, limits.*,
-  /// plausibility.*, payload.*) while the loop runs. By default they are locked from start() on:
-  /// set_parameters() or update_parameters() that would change one is refused with an Error that
-  /// names the setting and the lock, so that no other program (a second node on the network, a
-  /// learning script) can switch a cap off. Only the program that owns the loop decides, before
-  /// start(); every accepted change is counted in LoopState::safety_changes.
+  /// plausibility.*, payload.*, collision.*) while the loop runs. By default they are locked from
+  /// start() on: set_parameters() or update_parameters() that would change one is refused with an
+  /// Error that names the setting and the lock, so that no other program (a second node on the
+  /// network, a learning script) can switch a cap off. Only the program that owns the loop decides,
+  /// before start(); every accepted change is counted in LoopState::safety_changes.
   /// @throws Error after start().
   void allow_runtime_safety_changes(bool allow = true);
   bool runtime_safety_changes_allowed() const noexcept { return allow_safety_changes_; }

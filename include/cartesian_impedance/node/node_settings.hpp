@@ -58,10 +58,10 @@ struct NodeSettings {
   /// ("left/" makes "left/panda_link0"), so that two robots share one tf tree. Incoming messages
   /// may name a frame with or without it.
   std::string tf_prefix;
-  /// Let parameter sets change safety settings (safety.*, limits.*, plausibility.*, payload.*)
-  /// while the controller runs (ControlLoop::allow_runtime_safety_changes()). Off, they are
-  /// locked once it runs: anyone on the network who can set a parameter could otherwise switch
-  /// a cap off. Only the configuration the node starts with decides.
+  /// Let parameter sets change safety settings (safety.*, limits.*, plausibility.*, payload.*,
+  /// collision.*) while the controller runs (ControlLoop::allow_runtime_safety_changes()). Off,
+  /// they are locked once it runs: anyone on the network who can set a parameter could otherwise
+  /// switch a cap off. Only the configuration the node starts with decides.
   bool allow_runtime_safety_changes = false;
 };
 

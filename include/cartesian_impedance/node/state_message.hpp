@@ -158,6 +158,19 @@ void fill_state_message(const LoopState& state, const std::vector<std::string>& 
   message.passivity_scale_rotation = safety.passivity_scale[1];
   message.passivity_scale_nullspace = safety.passivity_scale[2];
   message.passivity_halvings = static_cast<std::uint64_t>(safety.passivity_halvings);
+
+  const CollisionState& collision = controller.collision;
+  message.collision_detected = collision.detected;
+  message.collision_time = collision.time;
+  const bool named =
+      collision.joint >= 0 && static_cast<std::size_t>(collision.joint) < joint_names.size();
+  out.text(message.collision_joint,
+           named ? std::string_view(joint_names[static_cast<std::size_t>(collision.joint)])
+                 : std::string_view());
+  out.text(message.collision_reaction, reaction_name(collision.reaction));
+  message.collisions = static_cast<std::uint64_t>(collision.collisions);
+  out.array(message.collision_residual, collision.residual);
+  out.array(message.collision_threshold, collision.threshold);
 }
 
 /// The timing fields of ControllerState.msg from the control thread's statistics since it

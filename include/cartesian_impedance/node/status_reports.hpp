@@ -46,6 +46,7 @@ class StatusReporter {
   Status status_ = Status::ok;
   int oscillations_ = 0;        // SafetyState::oscillations at the last update
   int passivity_halvings_ = 0;  // SafetyState::passivity_halvings at the last update
+  int collisions_ = 0;          // CollisionState::collisions at the last update
   bool stale_ = false;
   // The window of the next overrun summary: since when, and the thread's counts then (none
   // before the first: since the thread started).

@@ -306,6 +306,13 @@ void visit(V& v, cartesian_impedance_msgs_msg_dds__ControllerState_& m) {
   v.float64(m.passivity_scale_rotation);
   v.float64(m.passivity_scale_nullspace);
   v.uint64(m.passivity_halvings);
+  v.boolean(m.collision_detected);
+  v.float64(m.collision_time);
+  v.string(m.collision_joint);
+  v.string(m.collision_reaction);
+  v.uint64(m.collisions);
+  v.float64_seq(m.collision_residual);
+  v.float64_seq(m.collision_threshold);
 }
 
 }  // namespace ros2_messages_test
