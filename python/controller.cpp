@@ -456,7 +456,8 @@ void bind_states(py::module_& m) {
       .def_property_readonly(
           "contact_wrench",
           [](const ci::CollisionState& c) { return vector_array(c.contact_wrench); },
-          "(6,) The end-effector wrench that explains the residual [N; Nm], base frame.")
+          "(6,) The end-effector wrench that explains the residual [N; Nm], base frame, as "
+          "the contact was isolated (20 ms after its detection).")
       .def_readonly("reaction", &ci::CollisionState::reaction)
       .def_readonly("collisions", &ci::CollisionState::collisions, "Found since start().")
       .def_readonly("commands_held", &ci::CollisionState::commands_held,

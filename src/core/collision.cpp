@@ -35,6 +35,14 @@ constexpr double kMotionSpeed = 0.01;
 // A report-only collision ends once every joint is below this share of its threshold.
 constexpr double kClearShare = 0.5;
 
+// The wrench at the end effector that explains `residual`: (J^T)^+ r, by the damped normal
+// equations.
+Vector6d explaining_wrench(const Jacobian& jacobian, const JointVector& residual) noexcept {
+  Matrix6d normal = jacobian * jacobian.transpose();
+  normal.diagonal().array() += 1e-6;
+  return normal.ldlt().solve(jacobian * residual);
+}
+
 // How far `value` lies outside [low, high] less `allowance` (signed, zero within).
 double beyond(double value, double low, double high, double allowance) noexcept {
   const double out = value > high ? value - high : (value < low ? value - low : 0.0);
@@ -73,7 +81,14 @@ void CartesianImpedanceController::observe_collision(const RobotState& robot, do
   }
   const JointVector momentum = robot.mass * robot.dq;
   const JointVector applied = state_.tau - state_.tau_gravity;
-  const double follow = 1.0 - std::exp(-parameters.observer_gain * dt);
+  // The filters' factors change only with dt and the gain: two exponentials saved per cycle.
+  if (dt != observer_dt_ || parameters.observer_gain != observer_gain_) {
+    observer_dt_ = dt;
+    observer_gain_ = parameters.observer_gain;
+    observer_follow_ = 1.0 - std::exp(-parameters.observer_gain * dt);
+    motion_follow_ = 1.0 - std::exp(-dt / kMotionFilterTime);
+  }
+  const double follow = observer_follow_;
   if (!observer_running_) {
     // From rest at the first cycle, or after one that failed: the estimate starts at zero and the
     // thresholds at the torque applied now.
@@ -89,32 +104,41 @@ void CartesianImpedanceController::observe_collision(const RobotState& robot, do
     observer_wrench_filtered_ += follow * (-state_.tau_wrench - observer_wrench_filtered_);
   }
   observer_momentum_ = momentum;
-  const double motion_follow = 1.0 - std::exp(-dt / kMotionFilterTime);
-  motion_direction_ += motion_follow * (robot.jacobian.topRows<3>() * robot.dq - motion_direction_);
+  motion_direction_ +=
+      motion_follow_ * (robot.jacobian.topRows<3>() * robot.dq - motion_direction_);
 
   // What is expected: the reaction to the commanded wrench (from none, before it meets anything,
   // to all of it, as the estimate follows it) and what a declared contact at the end effector
   // can press on each joint.
-  const JointVector threshold = per_joint(parameters.threshold, n);
+  const bool one_threshold = parameters.threshold.size() == 1;
+  const bool declared_contact = parameters.contact_force > 0.0 || parameters.contact_torque > 0.0;
   const double noise = kCollisionNoiseSigmas * parameters.observer_gain * parameters.velocity_noise;
   int last = -1;
   bool clear = true;
   for (int i = 0; i < n; ++i) {
     const double wrench_now = -state_.tau_wrench[i];
     const double wrench_seen = observer_wrench_filtered_[i];
-    const double allowance = parameters.contact_force * robot.jacobian.col(i).head<3>().norm() +
-                             parameters.contact_torque * robot.jacobian.col(i).tail<3>().norm();
+    const double allowance =
+        declared_contact
+            ? parameters.contact_force * robot.jacobian.col(i).head<3>().norm() +
+                  parameters.contact_torque * robot.jacobian.col(i).tail<3>().norm()
+            : 0.0;
     collision.unexpected[i] =
         beyond(collision.residual[i], std::min({0.0, wrench_now, wrench_seen}),
                std::max({0.0, wrench_now, wrench_seen}), allowance);
-    collision.threshold[i] = threshold[i] +
+    collision.threshold[i] = parameters.threshold[one_threshold ? 0 : i] +
                              parameters.threshold_fraction * observer_applied_filtered_[i] +
                              noise * robot.mass(i, i);
     const double share = std::abs(collision.unexpected[i]) / collision.threshold[i];
     if (share > 1.0) last = i;
     if (share >= kClearShare) clear = false;
   }
-  if (!collision.detected && last >= 0) {
+  const bool found = !collision.detected && last >= 0;
+  if (found || (collision.detected && time_ - collision.time <= kCollisionIsolationTime)) {
+    // While the contact is being isolated (a 6 x 6 solve: not every cycle of a long contact).
+    collision.contact_wrench = explaining_wrench(robot.jacobian, collision.residual);
+  }
+  if (found) {
     collision.detected = true;
     collision.time = time_;
     collision.joint = last;
@@ -131,12 +155,6 @@ void CartesianImpedanceController::observe_collision(const RobotState& robot, do
              time_ - collision.time > kCollisionIsolationTime) {
     collision.detected = false;
   }
-  if (collision.detected) {
-    // The wrench at the end effector that explains r: (J^T)^+ r by the damped normal equations.
-    Matrix6d normal = robot.jacobian * robot.jacobian.transpose();
-    normal.diagonal().array() += 1e-6;
-    collision.contact_wrench = normal.ldlt().solve(robot.jacobian * collision.residual);
-  }
 }
 
 void CartesianImpedanceController::react_to_collision(const RobotState& robot) noexcept {
@@ -149,12 +167,8 @@ void CartesianImpedanceController::react_to_collision(const RobotState& robot) n
   // Away from the contact: along the force it presses with where it is on the last link (the
   // residual is then J^T of it), else back the way the end effector came.
   Eigen::Vector3d away = Eigen::Vector3d::Zero();
-  if (collision.joint == num_joints_ - 1) {
-    Matrix6d normal = robot.jacobian * robot.jacobian.transpose();
-    normal.diagonal().array() += 1e-6;
-    const Vector6d wrench = normal.ldlt().solve(robot.jacobian * collision.residual);
-    if (wrench.head<3>().norm() > 1e-3) away = wrench.head<3>().normalized();
-  }
+  const Eigen::Vector3d force = collision.contact_wrench.head<3>();
+  if (collision.joint == num_joints_ - 1 && force.norm() > 1e-3) away = force.normalized();
   if (away.isZero(0.0) && motion_direction_.norm() > kMotionSpeed) {
     away = -motion_direction_.normalized();
   }

@@ -238,7 +238,8 @@ struct CollisionState {
   /// |unexpected| / threshold of that joint at detection: how far past it the contact was.
   double ratio = 0.0;
   /// The wrench at the end effector that explains the residual, (J^T)^+ r [N; Nm], base frame:
-  /// the contact's wrench where it is on the last link.
+  /// the contact's wrench where it is on the last link. Computed while the contact is isolated
+  /// (kCollisionIsolationTime after the detection), then kept.
   Vector6d contact_wrench = Vector6d::Zero();
   CollisionReaction reaction = CollisionReaction::report;  ///< the reaction taken
   int collisions = 0;                                      ///< found since start()
@@ -606,6 +607,8 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   JointVector observer_applied_filtered_;
   JointVector observer_wrench_filtered_;
   Eigen::Vector3d motion_direction_ = Eigen::Vector3d::Zero();  // low-passed end-effector velocity
+  // The filters' factors for the dt and gain they were computed for.
+  double observer_dt_ = -1.0, observer_gain_ = -1.0, observer_follow_ = 0.0, motion_follow_ = 0.0;
 };
 
 }  // namespace cartesian_impedance
