@@ -111,10 +111,12 @@ void BM_LoopStepEveryCap(benchmark::State& state) {
 }
 BENCHMARK(BM_LoopStepEveryCap);
 
-// The published controller's unit-mass damping: kinematics only, no M(q).
+// The published controller's unit-mass damping: kinematics only, no M(q) (nor the collision
+// monitor, which needs it).
 void BM_LoopStepUnitMassDamping(benchmark::State& state, ci::ModelBackend backend) {
   ci::Parameters parameters;
   parameters.dynamics.inertia_shaped_damping = false;
+  parameters.collision.detection = false;
   run_loop(state, parameters, backend);
 }
 BENCHMARK_CAPTURE(BM_LoopStepUnitMassDamping, native, ci::ModelBackend::native);

@@ -258,9 +258,7 @@ struct KdlSolvers {
         jacobian(static_cast<unsigned int>(n)),
         mass(static_cast<unsigned int>(n)),
         gravity(static_cast<unsigned int>(n)),
-        coriolis(static_cast<unsigned int>(n)),
-        q_shifted(static_cast<unsigned int>(n)),
-        mass_shifted(static_cast<unsigned int>(n)) {}
+        coriolis(static_cast<unsigned int>(n)) {}
 
   // The solvers keep references to `chain`, so this never moves (it lives behind a pointer).
   KdlSolvers(const KdlSolvers&) = delete;
@@ -291,32 +289,7 @@ struct KdlSolvers {
   KDL::JntSpaceInertiaMatrix mass;
   KDL::JntArray gravity;
   KDL::JntArray coriolis;
-  KDL::JntArray q_shifted;
-  KDL::JntSpaceInertiaMatrix mass_shifted;
   KDL::Frame frame;
-
-  // C^T dq = dT/dq = 1/2 dq^T (dM/dq_k) dq, with dM/dq_k from central differences of KDL's M
-  // (steps of 1e-6: truncation near 1e-12, rounding near 1e-10 of M's scale).
-  bool coriolis_transposed(const JointVector& dq_in, JointVector& out) noexcept {
-    constexpr double kStep = 1e-6;
-    const int n = static_cast<int>(q.rows());
-    out.resize(n);
-    for (int k = 0; k < n; ++k) {
-      double side[2];
-      for (int s = 0; s < 2; ++s) {
-        q_shifted.data = q.data;
-        q_shifted(static_cast<unsigned int>(k)) += s == 0 ? kStep : -kStep;
-        if (dynamics_solver.JntToMass(q_shifted, mass_shifted) < 0) return false;
-        double energy = 0.0;  // a product expression would allocate its dynamic temporary
-        for (int a = 0; a < n; ++a) {
-          for (int b = 0; b < n; ++b) energy += dq_in[a] * mass_shifted.data(a, b) * dq_in[b];
-        }
-        side[s] = energy;
-      }
-      out[k] = 0.5 * (side[0] - side[1]) / (2.0 * kStep);
-    }
-    return out.allFinite();
-  }
 };
 
 template <typename Rotation>
@@ -423,8 +396,14 @@ bool ModelWorkspace::Impl::compute_kdl(const JointVector& q, const JointVector& 
       return false;
     }
   }
+  // KDL has no solver for C^T dq: the native one gives it (tests check it against KDL's M).
   const bool want_transposed = includes(terms, ModelTerms::coriolis_transposed);
-  if (want_transposed && !w.coriolis_transposed(dq, coriolis_transposed)) return false;
+  if (want_transposed) {
+    native.forward(q);
+    native.bodies(true);
+    native.coriolis_transposed(dq, coriolis_transposed);
+    if (!coriolis_transposed.allFinite()) return false;
+  }
   write_pose(w.rotation(), w.position(), out.pose);
   out.jacobian = w.jacobian.data;
   if (want_mass) out.mass = w.mass.data;

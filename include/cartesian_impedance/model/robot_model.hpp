@@ -236,8 +236,8 @@ class ModelWorkspace {
   Kinematics make_kinematics() const;
 
   /// Computes the pose and Jacobian at `q` and the dynamic `terms` among M(q), g(q), C(q, dq) dq
-  /// and C(q, dq)^T dq (the KDL backend, which has no solver for it, takes the latter from
-  /// central differences of its M(q): 2n mass matrices); the other terms of `out` are left as they
+  /// and C(q, dq)^T dq (the KDL backend, which has no solver for it, takes the latter from the
+  /// native one); the other terms of `out` are left as they
   /// were and out.terms says which are current. Allocates nothing, takes no lock, never throws.
   /// @param q  joint positions [rad or m], size num_joints()
   /// @param dq  joint velocities [rad/s or m/s], size num_joints() (checked even when
