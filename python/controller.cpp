@@ -417,6 +417,25 @@ void bind_states(py::module_& m) {
           "halved where it generated energy, until start().")
       .def_readonly("passivity_halvings", &ci::SafetyState::passivity_halvings,
                     "Halvings by the passivity controller since start().")
+      .def_property_readonly(
+          "max_speed_in_force",
+          [](const ci::SafetyState& s) {
+            return py::make_tuple(s.max_speed_in_force.translation, s.max_speed_in_force.rotation);
+          },
+          "(translation [m/s], rotation [rad/s]) The speed caps in force: safety.max_speed, or "
+          "tighter where power and force limiting (safety.pfl) asks for it (0: off).")
+      .def_property_readonly(
+          "max_force_in_force",
+          [](const ci::SafetyState& s) {
+            return py::make_tuple(s.max_force_in_force.force, s.max_force_in_force.torque);
+          },
+          "(force [N], torque [Nm]) The force caps in force (0: off).")
+      .def_readonly("pfl_speed_limit", &ci::SafetyState::pfl_speed_limit,
+                    "[m/s] The speed whose impact on safety.pfl.body_region stays within its "
+                    "transient force limit, by the arm's effective mass (0: off).")
+      .def_readonly("pfl_effective_mass", &ci::SafetyState::pfl_effective_mass,
+                    "[kg] The arm's effective mass at the end effector along its motion (0: off; "
+                    "inf without M(q)).")
       .def("__repr__", [](const ci::SafetyState& s) {
         return "SafetyState(drive_scale=" + ci::format_number(s.translation_drive_scale) + "/" +
                ci::format_number(s.rotation_drive_scale) +

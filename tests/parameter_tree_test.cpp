@@ -86,6 +86,8 @@ ci::Parameters every_field_changed() {
       **frame = ci::Frame::end_effector;
     } else if (auto* reaction = std::get_if<ci::CollisionReaction*>(&field)) {
       **reaction = ci::CollisionReaction::retract;
+    } else if (auto* region = std::get_if<ci::BodyRegion*>(&field)) {
+      **region = ci::BodyRegion::hand;
     } else if (auto* flag = std::get_if<bool*>(&field)) {
       **flag = !**flag;
     }

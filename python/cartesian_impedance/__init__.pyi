@@ -142,7 +142,7 @@ class CollisionState:
         """References not followed while a reaction held the arm."""
     @property
     def contact_wrench(self) -> numpy.typing.NDArray[numpy.float64]:
-        """(6,) The end-effector wrench that explains the residual [N; Nm], base frame."""
+        """(6,) The end-effector wrench that explains the residual [N; Nm], base frame, as the contact was isolated (20 ms after its detection)."""
     @property
     def detected(self) -> bool:
         """A collision was found (a reaction other than report holds until resume())."""
@@ -693,6 +693,12 @@ class SafetyState:
     def joint_limit_wall(self) -> bool:
         """While teaching, a joint inside joint_limit_avoidance.margin is held off its limit by a joint-space wall."""
     @property
+    def max_force_in_force(self) -> tuple:
+        """(force [N], torque [Nm]) The force caps in force (0: off)."""
+    @property
+    def max_speed_in_force(self) -> tuple:
+        """(translation [m/s], rotation [rad/s]) The speed caps in force: safety.max_speed, or tighter where power and force limiting (safety.pfl) asks for it (0: off)."""
+    @property
     def nullspace_scale(self) -> float:
         """Fraction of the nullspace torque kept [0, 1]: below 1 only where what it leaks to the end effector (near a singularity) alone exceeds a force cap."""
     @property
@@ -725,6 +731,12 @@ class SafetyState:
     @property
     def payload_mismatch(self) -> bool:
         """The valid estimate differs from the declared payload (payload.mass, filtered) by more than the tolerance: a load declared but not carried, or carried but not declared. The compensation still follows the declaration."""
+    @property
+    def pfl_effective_mass(self) -> float:
+        """[kg] The arm's effective mass at the end effector along its motion (0: off; inf without M(q))."""
+    @property
+    def pfl_speed_limit(self) -> float:
+        """[m/s] The speed whose impact on safety.pfl.body_region stays within its transient force limit, by the arm's effective mass (0: off)."""
     @property
     def pose_error_in_force(self) -> PoseErrorLimits:
         """limits.pose_error as in force (PoseErrorLimits): it follows its parameter as far as the energy tank pays for what a change stores."""

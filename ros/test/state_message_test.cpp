@@ -59,6 +59,10 @@ TEST(Conversions, StateMessageCarriesTheLimitsAndTheSafetyLayer) {
   safety.generated_energy = 0.0625;
   safety.passivity_scale = Eigen::Vector3d(1.0, 0.25, 0.5);
   safety.passivity_halvings = 3;
+  safety.max_speed_in_force.translation = 0.21;
+  safety.max_force_in_force.force = 140.0;
+  safety.pfl_speed_limit = 0.21;
+  safety.pfl_effective_mass = 3.5;
   ci::CollisionState& collision = state.controller.collision;
   collision.detected = true;
   collision.time = 2.5;
@@ -101,6 +105,10 @@ TEST(Conversions, StateMessageCarriesTheLimitsAndTheSafetyLayer) {
   EXPECT_EQ(message.passivity_scale_rotation, 0.25);
   EXPECT_EQ(message.passivity_scale_nullspace, 0.5);
   EXPECT_EQ(message.passivity_halvings, 3u);
+  EXPECT_EQ(message.max_speed_translation_in_force, 0.21);
+  EXPECT_EQ(message.max_force_in_force, 140.0);
+  EXPECT_EQ(message.pfl_speed_limit, 0.21);
+  EXPECT_EQ(message.pfl_effective_mass, 3.5);
   EXPECT_TRUE(message.collision_detected);
   EXPECT_EQ(message.collision_time, 2.5);
   EXPECT_EQ(message.collision_joint, "panda_joint4");

@@ -124,6 +124,8 @@ TEST(RosParameters, EveryRowOfTheTableIsRead) {
       **frame = ci::Frame::end_effector;
     } else if (auto* reaction = std::get_if<ci::CollisionReaction*>(&field)) {
       **reaction = ci::CollisionReaction::reflex;
+    } else if (auto* region = std::get_if<ci::BodyRegion*>(&field)) {
+      **region = ci::BodyRegion::chest;
     }
   }
   // Limits stay ordered (min <= max), and the default control period (1 ms) fits plausibility.dt.

@@ -587,6 +587,10 @@ TEST(Ros2Messages, FullStateCarriesTheLimitsAndTheSafetyLayer) {
   safety.generated_energy = -0.125;
   safety.passivity_scale = Eigen::Vector3d(0.5, 0.125, 1.0);
   safety.passivity_halvings = 4;
+  safety.max_speed_in_force.translation = 0.19;
+  safety.max_force_in_force.force = 130.0;
+  safety.pfl_speed_limit = 0.19;
+  safety.pfl_effective_mass = 2.5;
   ci::CollisionState& collision = state.controller.collision;
   collision.detected = true;
   collision.time = 1.25;
@@ -632,6 +636,10 @@ TEST(Ros2Messages, FullStateCarriesTheLimitsAndTheSafetyLayer) {
   EXPECT_EQ(m.passivity_scale_rotation, 0.125);
   EXPECT_EQ(m.passivity_scale_nullspace, 1.0);
   EXPECT_EQ(m.passivity_halvings, 4u);
+  EXPECT_EQ(m.max_speed_translation_in_force, 0.19);
+  EXPECT_EQ(m.max_force_in_force, 130.0);
+  EXPECT_EQ(m.pfl_speed_limit, 0.19);
+  EXPECT_EQ(m.pfl_effective_mass, 2.5);
   EXPECT_TRUE(m.collision_detected);
   EXPECT_EQ(m.collision_time, 1.25);
   EXPECT_STREQ(m.collision_joint, "panda_joint7");

@@ -119,10 +119,9 @@ void CartesianImpedanceController::observe_collision(const RobotState& robot, do
     const double wrench_now = -state_.tau_wrench[i];
     const double wrench_seen = observer_wrench_filtered_[i];
     const double allowance =
-        declared_contact
-            ? parameters.contact_force * robot.jacobian.col(i).head<3>().norm() +
-                  parameters.contact_torque * robot.jacobian.col(i).tail<3>().norm()
-            : 0.0;
+        declared_contact ? parameters.contact_force * robot.jacobian.col(i).head<3>().norm() +
+                               parameters.contact_torque * robot.jacobian.col(i).tail<3>().norm()
+                         : 0.0;
     collision.unexpected[i] =
         beyond(collision.residual[i], std::min({0.0, wrench_now, wrench_seen}),
                std::max({0.0, wrench_now, wrench_seen}), allowance);

@@ -730,6 +730,7 @@ Status CartesianImpedanceController::cycle(const RobotState& robot, double dt,
   // The reference is clipped into the box before it is filtered and held to the speed cap: a box
   // moved past the reference moves it, but no faster than the cap (measured before: a reference
   // clipped 6 cm in one cycle, with a full stiffness matrix, turned the wrist at 1.1 x its cap).
+  update_caps_in_force(robot);
   clip_reference_to_workspace(false);
   filter_targets();
   if (collision_latched()) {
@@ -741,7 +742,7 @@ Status CartesianImpedanceController::cycle(const RobotState& robot, double dt,
     }
   }
   limit_reference_speed(dt);
-  if (!(parameters_.safety.max_speed.translation > 0.0)) clip_reference_to_workspace(true);
+  if (!(state_.safety.max_speed_in_force.translation > 0.0)) clip_reference_to_workspace(true);
   Fault fault;
   if (!evaluate_law(robot, dt, fault)) return fail_closed(Status::numerical_error, fault, dt);
   limit_torque(dt, &robot);

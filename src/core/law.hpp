@@ -63,6 +63,7 @@ struct CartesianImpedanceController::Law {
   Matrix6d damping_computed_for_stiffness;
   Vector6d damping_computed_for_ratio;
   InertiaShapedDamping inertia_damping;  // tracks the square root's axes from cycle to cycle
+  TaskInertia pfl_inertia;               // the arm's effective mass for power and force limiting
   NullspaceProjector projector;
   JointVector nullspace_damping;  // D_ns of the cycle
   JointVector tau_0;              // the nullspace torque before the projection

@@ -248,6 +248,12 @@ std::vector<ParameterInfo> make_table() {
        "plus the drive's delay): the passivity observer pairs each torque with the velocity "
        "measured while it acted",
        [](Parameters& p) { return field_of(&p.safety.passivity.delay); }},
+      {"safety.pfl.body_region", "", 0, 0, false,
+       "power and force limiting after ISO/TS 15066: the body region a contact may reach (none, "
+       "skull, face, neck, back, chest, abdomen, pelvis, upper_arm, forearm, hand, thigh, "
+       "lower_leg); its quasi-static force limit caps the force, and the speed whose impact "
+       "stays within its transient limit, by the arm's effective mass, caps the translation",
+       [](Parameters& p) { return field_of(&p.safety.pfl.body_region); }},
       {"payload.mass", "kg", 0, 1e3, false,
        "mass carried at the end effector: its gravity is compensated and its inertia shapes the "
        "damping; filtered with filter.wrench; its weight must fit under safety.max_force.force",
@@ -403,7 +409,50 @@ namespace {
 constexpr CollisionReaction kReactions[] = {CollisionReaction::report, CollisionReaction::stop,
                                             CollisionReaction::reflex, CollisionReaction::retract};
 
+// ISO/TS 15066:2016, Annex A: Table A.2 (quasi-static force [N]; the transient limit is twice it,
+// Table A.2 note c, but on the skull, forehead and face, where transient contact is not
+// permitted) and Table A.3 (effective spring constant [N/mm] and effective mass [kg]). The neck's
+// spring constant is the sides' (the front's, 10 N/mm, would allow a faster impact).
+struct RegionRow {
+  BodyRegion region;
+  const char* name;
+  double force, spring_n_per_mm, mass;
+  bool head;
+};
+constexpr RegionRow kRegions[] = {
+    {BodyRegion::none, "none", 0, 0, 0, false},
+    {BodyRegion::skull, "skull", 130, 150, 4.4, true},
+    {BodyRegion::face, "face", 65, 75, 4.4, true},
+    {BodyRegion::neck, "neck", 150, 50, 1.2, false},
+    {BodyRegion::back, "back", 210, 35, 40, false},
+    {BodyRegion::chest, "chest", 140, 25, 40, false},
+    {BodyRegion::abdomen, "abdomen", 110, 10, 40, false},
+    {BodyRegion::pelvis, "pelvis", 180, 25, 40, false},
+    {BodyRegion::upper_arm, "upper_arm", 150, 30, 3, false},
+    {BodyRegion::forearm, "forearm", 160, 40, 2, false},
+    {BodyRegion::hand, "hand", 140, 75, 0.6, false},
+    {BodyRegion::thigh, "thigh", 220, 50, 75, false},
+    {BodyRegion::lower_leg, "lower_leg", 130, 60, 75, false},
+};
+
+const RegionRow& region_row(BodyRegion region) noexcept {
+  for (const RegionRow& row : kRegions) {
+    if (row.region == region) return row;
+  }
+  return kRegions[0];
+}
+
 }  // namespace
+
+BodyRegionLimits body_region_limits(BodyRegion region) noexcept {
+  const RegionRow& row = region_row(region);
+  return {row.force, row.head ? row.force : 2.0 * row.force, row.spring_n_per_mm * 1000.0,
+          row.mass};
+}
+
+std::string_view body_region_name(BodyRegion region) {
+  return region_row(region).name;
+}
 
 std::vector<std::string_view> choice_names(const ParameterField& field) {
   if (std::holds_alternative<Frame*>(field)) {
@@ -413,6 +462,9 @@ std::vector<std::string_view> choice_names(const ParameterField& field) {
   if (std::holds_alternative<CollisionReaction*>(field)) {
     for (const CollisionReaction reaction : kReactions) names.push_back(reaction_name(reaction));
   }
+  if (std::holds_alternative<BodyRegion*>(field)) {
+    for (const RegionRow& row : kRegions) names.push_back(row.name);
+  }
   return names;
 }
 
@@ -421,6 +473,7 @@ std::string_view choice_name(const ParameterField& field) {
   if (const auto* reaction = std::get_if<CollisionReaction*>(&field)) {
     return reaction_name(**reaction);
   }
+  if (const auto* region = std::get_if<BodyRegion*>(&field)) return body_region_name(**region);
   return "";
 }
 
@@ -433,6 +486,11 @@ void set_choice(const ParameterField& field, std::string_view element, std::stri
         decode_name(value, element, "a collision reaction", choice_names(field));
     for (const CollisionReaction candidate : kReactions) {
       if (reaction_name(candidate) == chosen) **reaction = candidate;
+    }
+  } else if (const auto* region = std::get_if<BodyRegion*>(&field)) {
+    const std::string chosen = decode_name(value, element, "a body region", choice_names(field));
+    for (const RegionRow& row : kRegions) {
+      if (row.name == chosen) **region = row.region;
     }
   } else {
     throw Error(std::string(element) + " takes no name");

@@ -61,7 +61,7 @@ double largest_fitting_both(const Eigen::Vector3d& d, const Eigen::Vector3d& off
 void CartesianImpedanceController::limit_reference_speed(double dt) noexcept {
   SafetyState& safety = state_.safety;
   safety.reference_speed_limited = false;
-  const MaxSpeedParameters& cap = parameters_.safety.max_speed;
+  const MaxSpeedParameters& cap = state_.safety.max_speed_in_force;
   Pose& reference = state_.filtered.pose;
   const Pose& before = law_->reference_before;
   Vector6d& twist = state_.filtered.twist;
@@ -216,8 +216,8 @@ void CartesianImpedanceController::safety_layer(const RobotState& robot, const J
   Law& law = *law_;
   bound_joint_drive(robot);
   walls(robot, dt);
-  const MaxForceParameters& force_cap = parameters_.safety.max_force;
-  const MaxSpeedParameters& speed_cap = parameters_.safety.max_speed;
+  const MaxForceParameters& force_cap = state_.safety.max_force_in_force;
+  const MaxSpeedParameters& speed_cap = state_.safety.max_speed_in_force;
   const bool capped = force_cap.force > 0.0 || force_cap.torque > 0.0 ||
                       speed_cap.translation > 0.0 || speed_cap.rotation > 0.0;
   law.joint_wall_force.setZero();
@@ -363,7 +363,7 @@ void CartesianImpedanceController::walls(const RobotState& robot, double dt) noe
 void CartesianImpedanceController::cap_force() noexcept {
   Law& law = *law_;
   SafetyState& safety = state_.safety;
-  const MaxForceParameters& cap = parameters_.safety.max_force;
+  const MaxForceParameters& cap = state_.safety.max_force_in_force;
   Vector6d& spring = law.spring_force;
   Vector6d& wrench = state_.wrench_base;
   const Vector6d payload = safety.payload_mass > 0.0 ? payload_holding_wrench() : Vector6d::Zero();
@@ -402,7 +402,7 @@ void CartesianImpedanceController::cap_force() noexcept {
 // governor's disturbance observer (gravity is held by the firmware or by the law's g(q)).
 void CartesianImpedanceController::expect_acceleration(const RobotState& robot) noexcept {
   Law& law = *law_;
-  const MaxSpeedParameters& caps = parameters_.safety.max_speed;
+  const MaxSpeedParameters& caps = state_.safety.max_speed_in_force;
   TaskInertia& inertia = law.inertia_damping.inertia();
   law.expecting = (caps.translation > 0.0 || caps.rotation > 0.0) && inertia.valid();
   if (!law.expecting) return;
@@ -432,7 +432,7 @@ void CartesianImpedanceController::govern_speed(const RobotState& robot, const J
                                                 double dt) noexcept {
   Law& law = *law_;
   SafetyState& safety = state_.safety;
-  const MaxSpeedParameters& caps = parameters_.safety.max_speed;
+  const MaxSpeedParameters& caps = state_.safety.max_speed_in_force;
   Vector6d& spring = law.spring_force;
   Vector6d& wrench = state_.wrench_base;
   const Vector6d payload = safety.payload_mass > 0.0 ? payload_holding_wrench() : Vector6d::Zero();

@@ -566,7 +566,9 @@ const JointVector& ControlLoop::step(const JointVector& q, const JointVector& dq
   // Only the terms the options use: the model computes nothing else (never Coriolis). The speed
   // caps' governor measures a push by the acceleration it causes, through M(q).
   const MaxSpeedParameters& speed_cap = parameters.safety.max_speed;
-  const bool need_mass_for_law = dynamics.inertia_shaped_damping ||
+  // Power and force limiting takes the arm's effective mass from M(q) too.
+  const bool need_mass_for_law = parameters.safety.pfl.body_region != BodyRegion::none ||
+                                 dynamics.inertia_shaped_damping ||
                                  dynamics.dynamically_consistent_nullspace ||
                                  speed_cap.translation > 0.0 || speed_cap.rotation > 0.0;
   // The collision monitor's momentum observer needs M(q) and C^T dq.

@@ -119,6 +119,9 @@ inline bool same_value(ci::Frame* a, ci::Frame* b) {
 inline bool same_value(ci::CollisionReaction* a, ci::CollisionReaction* b) {
   return *a == *b;
 }
+inline bool same_value(ci::BodyRegion* a, ci::BodyRegion* b) {
+  return *a == *b;
+}
 inline bool same_value(bool* a, bool* b) {
   return *a == *b;
 }
@@ -303,6 +306,7 @@ inline ci::Parameters other_valid_parameters() {
   p.safety.passivity.delay = 0.004;
   p.payload.mass = 0.7;
   p.payload.center_of_mass = Eigen::Vector3d(0.0, 0.01, 0.05);
+  p.safety.pfl.body_region = ci::BodyRegion::chest;
   p.collision.detection = false;
   p.collision.reaction = ci::CollisionReaction::stop;
   p.collision.observer_gain = 80.0;

@@ -216,6 +216,14 @@ struct SafetyState {
   double generated_energy = 0.0;
   Eigen::Vector3d passivity_scale = Eigen::Vector3d::Ones();
   int passivity_halvings = 0;
+  /// The speed and force caps in force this cycle: safety.max_speed and safety.max_force, or
+  /// tighter where power and force limiting (safety.pfl) asks for it. Its speed limit [m/s] from
+  /// the body region and the arm's effective mass at the end effector along its motion [kg]
+  /// (infinite without M(q)); both 0 while safety.pfl.body_region is none.
+  MaxSpeedParameters max_speed_in_force;
+  MaxForceParameters max_force_in_force;
+  double pfl_speed_limit = 0.0;
+  double pfl_effective_mass = 0.0;
 };
 
 /// What the collision monitor (collision.*) sees and did.
@@ -535,6 +543,8 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   bool halve_generating_springs() noexcept;
   // The passivity controller's scales applied to a stiffness: translation and rotation blocks.
   void scale_stiffness_groups(Matrix6d& stiffness, const Eigen::Vector3d& scale) const noexcept;
+  // Power and force limiting (pfl.cpp): the caps of this cycle, SafetyState::max_*_in_force.
+  void update_caps_in_force(const RobotState& robot) noexcept;
   // The collision monitor (collision.cpp).
   void observe_collision(const RobotState& robot, double dt) noexcept;
   void react_to_collision(const RobotState& robot) noexcept;

@@ -243,6 +243,49 @@ struct CollisionParameters {
   double retract_distance = 0.05;  ///< [m] for CollisionReaction::retract
 };
 
+/// The body region a contact with a person may reach, for power and force limiting after
+/// ISO/TS 15066 (safety.pfl.body_region): `none` (off), or one of the standard's regions.
+enum class BodyRegion {
+  none,
+  skull,  ///< skull and forehead
+  face,
+  neck,
+  back,  ///< back and shoulders
+  chest,
+  abdomen,
+  pelvis,
+  upper_arm,  ///< upper arms and elbows
+  forearm,    ///< lower arms and wrists
+  hand,       ///< hands and fingers
+  thigh,      ///< thighs and knees
+  lower_leg
+};
+
+/// ISO/TS 15066:2016's figures for one body region (Annex A, Tables A.2 and A.3): the largest
+/// quasi-static contact force [N], the largest transient one (twice the quasi-static, except on
+/// the head, where a transient contact is not permitted and the quasi-static limit stands), the
+/// region's effective spring constant [N/m] and its effective mass [kg].
+struct BodyRegionLimits {
+  double quasi_static_force = 0.0;
+  double transient_force = 0.0;
+  double spring_constant = 0.0;
+  double mass = 0.0;
+};
+
+/// The figures of `region` (all zero for BodyRegion::none).
+BodyRegionLimits body_region_limits(BodyRegion region) noexcept;
+/// "none", "skull", "face", ...
+std::string_view body_region_name(BodyRegion region);
+
+/// Power and force limiting (ISO/TS 15066): with a body region set, the force cap in force is at
+/// most its quasi-static limit, and the translational speed cap at most the speed whose impact
+/// stays within its transient limit, v = F_transient / sqrt(k mu), 1/mu = 1/m_H + 1/m_R, m_R the
+/// arm's effective mass at the end effector along its motion (1 / u^T J M^-1 J^T u, recomputed
+/// every cycle). The tighter of these and safety.max_speed / safety.max_force acts.
+struct PflParameters {
+  BodyRegion body_region = BodyRegion::none;
+};
+
 /// The safety layer: caps on what any valid command can make the arm do.
 struct SafetyParameters {
   MaxSpeedParameters max_speed;
@@ -250,6 +293,7 @@ struct SafetyParameters {
   WorkspaceParameters workspace;
   EnergyTankParameters energy_tank;
   PassivityParameters passivity;
+  PflParameters pfl;
 };
 
 /// A load carried at the end effector whose gravity the controller compensates (J^T of the wrench
@@ -307,8 +351,8 @@ struct ParameterUpdate {
 };
 
 /// Pointer to the storage of one parameter inside a Parameters object.
-using ParameterField =
-    std::variant<double*, Eigen::Vector3d*, JointVector*, Frame*, bool*, CollisionReaction*>;
+using ParameterField = std::variant<double*, Eigen::Vector3d*, JointVector*, Frame*, bool*,
+                                    CollisionReaction*, BodyRegion*>;
 
 /// The fields that take one of a few names (a frame, collision.reaction): the names, in order;
 /// empty for every other field.

@@ -158,6 +158,10 @@ void fill_state_message(const LoopState& state, const std::vector<std::string>& 
   message.passivity_scale_rotation = safety.passivity_scale[1];
   message.passivity_scale_nullspace = safety.passivity_scale[2];
   message.passivity_halvings = static_cast<std::uint64_t>(safety.passivity_halvings);
+  message.max_speed_translation_in_force = safety.max_speed_in_force.translation;
+  message.max_force_in_force = safety.max_force_in_force.force;
+  message.pfl_speed_limit = safety.pfl_speed_limit;
+  message.pfl_effective_mass = safety.pfl_effective_mass;
 
   const CollisionState& collision = controller.collision;
   message.collision_detected = collision.detected;

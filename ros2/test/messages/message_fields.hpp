@@ -306,6 +306,10 @@ void visit(V& v, cartesian_impedance_msgs_msg_dds__ControllerState_& m) {
   v.float64(m.passivity_scale_rotation);
   v.float64(m.passivity_scale_nullspace);
   v.uint64(m.passivity_halvings);
+  v.float64(m.max_speed_translation_in_force);
+  v.float64(m.max_force_in_force);
+  v.float64(m.pfl_speed_limit);
+  v.float64(m.pfl_effective_mass);
   v.boolean(m.collision_detected);
   v.float64(m.collision_time);
   v.string(m.collision_joint);
