@@ -41,6 +41,10 @@ SAFETY_FIELDS = {
     "generated_energy": "[J]",
     "passivity_scale": "[1/256, 1]",
     "passivity_halvings": "since start()",
+    "max_speed_in_force": "[m/s]",
+    "max_force_in_force": "[N]",
+    "pfl_speed_limit": "[m/s]",
+    "pfl_effective_mass": "[kg]",
     # The settings in force, as objects whose fields carry the units.
     "pose_error_in_force": "PoseErrorLimits",
     "workspace_in_force": "Workspace",
@@ -92,6 +96,9 @@ def test_a_loop_at_rest_reports_nothing_capped_and_a_full_tank(panda, ready):
     assert safety.force_scale == safety.torque_scale == safety.stiffness_change_scale == 1.0
     assert safety.nullspace_scale == 1.0
     assert safety.passivity_halvings == 0 and safety.generated_energy <= 0.0
+    # No caps configured, no body region: nothing in force.
+    assert safety.max_speed_in_force == (0.0, 0.0) and safety.max_force_in_force == (0.0, 0.0)
+    assert safety.pfl_speed_limit == 0.0 and safety.pfl_effective_mass == 0.0
     # The settings in force are the parameters (nothing waits for the tank).
     defaults = ci.Parameters()
     assert safety.pose_error_in_force.translation == defaults["limits.pose_error.translation"]
@@ -259,3 +266,33 @@ def test_parameters_read_and_write_the_safety_and_payload_rows(tmp_path, panda, 
     assert safety.payload_mass == pytest.approx(0.75, abs=1e-12)
     np.testing.assert_allclose(safety.payload_center_of_mass, [0.0, 0.01, 0.05], atol=1e-12)
     assert safety.tank_level == p["safety.energy_tank.initial"]
+
+
+def test_the_collision_monitor_reports_and_resume_ends_a_reaction(panda, ready):
+    """A push the model does not explain (a step of dq no torque caused) is a collision; the
+    state says where and what was done; resume() ends the stop; a wrong reaction name is refused
+    naming the valid ones; the body region of power and force limiting is a choice too."""
+    with pytest.raises(ci.Error, match="report, stop, reflex, retract"):
+        ci.ControlLoop(panda, {"collision.reaction": "brake"})
+    with pytest.raises(ci.Error, match="none, skull, face"):
+        ci.ControlLoop(panda, {"safety.pfl.body_region": "knee"})
+    loop = ci.ControlLoop(panda, {"collision.reaction": "stop", "safety.pfl.body_region": "hand"})
+    loop.start(ready, np.zeros(7))
+    loop.step(ready, np.zeros(7), 0.001)
+    collision = loop.state.controller.collision
+    assert collision.residual.shape == (7,) and not collision.detected
+    assert loop.state.controller.safety.pfl_speed_limit > 1.0  # a hand: about 1.4 m/s
+    dq = np.zeros(7)
+    dq[1] = 0.5  # joint 2 kicked to 0.5 rad/s within a cycle: tens of Nm nobody commanded
+    loop.step(ready, dq, 0.001)
+    collision = loop.state.controller.collision
+    # The kick's momentum reaches the joints M couples to joint 2: the last one past its threshold
+    # is named.
+    assert collision.detected and collision.joint >= 1
+    assert collision.reaction == ci.CollisionReaction.stop and collision.collisions == 1
+    assert "detected=True" in repr(collision)
+    for _ in range(50):
+        loop.step(ready, np.zeros(7), 0.001)
+    loop.resume()
+    loop.step(ready, np.zeros(7), 0.001)
+    assert not loop.state.controller.collision.detected
