@@ -23,6 +23,7 @@
 #include <cmath>
 
 #include "cartesian_impedance/core/controller.hpp"
+#include "law.hpp"
 
 namespace cartesian_impedance {
 namespace {
@@ -34,14 +35,6 @@ constexpr double kMotionFilterTime = 0.05;
 constexpr double kMotionSpeed = 0.01;
 // A report-only collision ends once every joint is below this share of its threshold.
 constexpr double kClearShare = 0.5;
-
-// The wrench at the end effector that explains `residual`: (J^T)^+ r, by the damped normal
-// equations.
-Vector6d explaining_wrench(const Jacobian& jacobian, const JointVector& residual) noexcept {
-  Matrix6d normal = jacobian * jacobian.transpose();
-  normal.diagonal().array() += 1e-6;
-  return normal.ldlt().solve(jacobian * residual);
-}
 
 // How far `value` lies outside [low, high] less `allowance` (signed, zero within).
 double beyond(double value, double low, double high, double allowance) noexcept {
@@ -132,12 +125,7 @@ void CartesianImpedanceController::observe_collision(const RobotState& robot, do
     if (share > 1.0) last = i;
     if (share >= kClearShare) clear = false;
   }
-  const bool found = !collision.detected && last >= 0;
-  if (found || (collision.detected && time_ - collision.time <= kCollisionIsolationTime)) {
-    // While the contact is being isolated (a 6 x 6 solve: not every cycle of a long contact).
-    collision.contact_wrench = explaining_wrench(robot.jacobian, collision.residual);
-  }
-  if (found) {
+  if (!collision.detected && last >= 0) {
     collision.detected = true;
     collision.time = time_;
     collision.joint = last;
@@ -157,12 +145,21 @@ void CartesianImpedanceController::observe_collision(const RobotState& robot, do
 }
 
 void CartesianImpedanceController::react_to_collision(const RobotState& robot) noexcept {
+  // Every reaction holds where the arm is: the spring then brakes it with the damping instead of
+  // pulling it on toward a reference beyond the contact. The retract's way out follows once the
+  // contact's wrench is known (identify_contact()).
+  if (state_.collision.reaction != CollisionReaction::report) hold_where_the_arm_is(robot);
+}
+
+void CartesianImpedanceController::identify_contact(const RobotState& robot) noexcept {
   CollisionState& collision = state_.collision;
-  if (collision.reaction == CollisionReaction::report) return;
-  // Every reaction starts by holding where the arm is: the spring then brakes it with the
-  // damping instead of pulling it on toward a reference beyond the contact.
-  hold_where_the_arm_is(robot);
-  if (collision.reaction != CollisionReaction::retract) return;
+  if (!collision.detected || time_ - collision.time > kCollisionIsolationTime) return;
+  // The wrench at the end effector that explains r, (J J^T + lambda^2 I)^-1 J r, on the
+  // projector's factorisation of this cycle: while the contact is isolated, not every cycle of a
+  // long contact.
+  law_->projector.task_force(robot.jacobian, parameters_.nullspace.pseudo_inverse_damping,
+                             collision.residual, collision.contact_wrench);
+  if (time_ != collision.time || collision.reaction != CollisionReaction::retract) return;
   // Away from the contact: along the force it presses with where it is on the last link (the
   // residual is then J^T of it), else back the way the end effector came.
   Eigen::Vector3d away = Eigen::Vector3d::Zero();
@@ -171,7 +168,8 @@ void CartesianImpedanceController::react_to_collision(const RobotState& robot) n
   if (away.isZero(0.0) && motion_direction_.norm() > kMotionSpeed) {
     away = -motion_direction_.normalized();
   }
-  // The filter and the speed caps take the reference there; the filtered one stays at the arm.
+  // From the next cycle the filter and the speed caps take the reference there; the filtered one
+  // stays at the arm.
   state_.commanded.pose.position += parameters_.collision.retract_distance * away;
 }
 

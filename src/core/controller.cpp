@@ -745,6 +745,7 @@ Status CartesianImpedanceController::cycle(const RobotState& robot, double dt,
   if (!(state_.safety.max_speed_in_force.translation > 0.0)) clip_reference_to_workspace(true);
   Fault fault;
   if (!evaluate_law(robot, dt, fault)) return fail_closed(Status::numerical_error, fault, dt);
+  identify_contact(robot);
   limit_torque(dt, &robot);
   observe_passivity(robot, dt);
   expect_acceleration(robot);

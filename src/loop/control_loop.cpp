@@ -567,13 +567,13 @@ const JointVector& ControlLoop::step(const JointVector& q, const JointVector& dq
   // caps' governor measures a push by the acceleration it causes, through M(q).
   const MaxSpeedParameters& speed_cap = parameters.safety.max_speed;
   // Power and force limiting takes the arm's effective mass from M(q) too.
-  const bool need_mass_for_law = parameters.safety.pfl.body_region != BodyRegion::none ||
-                                 dynamics.inertia_shaped_damping ||
-                                 dynamics.dynamically_consistent_nullspace ||
-                                 speed_cap.translation > 0.0 || speed_cap.rotation > 0.0;
+  const bool need_mass_for_options = parameters.safety.pfl.body_region != BodyRegion::none ||
+                                     dynamics.inertia_shaped_damping ||
+                                     dynamics.dynamically_consistent_nullspace ||
+                                     speed_cap.translation > 0.0 || speed_cap.rotation > 0.0;
   // The collision monitor's momentum observer needs M(q) and C^T dq.
   const bool need_collision = parameters.collision.detection;
-  const bool need_mass = need_mass_for_law || need_collision;
+  const bool need_mass = need_mass_for_options || need_collision;
   const bool need_gravity = dynamics.gravity_compensation;
   const ModelTerms terms = (need_mass ? ModelTerms::mass : ModelTerms::none) |
                            (need_gravity ? ModelTerms::gravity : ModelTerms::none) |

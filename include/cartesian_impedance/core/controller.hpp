@@ -245,8 +245,9 @@ struct CollisionState {
   int joint = -1;
   /// |unexpected| / threshold of that joint at detection: how far past it the contact was.
   double ratio = 0.0;
-  /// The wrench at the end effector that explains the residual, (J^T)^+ r [N; Nm], base frame:
-  /// the contact's wrench where it is on the last link. Computed while the contact is isolated
+  /// The wrench at the end effector that explains the residual, (J J^T + lambda^2 I)^-1 J r
+  /// (lambda: nullspace.pseudo_inverse_damping) [N; Nm], base frame: the contact's wrench where
+  /// it is on the last link. Computed while the contact is isolated
   /// (kCollisionIsolationTime after the detection), then kept.
   Vector6d contact_wrench = Vector6d::Zero();
   CollisionReaction reaction = CollisionReaction::report;  ///< the reaction taken
@@ -548,6 +549,8 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   // The collision monitor (collision.cpp).
   void observe_collision(const RobotState& robot, double dt) noexcept;
   void react_to_collision(const RobotState& robot) noexcept;
+  // After the law: the contact's wrench while it is isolated, and the retract's way out.
+  void identify_contact(const RobotState& robot) noexcept;
   void record_applied_torque() noexcept;
   void forget_collision_observer() noexcept;
   bool collision_latched() const noexcept;
