@@ -3,7 +3,8 @@
 quantity the scenario commands), contact force, displacement against force for the compliance
 sweep, the stability grid's map, both arms of the two-arm scene, the safety layer's contact
 force with and without its caps, flange speeds against the speed cap, the workspace box with the
-flange's path, and the energy with and without the energy tank. Each time plot shades the
+flange's path, the energy with and without the energy tank, and the collision monitor's
+residuals per joint and the contact force with and without each reaction. Each time plot shades the
 scenario's phases and names them.
 Usage: plot_demo.py OUTPUT_DIR
 """
@@ -480,6 +481,76 @@ def plot_safety_workspace(path, out):
     save(figure, out / "safety_workspace.png")
 
 
+def plot_collision_residuals(path, out):
+    """The swing without a reaction: per joint, the part of the momentum observer's estimate
+    nobody expected against its threshold, with the first contact and the detection marked."""
+    log = read(path)
+    if not log:
+        return
+    t = log["time"]
+    joints = sorted(int(key.split("_")[1]) for key in log if key.startswith("unexpected_"))
+    contact = next((t[i] for i, f in enumerate(log["contact_force"]) if f > 0.0), None)
+    found = next((t[i] for i, d in enumerate(log["detected"]) if d > 0.5), None)
+    figure, panels = plt.subplots(len(joints), 1, figsize=(9, 1.35 * len(joints) + 1.2),
+                                  sharex=True)
+    for axes, joint in zip(panels, joints):
+        axes.plot(t, log[f"unexpected_{joint}"], color="tab:blue", linewidth=1,
+                  label="|unexpected external torque|")
+        axes.plot(t, log[f"threshold_{joint}"], color="tab:red", linestyle="--", linewidth=1,
+                  label="threshold")
+        for when, colour in ((contact, "tab:orange"), (found, "k")):
+            if when is not None:
+                axes.axvline(when, color=colour, linewidth=0.8, linestyle=":")
+        axes.set_ylabel(f"joint {joint}\n[Nm]", fontsize=8)
+        axes.tick_params(labelsize=7)
+    panels[0].legend(fontsize="x-small", loc="upper left", ncol=2)
+    title = "collision: the swing without a reaction, per joint"
+    if contact is not None and found is not None:
+        title += (f"; first contact (orange) at {contact:.3f} s, found (black) "
+                  f"{1e3 * (found - contact):.0f} ms later")
+    panels[0].set_title(title, fontsize=9)
+    panels[-1].set_xlabel("time since the reference was sent [s] (every 1 ms cycle)")
+    save(figure, out / "collision_residuals.png")
+
+
+def plot_collision_force(path, out):
+    """The contact force on the arm from 50 ms before its first contact, for each reaction."""
+    log = read(path)
+    if not log:
+        return
+    t = log["time_since_contact"]
+    figure, (whole, late) = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True)
+    colours = {"report": "tab:red", "stop": "tab:blue", "reflex": "tab:green",
+               "retract": "tab:purple"}
+    for reaction, colour in colours.items():
+        if reaction not in log:
+            continue
+        values = log[reaction]
+        finite = [v for v in values if math.isfinite(v)]
+        late_values = [v for v, when in zip(values, t) if when >= 0.1 and math.isfinite(v)]
+        label = (f"{reaction}: impact {max(finite[:61] or [0]):.0f} N, then at most "
+                 f"{max(late_values or [0]):.1f} N")
+        whole.plot(t, values, color=colour, linewidth=1.2 if reaction != "report" else 1,
+                   label=label)
+        late.plot(t, values, color=colour, linewidth=1.2, label=reaction)
+    soft = {key: colour for key, colour in (("soft_report", "tab:red"), ("soft_stop", "tab:blue"),
+                                            ("soft_retract", "tab:purple")) if key in log}
+    for key, colour in soft.items():
+        whole.plot(t, log[key], color=colour, linewidth=1, linestyle="--",
+                   label=f"{key.replace('_', ' box, ')} (dashed)")
+        late.plot(t, log[key], color=colour, linewidth=1, linestyle="--")
+    whole.set_ylabel("contact force on the arm [N]")
+    whole.set_title("collision: the force with and without each reaction (collision.reaction)",
+                    fontsize=10)
+    whole.legend(fontsize="small", loc="upper right")
+    late.set_yscale("symlog", linthresh=1.0)
+    late.axvline(0.1, color="k", linewidth=0.8, linestyle=":")
+    late.set_ylabel("the same, symlog [N]")
+    late.set_xlabel("time since the first contact [s] (every 1 ms cycle); "
+                    "dotted: 0.1 s, from where the clamping force is measured")
+    save(figure, out / "collision_force.png")
+
+
 def main():
     if len(sys.argv) != 2:
         sys.exit(__doc__)
@@ -487,7 +558,9 @@ def main():
     tables = {"stability_grid_grid.csv": plot_grid, "two_arms_motion.csv": plot_two_arms,
               "safety_force.csv": plot_safety_force, "safety_speed.csv": plot_safety_speed,
               "safety_workspace.csv": plot_safety_workspace,
-              "energy_tank_energy.csv": plot_energy_tank}
+              "energy_tank_energy.csv": plot_energy_tank,
+              "collision_residuals.csv": plot_collision_residuals,
+              "collision_force.csv": plot_collision_force}
     for path in sorted(out.glob("*.csv")):
         if path.name in tables:
             tables[path.name](path, out)

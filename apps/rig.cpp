@@ -121,8 +121,10 @@ Parameters for_simulation(Parameters parameters, const sim::Simulation& sim, Mut
 }  // namespace
 
 namespace {
-// The oscillations the watch found in the rigs of the scenario this thread runs.
+// The oscillations the watch found, and the collision monitor's false alarms, in the rigs of the
+// scenario this thread runs.
 thread_local int oscillations_found = 0;
+thread_local int false_alarms_found = 0;
 }  // namespace
 
 Rig::~Rig() {
@@ -130,6 +132,7 @@ Rig::~Rig() {
     const SafetyState& safety = loop_->state().controller.safety;
     oscillations_found += safety.oscillations + safety.passivity_halvings;
   }
+  false_alarms_found += false_alarms_;
 }
 
 Rig::Rig(const RobotSetup& robot, const Parameters& parameters, const std::vector<sim::Box>& boxes)
@@ -272,6 +275,11 @@ void Rig::moment(const MomentCallback& moment, const std::string& label,
     overlay.arrows.push_back({tip + beside + Eigen::Vector3d(0.05, 0.0, 0.0), contact, kScale,
                               Eigen::Vector4f(1.0f, 0.85f, 0.0f, 1.0f), "contact"});
   }
+  for (const auto& [arrow, text] : marks_) {
+    overlay.arrows.push_back(arrow);
+    caption += "\n" + text;
+  }
+  marks_.clear();
   for (const std::string& detail : details) caption += "\n" + detail;
   // The reference as the law uses it (filtered), and as commanded where it is still on its way.
   const Pose reference = to_world(state.filtered.pose);
@@ -293,6 +301,10 @@ void Rig::moment(const MomentCallback& moment, const std::string& label,
   moment(label, sim_, overlay);
 }
 
+void Rig::mark(const sim::RenderArrow& arrow, const std::string& caption) {
+  marks_.emplace_back(arrow, caption);
+}
+
 void Rig::run(double seconds) {
   const Parameters& parameters = loop_->controller().parameters();
   const JointVector rate_limit =
@@ -305,6 +317,16 @@ void Rig::run(double seconds) {
     rate_since_sample_ = std::max(rate_since_sample_, rate.maxCoeff());
     previous_tau_ = tau;
     time_ += kDt;
+    // Contacts are cheap to ask for when there are none (the scenes without boxes).
+    if (!push_force_.isZero() || !push_torque_.isZero() ||
+        !sim_.contact_wrench_beyond(robot_.base_link).isZero()) {
+      last_touch_ = time_;
+    }
+    const int collisions = loop_->state().controller.collision.collisions;
+    if (collisions > collisions_seen_) {
+      if (time_ - last_touch_ > kTouchMemory) false_alarms_ += collisions - collisions_seen_;
+      collisions_seen_ = collisions;
+    }
     if (++steps_ % 10 == 0) {
       const LoopState& state = loop_->state();
       Sample sample;
@@ -358,6 +380,7 @@ const std::vector<std::pair<std::string, Scenario>>& registry() {
       {"two_arms", two_arms},
       {"energy_tank", energy_tank},
       {"safety", safety},
+      {"collision", collision},
   };
   return scenarios;
 }
@@ -379,6 +402,7 @@ Outcome run_scenario(const std::string& name, const RobotSetup& robot,
     // Every scenario's loop is stable, on the realistic plant too: a limit cycle the watch or the
     // passivity controller finds (and stops, so that the other lines may pass) fails the scenario.
     oscillations_found = 0;
+    false_alarms_found = 0;
     Outcome outcome = scenario(robot, moment);
     const bool applies = std::any_of(outcome.results.begin(), outcome.results.end(),
                                      [](const Result& result) { return result.applicable; });
@@ -386,6 +410,12 @@ Outcome run_scenario(const std::string& name, const RobotSetup& robot,
     outcome.results.push_back(detail::at_most(
         name, "sustained oscillations of the closed loop", 0.0, oscillations_found, "",
         "found by the oscillation watch or the passivity controller; each halves a stiffness"));
+    // Every scenario's contacts are meant; what the monitor finds with nothing touching is not.
+    outcome.results.push_back(detail::at_most(
+        name, "collisions found with nothing touching the arm", 0.0, false_alarms_found, "",
+        detail::format("the collision monitor's false alarms: no push and no contact on the arm "
+                       "in the last %.2g s",
+                       Rig::kTouchMemory)));
     return outcome;
   }
   std::string names;

@@ -226,5 +226,7 @@ Outcome two_arms(const RobotSetup& robot, const MomentCallback& moment);
 Outcome energy_tank(const RobotSetup& robot, const MomentCallback& moment);
 // In scenarios_safety.cpp.
 Outcome safety(const RobotSetup& robot, const MomentCallback& moment);
+// In scenarios_collision.cpp.
+Outcome collision(const RobotSetup& robot, const MomentCallback& moment);
 
 }  // namespace cartesian_impedance::scenarios::detail

@@ -122,6 +122,12 @@ class Rig {
   /// The scenario drives this rig's loop unstable on purpose (a stiffness schedule pumping
   /// without the energy tank): what the watch finds here is not counted.
   void expect_oscillation() { oscillation_expected_ = true; }
+  /// Collisions the monitor found with nothing touching the arm: no push and no contact on any
+  /// of its bodies within the last kTouchMemory (the observer's filter and the isolation window
+  /// lag the contact). run_scenario() reports them; each scenario's arm touches only what it
+  /// meant to, so each is a false alarm.
+  int false_alarms() const { return false_alarms_; }
+  static constexpr double kTouchMemory = 0.2;  // [s]
   Rig(const Rig&) = delete;  // the runner refers to the simulation and the loop
   Rig& operator=(const Rig&) = delete;
 
@@ -145,6 +151,9 @@ class Rig {
   /// reference pose as a frame and the remembered pose as a ghost.
   void moment(const MomentCallback& moment, const std::string& label,
               const std::vector<std::string>& details = {});
+  /// Draws `arrow` into the next picture only (e.g. a contact the scenario found), with
+  /// `caption` added to its caption.
+  void mark(const sim::RenderArrow& arrow, const std::string& caption);
 
   /// Flange pose in the base frame, as the simulation has it (ground truth).
   Pose flange() const;
@@ -180,6 +189,10 @@ class Rig {
   double time_ = 0.0;
   long steps_ = 0;
   bool oscillation_expected_ = false;
+  std::vector<std::pair<sim::RenderArrow, std::string>> marks_;  // mark(), until moment()
+  int collisions_seen_ = 0;
+  int false_alarms_ = 0;
+  double last_touch_ = -kTouchMemory;
 };
 
 /// Numbers a scenario measured beyond its samples (e.g. one row per stiffness of a grid), for a

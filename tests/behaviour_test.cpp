@@ -256,6 +256,9 @@ void expect_some_failure(scenarios::RobotSetup setup, const std::string& robot,
   std::string failures;
   for (const scenarios::Result& result : outcome.results) {
     if (result.passed || !result.applicable) continue;
+    // A broken controller's torque is not what the loop sent, which the collision monitor sees
+    // as an external torque: that line fails for any mutant, so it must not count here.
+    if (result.quantity == "collisions found with nothing touching the arm") continue;
     ++failed;
     failures += "\n  " + result.quantity + ": measured " + std::to_string(result.measured);
   }
@@ -291,7 +294,7 @@ std::string broken_name(const ::testing::TestParamInfo<BrokenController::ParamTy
 
 const auto kScenarios =
     ::testing::Values("hold", "compliance", "reference_step", "wrench", "nullspace", "teaching",
-                      "trajectory", "stability_grid", "convergence");
+                      "trajectory", "stability_grid", "convergence", "collision");
 const auto kMutations =
     ::testing::Values(scenarios::Mutation::zero_torque, scenarios::Mutation::flipped_sign);
 
@@ -354,7 +357,8 @@ TEST(FitsTheArm, WeakJointsGetLoadsTheyCanHold) {
             compliance.end());
   EXPECT_EQ(quantities("wrench"),
             (std::vector<std::string>{"contact force under a commanded 1.64 N",
-                                      "sustained oscillations of the closed loop"}));
+                                      "sustained oscillations of the closed loop",
+                                      "collisions found with nothing touching the arm"}));
 }
 
 INSTANTIATE_TEST_SUITE_P(Panda, Behaviour,

@@ -89,7 +89,8 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Combine(::testing::Values("panda", "iiwa14", "ur5e"),
                        ::testing::Values("hold", "compliance", "reference_step", "wrench",
                                          "nullspace", "teaching", "trajectory", "stability_grid",
-                                         "convergence", "two_arms", "energy_tank", "safety"),
+                                         "convergence", "two_arms", "energy_tank", "safety",
+                                         "collision"),
                        ::testing::Values(Engine::mujoco, Engine::dart)),
     test_name);
 

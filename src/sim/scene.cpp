@@ -76,6 +76,12 @@ Simulation make_scene(const std::string& robot_mjcf, const std::vector<Box>& box
         throw Error(fault, to_string(fault));
       }
     }
+    if (!(box.time_constant >= 0.0) || !std::isfinite(box.time_constant)) {
+      const std::string input = field + ".time_constant";
+      const Fault fault{input.c_str(), -1, box.time_constant, "is not finite and >= 0", 0.0,
+                        false, "s"};
+      throw Error(fault, to_string(fault));
+    }
     if (box.orientation.norm() < 1e-9) {
       throw Error(field + ".orientation has zero norm; expected a unit quaternion");
     }
@@ -93,7 +99,12 @@ Simulation make_scene(const std::string& robot_mjcf, const std::vector<Box>& box
           << box.center.y() << ' ' << box.center.z() << "\" size=\"" << box.half_size.x() << ' '
           << box.half_size.y() << ' ' << box.half_size.z() << "\" quat=\"" << q.w() << ' ' << q.x()
           << ' ' << q.y() << ' ' << q.z()
-          << "\" contype=\"1\" conaffinity=\"1\" rgba=\"0.62 0.48 0.34 1\"/>\n";
+          << "\" contype=\"1\" conaffinity=\"1\" rgba=\"0.62 0.48 0.34 1\"";
+    // A higher priority than the robot's geoms: the contact takes the box's solref alone.
+    if (box.time_constant > 0.0) {
+      geoms << " priority=\"1\" solref=\"" << box.time_constant << " 1\"";
+    }
+    geoms << "/>\n";
   }
   geoms << "  </worldbody>\n";
 
