@@ -42,8 +42,8 @@ constexpr const char* kUsage = R"(Usage: cartesian_impedance_demo [options]
 
 Runs the controller on a simulated robot through a scripted tour (reference motion, push and
 compliance, stiffness change, wrench against a table, nullspace motion, teaching, trajectory,
-stability grid, two arms, energy tank, safety caps) and prints, for each scenario, what theory predicts and
-what was measured. Writes CSV logs, plots and rendered pictures to the output folder.
+stability grid, two arms, energy tank, safety caps, collisions) and prints, for each scenario,
+what theory predicts and what was measured. Writes CSV logs, plots and rendered pictures to the output folder.
 
 Options:
   --robot NAME             a robot the project ships: panda, iiwa14 (URDF + MJCF), ur5e,

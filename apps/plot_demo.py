@@ -546,8 +546,8 @@ def plot_collision_force(path, out):
     late.set_yscale("symlog", linthresh=1.0)
     late.axvline(0.1, color="k", linewidth=0.8, linestyle=":")
     late.set_ylabel("the same, symlog [N]")
-    late.set_xlabel("time since the first contact [s] (every 1 ms cycle); "
-                    "dotted: 0.1 s, from where the clamping force is measured")
+    late.set_xlabel("time since the first contact [s] (every 1 ms cycle); dotted: 0.1 s "
+                    "(the clamping force is measured from 0.1 s after the detection)")
     save(figure, out / "collision_force.png")
 
 

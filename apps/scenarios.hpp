@@ -128,7 +128,7 @@ class Rig {
   /// meant to, so each is a false alarm.
   int false_alarms() const { return false_alarms_; }
   static constexpr double kTouchMemory = 0.2;  // [s]
-  Rig(const Rig&) = delete;  // the runner refers to the simulation and the loop
+  Rig(const Rig&) = delete;                    // the runner refers to the simulation and the loop
   Rig& operator=(const Rig&) = delete;
 
   /// Steps for `seconds`, sampling every 10 ms.

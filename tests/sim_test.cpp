@@ -29,6 +29,7 @@
 
 #include "cartesian_impedance/core/error.hpp"
 #include "cartesian_impedance/model/robot_model.hpp"
+#include "cartesian_impedance/sim/engine.hpp"
 #include "cartesian_impedance/sim/simulation.hpp"
 #include "src/sim/simulation_impl.hpp"
 #include "support/sim_reference.hpp"
@@ -391,6 +392,44 @@ TEST(Scene, FlangePressedOnATableFeelsThePressingForce) {
   // panda_link8 has no geoms: its contacts are those of panda_link7, to which it is welded.
   EXPECT_EQ(s.contact_wrench("panda_link7").head<3>(), s.contact_wrench("panda_link8").head<3>());
   EXPECT_EQ(s.contact_wrench("panda_link3"), Vector6d::Zero());
+}
+
+// A soft box (Box::time_constant) holds the same 20 N as the rigid one, only deeper: MuJoCo's
+// contact stiffness goes as 1 / time constant^2, so 0.05 s against the default 0.02 s sinks
+// 6.25 times as deep, within what the impedance's ramp (solimp 0.9-0.95 over the first mm, where
+// both rest) changes of it: 5 to 7.5 (measured 6.2). Softer than 0.05 s is refused: at 0.07 s the
+// flange sank through the table.
+TEST(Scene, ASoftBoxHoldsTheSameForceDeeper) {
+  const double top = 0.55;
+  const auto pressed = [&](double time_constant) {
+    sim::Box table = sim::Box::table({0.45, 0.0}, {0.25, 0.4}, top, "table");
+    table.time_constant = time_constant;
+    sim::Simulation s = sim::make_scene(kPandaXml, {table});
+    s.push("flange", (Vector6d() << 0, 0, -20, 0, 0, 0).finished(),
+           std::numeric_limits<double>::infinity());
+    for (int k = 0; k < 3000; ++k) s.step();
+    EXPECT_NEAR(s.contact_wrench("panda_link8")[2], 20.0, 1.0) << time_constant;
+    return top - s.site_pose("flange").position.z();
+  };
+  const double rigid = pressed(0.0), soft = pressed(0.05);
+  EXPECT_GT(rigid, 0.0);
+  EXPECT_GT(soft / rigid, 5.0) << rigid << " " << soft;
+  EXPECT_LT(soft / rigid, 7.5) << rigid << " " << soft;
+
+  sim::Box bad = sim::Box::table({0.45, 0.0}, {0.25, 0.4}, top);
+  bad.time_constant = -0.1;
+  EXPECT_ERROR([&] { sim::make_scene(kPandaXml, {bad}); }, {"boxes[0].time_constant", "-0.1"});
+  bad.time_constant = 0.07;
+  EXPECT_ERROR([&] { sim::make_scene(kPandaXml, {bad}); },
+               {"boxes[0].time_constant", "0.07", "0.05", "sink"});
+  std::string reason;
+  if (sim::engine_available(sim::Engine::dart, &reason)) {
+    bad.time_constant = 0.05;
+    sim::SimulationOptions options;
+    options.engine = sim::Engine::dart;
+    EXPECT_ERROR([&] { sim::make_scene(kPandaUrdf, {bad}, options); },
+                 {"boxes[0].time_constant", "DART", "rigid"});
+  }
 }
 
 TEST(Scene, BoxesAreValidated) {

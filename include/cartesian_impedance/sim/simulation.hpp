@@ -303,9 +303,9 @@ struct Box {
   Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  ///< box axes in the world
   /// How soft its surface is: the time constant [s] with which a contact on it pushes back
   /// (MuJoCo's solref[0], the box's over the robot's); 0: the engine's own contact (MuJoCo's
-  /// 0.02 s). Larger is softer, as a square: at 0.1 s a contact sinks 25 times as deep as at
-  /// 0.02 s for the same force (a cushion, padding). MuJoCo only: DART's contacts are rigid, and
-  /// it refuses a scene with a soft box.
+  /// 0.02 s). Larger is softer, as a square: at 0.05 s, the most allowed, a contact sinks 6.25
+  /// times as deep as at 0.02 s for the same force (softer ones let a body sink through). MuJoCo
+  /// only: DART's contacts are rigid, and it refuses a scene with a soft box.
   double time_constant = 0.0;
 
   /// A table standing on the floor (z = 0) whose top surface is at height `top_z` [m], centred at
