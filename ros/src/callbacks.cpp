@@ -126,6 +126,16 @@ void CartesianImpedanceNode::on_config(const NullspaceConfig::ConstPtr& message)
   }
 }
 
+void CartesianImpedanceNode::on_resume(const std_msgs::Empty::ConstPtr& /*message*/) {
+  try {
+    // Ends a latched collision reaction; the arm holds where it is until the next reference.
+    loop_->resume();
+    ROS_INFO("resume: a latched collision reaction (if any) ends; holding where the arm is");
+  } catch (const std::exception& error) {
+    warn_rejected("resume", error);
+  }
+}
+
 void CartesianImpedanceNode::on_trajectory(
     const trajectory_msgs::JointTrajectory::ConstPtr& message) {
   try {

@@ -235,6 +235,7 @@ void CartesianImpedanceNode::create_command_interface() {
   command_subscribers_.push_back(p.subscribe("set_config", 10, &Self::on_config, this, hints));
   command_subscribers_.push_back(
       p.subscribe("joint_trajectory", 10, &Self::on_trajectory, this, hints));
+  command_subscribers_.push_back(p.subscribe("resume", 10, &Self::on_resume, this, hints));
   cancel_service_ = p.advertiseService("cancel_trajectory", &Self::on_cancel_trajectory, this);
 }
 

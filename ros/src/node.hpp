@@ -23,6 +23,7 @@
 #include <geometry_msgs/WrenchStamped.h>
 #include <ros/ros.h>
 #include <sensor_msgs/JointState.h>
+#include <std_msgs/Empty.h>
 #include <std_srvs/Trigger.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
@@ -123,6 +124,7 @@ class CartesianImpedanceNode {
   void on_damping_factors(const geometry_msgs::Wrench::ConstPtr& message);
   void on_wrench(const geometry_msgs::WrenchStamped::ConstPtr& message);
   void on_config(const NullspaceConfig::ConstPtr& message);
+  void on_resume(const std_msgs::Empty::ConstPtr& message);
   void on_trajectory(const trajectory_msgs::JointTrajectory::ConstPtr& message);
   bool on_cancel_trajectory(std_srvs::Trigger::Request& request,
                             std_srvs::Trigger::Response& response);

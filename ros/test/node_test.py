@@ -37,7 +37,7 @@ from node_reconfigure_cases import (  # noqa: F401
 )
 # the topics mode across processes, with the simulated robot, in a file of their own
 from node_wire_cases import (  # noqa: F401
-    case_wire_realistic_plant, case_wire_reference_step, case_wire_table,
+    case_wire_collision_resume, case_wire_realistic_plant, case_wire_reference_step, case_wire_table,
 )
 
 

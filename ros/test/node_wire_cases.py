@@ -6,10 +6,11 @@ wire adds a delay of a cycle or two, which moves no equilibrium."""
 
 import os
 import signal
+import tempfile
 import time
 
 from node_harness import (
-    REPO, Latest, controller_state, distance, init_rospy, pose_stamped, position, publisher,
+    REPO, Latest, controller_state, distance, holds, init_rospy, pose_stamped, position, publisher,
     quaternion_of, reach_pose, vector6, wait_until, wrench_stamped,
 )
 
@@ -139,3 +140,49 @@ def case_wire_table(processes, args):
     assert pressing.status == "ok", pressing.status
     print("table over the wire: flange %.2f mm down, contact force %.3f N for 10 N"
           % (1e3 * down, mean))
+
+
+def case_wire_collision_resume(processes, args):
+    """A collision reaction held until ~resume: with collision.reaction stop, a reference 3 cm into
+    a table 3 cm under the flange is a collision; the arm stops, a reference back up is not
+    followed; after an empty message on ~resume the next reference is."""
+    with open(PANDA["config"]) as f:
+        config = f.read()
+    assert "  reaction: report" in config, "config/panda.yaml changed"
+    handle, path = tempfile.mkstemp(suffix=".yaml")
+    with os.fdopen(handle, "w") as f:
+        f.write(config.replace("  reaction: report", "  reaction: stop"))
+    try:
+        processes.launch("launch", "topics_panda.launch", "table_under_flange:=0.03",
+                         "config:=" + path)
+        init_rospy()
+        state = controller_state()
+        from geometry_msgs.msg import PoseStamped
+        from std_msgs.msg import Empty
+        start = state.get()
+        assert not start.collision_detected and start.collisions == 0, start.collision_reaction
+        p0, q0 = position(start.current_pose), quaternion_of(start.current_pose)
+        topic = "/cartesian_impedance_controller/reference_pose"
+        pub = publisher(topic, PoseStamped)
+        pub.publish(pose_stamped("", (p0[0], p0[1], p0[2] - 0.06), q0))
+        hit = state.wait(lambda m: m.collision_detected, timeout=5.0, what="the collision")
+        assert hit.collision_reaction == "stop", hit.collision_reaction
+        time.sleep(0.5)
+        stopped = position(state.get().current_pose)
+        assert p0[2] - 0.035 < stopped[2] < p0[2] - 0.02, (p0, stopped)  # on the table
+        pub.publish(pose_stamped("", (p0[0], p0[1], p0[2] + 0.03), q0))
+        holds(state, 1.0, lambda m: m.collision_detected and
+              distance(position(m.current_pose), stopped) < 0.002,
+              "the stopped arm followed a reference before resume")
+        resume = publisher("/cartesian_impedance_controller/resume", Empty)
+        resume.publish(Empty())
+        state.wait(lambda m: not m.collision_detected, timeout=3.0, what="the reaction to end")
+        took = reach_pose(state, topic, "", (p0[0], p0[1], p0[2] + 0.03), q0)
+        ended = state.get()
+        assert ended.collisions == 1 and ended.status == "ok", (ended.collisions, ended.status)
+        wait_until(lambda: "resume" in processes.log("launch"), 3.0, "the resume to be logged")
+        print("collision found and stopped %.1f mm above the table's surface; after resume the "
+              "reference 3 cm above the start was reached in %.2f s"
+              % (1e3 * (stopped[2] - (p0[2] - 0.03)), took))
+    finally:
+        os.remove(path)
