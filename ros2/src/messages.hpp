@@ -37,6 +37,7 @@ using PublishedState = cartesian_impedance_controller_msg_dds__ControllerState_;
 using FullState = cartesian_impedance_msgs_msg_dds__ControllerState_;
 using TFMessage = tf2_msgs_msg_dds__TFMessage_;
 using StringMessage = std_msgs_msg_dds__String_;
+using EmptyMessage = std_msgs_msg_dds__Empty_;
 
 /// The chain's two frames, as messages name them in header.frame_id: the link names, or the link
 /// names with tf_prefix in front (the tf frames, which outgoing messages use).

@@ -133,6 +133,7 @@ Node::Node(RosArguments arguments, Ros2Configuration configuration)
   reader(wrench_reader_, "~/set_cartesian_wrench");
   reader(damping_reader_, "~/set_damping_factors");
   reader(config_reader_, "~/set_config");
+  reader(resume_reader_, "~/resume");
   // Relative, as in the published controller: in the node's namespace.
   reader(trajectory_reader_, "joint_trajectory");
   wake_ = dds([&] {
@@ -186,7 +187,7 @@ void Node::announce_in_graph() {
   std::vector<dds_entity_t> writers;
   for (const dds_entity_t reader :
        {reference_reader_.get(), stiffness_reader_.get(), wrench_reader_.get(),
-        damping_reader_.get(), config_reader_.get(), trajectory_reader_.get(),
+        damping_reader_.get(), config_reader_.get(), trajectory_reader_.get(), resume_reader_.get(),
         joint_state_reader_.get()}) {
     if (reader > 0) readers.push_back(reader);
   }
@@ -274,7 +275,8 @@ void Node::command_thread() {
   }
   for (const dds_entity_t reader :
        {reference_reader_.get(), stiffness_reader_.get(), wrench_reader_.get(),
-        damping_reader_.get(), config_reader_.get(), trajectory_reader_.get()}) {
+        damping_reader_.get(), config_reader_.get(), trajectory_reader_.get(),
+        resume_reader_.get()}) {
     dds_set_status_mask(reader, DDS_DATA_AVAILABLE_STATUS);
     dds_waitset_attach(waitset, reader, reader);
   }
@@ -332,6 +334,14 @@ void Node::take_commands() {
   });
   config_reader_.take([&](const ControllerConfig& message) {
     send("set_config", [&] { loop_->send_all(config_from_message(message, n)); });
+  });
+  resume_reader_.take([&](const EmptyMessage&) {
+    send("resume", [&] {
+      loop_->resume();
+      log(LogLevel::info,
+          "resume: a latched collision reaction (if any) ends; holding where the "
+          "arm is");
+    });
   });
   trajectory_reader_.take([&](const JointTrajectoryMessage& message) {
     send("joint_trajectory", [&] {

@@ -124,6 +124,7 @@ class Node {
   Reader<WrenchMessage> damping_reader_;
   Reader<ControllerConfig> config_reader_;
   Reader<JointTrajectoryMessage> trajectory_reader_;
+  Reader<EmptyMessage> resume_reader_;            // ends a latched collision reaction
   Reader<JointStateMessage> joint_state_reader_;  // topics mode
   Entity wake_;                                   // guard condition: ends the waits
   // ROS 2's parameter services and /parameter_events, on a thread of their own.

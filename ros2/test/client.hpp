@@ -34,6 +34,9 @@ struct State {
   double measurement_age_p50_us = 0.0, measurement_age_p99_us = 0.0, measurement_age_max_us = 0.0;
   double oscillation_scale = 1.0;
   std::uint64_t oscillations = 0;
+  bool collision_detected = false;
+  std::string collision_reaction;
+  std::uint64_t collisions = 0;
 };
 
 inline std::vector<double> values(const dds_sequence_double& s) {
@@ -70,6 +73,9 @@ inline State copy_state(const FullState& m) {
   s.measurement_age_max_us = m.measurement_age_max_us;
   s.oscillation_scale = m.oscillation_scale;
   s.oscillations = m.oscillations;
+  s.collision_detected = m.collision_detected;
+  s.collision_reaction = m.collision_reaction;
+  s.collisions = m.collisions;
   return s;
 }
 
@@ -111,7 +117,8 @@ class Client {
         reference_(participant(), "rt" + node + "/reference_pose", TopicQos{}),
         stiffness_(participant(), "rt" + node + "/set_cartesian_stiffness", TopicQos{}),
         wrench_(participant(), "rt" + node + "/set_cartesian_wrench", TopicQos{}),
-        config_(participant(), "rt" + node + "/set_config", TopicQos{}) {}
+        config_(participant(), "rt" + node + "/set_config", TopicQos{}),
+        resume_(participant(), "rt" + node + "/resume", TopicQos{}) {}
 
   static const Participant& participant() {
     use_private_domain();
@@ -126,7 +133,7 @@ class Client {
         << "no full_state with status ok from " << node_;
     EXPECT_TRUE(eventually(5.0, [&] {
       return reference_.matched() > 0 && stiffness_.matched() > 0 && wrench_.matched() > 0 &&
-             config_.matched() > 0;
+             config_.matched() > 0 && resume_.matched() > 0;
     }));
     return state_.value();
   }
@@ -165,6 +172,10 @@ class Client {
     m.q_d_nullspace._length = m.q_d_nullspace._maximum = static_cast<std::uint32_t>(q.size());
     ASSERT_TRUE(config_.write(m));
   }
+  void resume() {
+    EmptyMessage m{};
+    ASSERT_TRUE(resume_.write(m));
+  }
 
  private:
   static WrenchMessage wrench_of(const ci::Vector6d& v) {
@@ -186,6 +197,7 @@ class Client {
   Writer<WrenchStamped> stiffness_;
   Writer<WrenchStamped> wrench_;
   Writer<ControllerConfig> config_;
+  Writer<EmptyMessage> resume_;
 };
 
 }  // namespace cartesian_impedance_ros2::test

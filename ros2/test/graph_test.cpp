@@ -356,8 +356,9 @@ TEST(Ros2Graph, NodeListAndNodeInfoSeeTheNodeWithEveryTopicItUses) {
                             "rt/left/arm/commanded_torques", "rt/left/joint_states"}) {
     EXPECT_EQ(published.count(topic), 1u) << topic;
   }
-  for (const char* topic : {"rt/left/arm/reference_pose", "rt/left/arm/set_cartesian_stiffness",
-                            "rt/left/arm/set_config", "rt/left/joint_trajectory"}) {
+  for (const char* topic :
+       {"rt/left/arm/reference_pose", "rt/left/arm/set_cartesian_stiffness",
+        "rt/left/arm/set_config", "rt/left/joint_trajectory", "rt/left/arm/resume"}) {
     EXPECT_EQ(subscribed.count(topic), 1u) << topic;
   }
 

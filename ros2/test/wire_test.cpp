@@ -27,11 +27,13 @@ std::string topics_params() {
 // The robot (its own sim-mode params file: the Panda's MJCF at its ready pose) and the node on
 // its joint_states, both in /robot.
 struct Wire {
-  explicit Wire(const std::vector<std::string>& robot_options = {})
+  // `node_params`: the node's params file (default: topics_params()).
+  explicit Wire(const std::vector<std::string>& robot_options = {},
+                const std::string& node_params = topics_params())
       : robot(CARTESIAN_IMPEDANCE_ROS2_SIM_ROBOT,
               with(robot_options,
                    {"--ros-args", "-r", "__ns:=/robot", "--params-file", sim_params()})),
-        node({"--ros-args", "-r", "__ns:=/robot", "--params-file", topics_params()}),
+        node({"--ros-args", "-r", "__ns:=/robot", "--params-file", node_params}),
         client("/robot/cartesian_impedance_controller") {}
 
   static std::vector<std::string> with(std::vector<std::string> first,
@@ -215,6 +217,37 @@ TEST(Ros2Wire, ACommandedForcePressesOnATableWithThatForce) {
   std::printf("table over the wire: flange %.2f mm down, contact force %.3f N for 10 N\n",
               1e3 * (start.position.z() - pressing.position.z()), mean);
   EXPECT_EQ(pressing.status, "ok");
+}
+
+// A collision reaction holds until ~/resume: with collision.reaction stop, a reference 3 cm into
+// a table 3 cm under the flange is a collision; the arm stops on the table and a reference back
+// up is not followed; after an empty message on ~/resume the next reference is.
+TEST(Ros2Wire, ACollisionStopsTheArmUntilResume) {
+  Wire wire({"--table-under-flange", "0.03"},
+            topics_params_file("wire_topics_panda_stop.yaml", "    collision.reaction: stop\n"));
+  const State start = wire.client.running();
+  ASSERT_FALSE(start.collision_detected);
+  wire.client.pose(start.position - Eigen::Vector3d(0, 0, 0.06), start.orientation);
+  ASSERT_TRUE(wire.client.wait(5.0, [](const State& s) { return s.collision_detected; }));
+  const State hit = wire.client.settle(0.5);
+  EXPECT_EQ(hit.collision_reaction, "stop");
+  EXPECT_GT(hit.position.z() - start.position.z(), -0.035);  // on the table, 3 cm down
+  EXPECT_LT(hit.position.z() - start.position.z(), -0.02);
+  const Eigen::Vector3d above = start.position + Eigen::Vector3d(0, 0, 0.03);
+  wire.client.pose(above, start.orientation);
+  const State held = wire.client.settle(1.0);
+  EXPECT_TRUE(held.collision_detected);
+  EXPECT_LT((held.position - hit.position).norm(), 2e-3) << "followed before resume";
+  wire.client.resume();
+  ASSERT_TRUE(wire.client.wait(3.0, [](const State& s) { return !s.collision_detected; }));
+  wire.client.pose(above, start.orientation);
+  EXPECT_TRUE(wire.client.wait(5.0, [&](const State& s) {
+    return (s.position - above).norm() < 3e-3;
+  })) << wire.client.settle(0.0).position.transpose();
+  const State end = wire.client.settle(0.0);
+  EXPECT_EQ(end.collisions, 1u);
+  EXPECT_EQ(end.status, "ok");
+  EXPECT_NE(wire.node.log().find("resume"), std::string::npos);
 }
 
 // What the simulated robot cannot simulate ends it with exit code 2 and a message naming it.

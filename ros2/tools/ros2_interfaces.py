@@ -30,7 +30,7 @@ import json
 import pathlib
 import sys
 
-from rosidl_adapter.parser import parse_message_file, parse_service_file
+from rosidl_adapter.parser import Field, Type, parse_message_file, parse_service_file
 
 # .msg primitive -> (DDS IDL type, FieldType id of type_description_interfaces). byte and char
 # become octet and uint8 in ROS IDL, whose FieldType ids the hash uses.
@@ -270,7 +270,12 @@ def load(package_dirs):
         if not (directory / 'msg').is_dir() and not (directory / 'srv').is_dir():
             raise SystemExit(f'{directory}: not a package folder (no msg/ or srv/ in it)')
         for path in sorted((directory / 'msg').glob('*.msg')):
-            message = Message(directory.name, parse_message_file(directory.name, str(path)))
+            spec = parse_message_file(directory.name, str(path))
+            if not spec.fields:
+                # An IDL struct needs a member: rosidl gives a message without fields (std_msgs/
+                # Empty) this one, on the wire and in its type description alike.
+                spec.fields.append(Field(Type('uint8'), 'structure_needs_at_least_one_member'))
+            message = Message(directory.name, spec)
             types[message.ros_name] = message
         for path in sorted((directory / 'srv').glob('*.srv')):
             spec = parse_service_file(directory.name, str(path))
