@@ -84,10 +84,13 @@ TYPED_TEST(Malformed, EncapsulationsOtherThanPlainCdrAreRejected) {
   this->decode(xcdr2);
 }
 
-// Every proper prefix lacks at least one byte of a field (the hand encoder's final padding is
-// announced in the options, and Cyclone drops it before validating).
+// Every prefix short of the last field's end lacks at least one byte of a field (the hand
+// encoder's final padding is announced in the options, and Cyclone drops it before validating).
+// What only the padding is missing from (std_msgs/Empty's one octet, padded to 4) holds every
+// field and may be read.
 TYPED_TEST(Malformed, EveryTruncationIsRejected) {
-  for (size_t n = 0; n < this->golden_.size(); ++n) {
+  const size_t padding = this->golden_[3] & 0x3u;
+  for (size_t n = 0; n + padding < this->golden_.size(); ++n) {
     const std::vector<uint8_t> prefix(this->golden_.begin(), this->golden_.begin() + n);
     EXPECT_FALSE(this->decode(prefix)) << n << " of " << this->golden_.size() << " bytes";
   }

@@ -156,6 +156,12 @@ void visit(V& v, rmw_dds_common_msg_dds__ParticipantEntitiesInfo_& m) {
   v.nested_seq(m.node_entities_info_seq);
 }
 
+// std_msgs/msg/Empty.msg: no field; rosidl's one member, uint8 structure_needs_at_least_one_member
+template <class V>
+void visit(V& v, std_msgs_msg_dds__Empty_& m) {
+  v.uint8(m.structure_needs_at_least_one_member);
+}
+
 // std_msgs/msg/String.msg: string data
 template <class V>
 void visit(V& v, std_msgs_msg_dds__String_& m) {

@@ -19,20 +19,22 @@ using AllMessages = ::testing::Types<
     geometry_msgs_msg_dds__PoseStamped_, geometry_msgs_msg_dds__Vector3_,
     geometry_msgs_msg_dds__Wrench_, geometry_msgs_msg_dds__WrenchStamped_,
     geometry_msgs_msg_dds__Transform_, geometry_msgs_msg_dds__TransformStamped_,
-    tf2_msgs_msg_dds__TFMessage_, std_msgs_msg_dds__String_, sensor_msgs_msg_dds__JointState_,
-    trajectory_msgs_msg_dds__JointTrajectoryPoint_, trajectory_msgs_msg_dds__JointTrajectory_,
+    tf2_msgs_msg_dds__TFMessage_, std_msgs_msg_dds__String_, std_msgs_msg_dds__Empty_,
+    sensor_msgs_msg_dds__JointState_, trajectory_msgs_msg_dds__JointTrajectoryPoint_,
+    trajectory_msgs_msg_dds__JointTrajectory_,
     cartesian_impedance_controller_msg_dds__ControllerConfig_,
     cartesian_impedance_controller_msg_dds__ControllerState_,
     cartesian_impedance_msgs_msg_dds__ControllerState_, rmw_dds_common_msg_dds__Gid_,
     rmw_dds_common_msg_dds__NodeEntitiesInfo_, rmw_dds_common_msg_dds__ParticipantEntitiesInfo_>;
-constexpr int kAllMessagesCount = 26;
+constexpr int kAllMessagesCount = 27;
 
 /// The types the node receives from other nodes.
 using ReceivedMessages =
     ::testing::Types<geometry_msgs_msg_dds__PoseStamped_, geometry_msgs_msg_dds__WrenchStamped_,
                      geometry_msgs_msg_dds__Wrench_,
                      cartesian_impedance_controller_msg_dds__ControllerConfig_,
-                     trajectory_msgs_msg_dds__JointTrajectory_, sensor_msgs_msg_dds__JointState_>;
+                     trajectory_msgs_msg_dds__JointTrajectory_, sensor_msgs_msg_dds__JointState_,
+                     std_msgs_msg_dds__Empty_>;
 
 /// Test names: geometry_msgs_msg_PoseStamped rather than 0, 1, ...
 struct RosNames {

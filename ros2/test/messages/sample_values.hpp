@@ -49,6 +49,10 @@ class Values {
     field(m, next() % 2 == 1);
   }
   template <class C>
+  void uint8(C& m) {
+    field(m, static_cast<uint8_t>(next() * 37 + 5));
+  }
+  template <class C>
   void int32(C& m) {
     field(m, static_cast<int32_t>(-1000003 * static_cast<int32_t>(next()) - 7));
   }
@@ -161,6 +165,10 @@ class Encoder {
     w_.boolean(static_cast<bool>(m));
   }
   template <class C>
+  void uint8(C& m) {
+    w_.octet(static_cast<uint8_t>(m));
+  }
+  template <class C>
   void int32(C& m) {
     w_.int32(static_cast<int32_t>(m));
   }
@@ -230,6 +238,10 @@ class Bounds {
     unsigned char raw;  // not read as bool: any byte value may have been received
     std::memcpy(&raw, &m, 1);
     sink_ += raw;
+  }
+  template <class C>
+  void uint8(C& m) {
+    sink_ += static_cast<double>(m);
   }
   template <class C>
   void int32(C& m) {
