@@ -28,6 +28,7 @@ constexpr double kDetectionBound = 0.010;  // [s] from the first contact
 constexpr double kDetectionSlack = 0.003;
 constexpr double kClampingFrom = 0.1;    // [s] after the detection: past the impact
 constexpr double kWatched = 1.5;         // [s] measured after the first contact
+constexpr std::size_t kBefore = 50;      // cycles of the force table before the first contact
 constexpr double kClampingShare = 0.1;   // a reaction's clamping force, of report's at most
 constexpr double kImpulseShare = 0.5;    // a reaction's impulse, of report's at most
 constexpr double kLeastClamping = 10.0;  // [N] report's, for the shares to say something
@@ -89,18 +90,19 @@ class ContactTorque {
     for (int i = 0; i < n; ++i) {
       const Vector6d world = rig.sim().contact_wrench(model_.joint_links()[i]);
       if (world.isZero()) continue;
-      if (chains_.count(i) == 0) {
-        chains_.emplace(
-            i, RobotModel::from_urdf_file(robot_.urdf, robot_.base_link, model_.joint_links()[i]));
+      auto found = chains_.find(i);
+      if (found == chains_.end()) {
+        found = chains_
+                    .try_emplace(i, RobotModel::from_urdf_file(robot_.urdf, robot_.base_link,
+                                                               model_.joint_links()[i]))
+                    .first;
       }
-      const RobotModel& chain = chains_.at(i);
-      ModelWorkspace workspace(chain);
-      Kinematics k = workspace.make_kinematics();
-      const int m = chain.num_joints();
-      workspace.compute(q.head(m), JointVector::Zero(m), k, false);
+      Chain& chain = found->second;
+      const int m = chain.model.num_joints();
+      chain.workspace.compute(q.head(m), JointVector::Zero(m), chain.kinematics, false);
       Vector6d wrench;
       wrench << to_base * world.head<3>(), to_base * world.tail<3>();
-      tau.head(m) += k.jacobian.transpose() * wrench;
+      tau.head(m) += chain.kinematics.jacobian.transpose() * wrench;
     }
     return tau;
   }
@@ -108,7 +110,16 @@ class ContactTorque {
  private:
   const RobotSetup& robot_;
   const RobotModel& model_;
-  std::map<int, RobotModel> chains_;
+  // The chain up to a touched link, made once (a map's node does not move: the workspace may
+  // refer to its model).
+  struct Chain {
+    explicit Chain(RobotModel chain)
+        : model(std::move(chain)), workspace(model), kinematics(workspace.make_kinematics()) {}
+    RobotModel model;
+    ModelWorkspace workspace;
+    Kinematics kinematics;
+  };
+  std::map<int, Chain> chains_;
 };
 
 struct Swing {
@@ -124,8 +135,7 @@ struct Swing {
   double early = 0.0;         // [N] largest before kClampingFrom after the detection
   double clamping = 0.0;      // [N] largest from kClampingFrom after the detection
   double impulse = 0.0;       // [N s] over kWatched after it
-  CollisionState state;       // at the end
-  std::vector<double> force;  // [N] every cycle from 50 ms before the contact
+  std::vector<double> force;  // [N] every cycle from kBefore cycles before the contact
   std::vector<std::vector<double>> residuals;  // every cycle: |unexpected|, threshold per joint
 };
 
@@ -240,8 +250,6 @@ Outcome collision(const RobotSetup& robot, const MomentCallback& moment) {
         format("swing into the box, reaction %s", std::string(reaction_name(reaction)).c_str()));
     rig.loop().set_reference_pose(target);
     Swing result;
-    std::vector<double> recent;  // the last 50 ms of force, before the contact
-    std::vector<double> after;   // every cycle's force from the contact on
     ContactTorque contact_torque(robot, model);
     const double gain = 1.0 - std::exp(-used.collision.observer_gain * kDt);
     JointVector filtered = JointVector::Zero(n);
@@ -254,7 +262,7 @@ Outcome collision(const RobotSetup& robot, const MomentCallback& moment) {
       if (result.contact < 0.0 && force > 0.0) {
         result.contact = now;
         result.touched = touched_joint(rig, model);
-        result.force = recent;
+        result.force.assign(kBefore, 0.0);  // before the first contact: no force, by definition
       }
       if (result.detected < 0.0 && state.detected) {
         result.detected = now;
@@ -282,14 +290,9 @@ Outcome collision(const RobotSetup& robot, const MomentCallback& moment) {
           now - result.detected > 2.0 * CartesianImpedanceController::kCollisionIsolationTime) {
         result.named = state.joint;
       }
-      if (result.contact < 0.0) {
-        recent.push_back(force);
-        if (recent.size() > 50) recent.erase(recent.begin());
-      } else {
-        const double since = now - result.contact;
-        if (since > kWatched) break;
+      if (result.contact >= 0.0) {
+        if (now - result.contact > kWatched) break;
         result.force.push_back(force);
-        after.push_back(force);
       }
       if (pictures && reaction == CollisionReaction::report) {
         std::vector<double> row = {now};
@@ -303,14 +306,14 @@ Outcome collision(const RobotSetup& robot, const MomentCallback& moment) {
     // The clamping is what follows the reaction: from kClampingFrom after the detection (or
     // after the contact, where nothing was found).
     const double split = std::max(result.detected, result.contact) + kClampingFrom;
-    for (std::size_t k = 0; k < after.size(); ++k) {
-      const double when = result.contact + static_cast<double>(k + 1) * kDt;
-      if (when - result.contact <= 0.01) result.impact = std::max(result.impact, after[k]);
-      (when < split ? result.early : result.clamping) =
-          std::max(when < split ? result.early : result.clamping, after[k]);
-      result.impulse += after[k] * kDt;
+    for (std::size_t k = kBefore; k < result.force.size(); ++k) {
+      const double force = result.force[k];
+      const double when = result.contact + static_cast<double>(k - kBefore + 1) * kDt;
+      if (when - result.contact <= 0.01) result.impact = std::max(result.impact, force);
+      double& peak = when < split ? result.early : result.clamping;
+      peak = std::max(peak, force);
+      result.impulse += force * kDt;
     }
-    result.state = rig.loop().state().controller.collision;
     if (!pictures) return result;
     if (reaction == CollisionReaction::report) {
       outcome.samples = rig.samples();
@@ -360,7 +363,7 @@ Outcome collision(const RobotSetup& robot, const MomentCallback& moment) {
     }
   }
   for (std::size_t k = 0; k < rows; ++k) {
-    std::vector<double> row = {(static_cast<double>(k) - 50.0) * kDt};
+    std::vector<double> row = {(static_cast<double>(k) - static_cast<double>(kBefore)) * kDt};
     for (const std::vector<Swing>* runs : {&swings, &soft_swings}) {
       for (const Swing& s : *runs) row.push_back(k < s.force.size() ? s.force[k] : std::nan(""));
     }

@@ -48,12 +48,12 @@ void CartesianImpedanceController::update_caps_in_force(const RobotState& robot)
     const Eigen::Matrix3d mobility = inertia.inverse().topLeftCorner<3, 3>();
     const Eigen::Vector3d velocity = robot.jacobian.topRows<3>() * robot.dq;
     const Eigen::Vector3d ahead = state_.commanded.pose.position - robot.pose.position;
+    const Eigen::Vector3d direction = velocity.norm() > kMovingSpeed   ? velocity
+                                      : ahead.norm() > kReferenceAhead ? ahead
+                                                                       : Eigen::Vector3d::Zero();
     double inverse_mass = 0.0;
-    if (velocity.norm() > kMovingSpeed) {
-      const Eigen::Vector3d u = velocity.normalized();
-      inverse_mass = u.dot(mobility * u);
-    } else if (ahead.norm() > kReferenceAhead) {
-      const Eigen::Vector3d u = ahead.normalized();
+    if (!direction.isZero(0.0)) {
+      const Eigen::Vector3d u = direction.normalized();
       inverse_mass = u.dot(mobility * u);
     } else {
       // No direction yet: the heaviest the end effector is in any.

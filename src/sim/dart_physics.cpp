@@ -226,7 +226,7 @@ dd::SkeletonPtr make_environment(const std::vector<Box>& boxes) {
   for (std::size_t i = 0; i < boxes.size(); ++i) {
     const Box& box = boxes[i];
     if (box.time_constant > 0.0) {
-      fail("boxes[" + std::to_string(i) + "].time_constant = " + std::to_string(box.time_constant) +
+      fail("boxes[" + std::to_string(i) + "].time_constant = " + format_number(box.time_constant) +
            " s: DART's contacts are rigid, it has no soft box; simulate it with MuJoCo");
     }
     dd::WeldJoint::Properties joint;

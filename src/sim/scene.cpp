@@ -78,8 +78,8 @@ Simulation make_scene(const std::string& robot_mjcf, const std::vector<Box>& box
       }
     }
     if (!(box.time_constant >= 0.0 && box.time_constant <= kSoftestBox)) {
-      throw Error(field + ".time_constant = " + std::to_string(box.time_constant) +
-                  " s is outside [0, " + std::to_string(kSoftestBox) +
+      throw Error(field + ".time_constant = " + format_number(box.time_constant) +
+                  " s is outside [0, " + format_number(kSoftestBox) +
                   "] s: a softer MuJoCo contact lets a body sink through the box (the Panda's "
                   "flange under 20 N did at 0.07 s)");
     }
