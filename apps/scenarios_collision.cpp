@@ -2,8 +2,9 @@
 // speed cap into a box beside its path while the flange follows its reference, then into the
 // same box made soft (MuJoCo). The collision monitor must find the contact within 10 ms (or 3 ms
 // after the contact's own torque, computed from the simulation's contact wrenches, passes a
-// threshold, where that comes later) and name a joint at or before the touched link; each
-// reaction must end the clamping force that the controller keeps up without one.
+// threshold, where that comes later) and name a joint at or before the touched link, also when
+// its observer reads the joint torque sensors instead of the torque sent; each reaction must end
+// the clamping force that the controller keeps up without one.
 
 #include <algorithm>
 #include <array>
@@ -239,9 +240,12 @@ Outcome collision(const RobotSetup& robot, const MomentCallback& moment) {
   sim::Box soft = *box;
   soft.time_constant = kSoftTimeConstant;
   // `pictures`: the rigid box's swings draw the detection, the pressing on and the retract.
-  const auto swing = [&](CollisionReaction reaction, const sim::Box& obstacle, bool pictures) {
+  // `measured`: the observer reads the simulated joint torque sensors (collision.measured_torque).
+  const auto swing = [&](CollisionReaction reaction, const sim::Box& obstacle, bool pictures,
+                         bool measured = false) {
     Parameters used = parameters;
     used.collision.reaction = reaction;
+    used.collision.measured_torque = measured;
     Rig rig(robot, used, {obstacle});
     rig.view(view_azimuth + 35.0, -30.0);
     rig.run(0.2);
@@ -332,6 +336,8 @@ Outcome collision(const RobotSetup& robot, const MomentCallback& moment) {
   std::vector<Swing> swings;
   for (const CollisionReaction reaction : kReactions) swings.push_back(swing(reaction, *box, true));
   const Swing& report = swings.front();
+  // The same swing with the observer on the joint torque sensors.
+  const Swing sensed = swing(CollisionReaction::report, *box, false, true);
   // The soft box on MuJoCo (DART's contacts are rigid): without a reaction, and stopping.
   const bool soft_box = robot.engine == sim::Engine::mujoco;
   std::vector<Swing> soft_swings;
@@ -411,6 +417,18 @@ Outcome collision(const RobotSetup& robot, const MomentCallback& moment) {
       "the contact's torque J_link^T w from the simulation's contact wrenches, through the "
       "observer's filter, against the thresholds in force: the observer's estimate, computed "
       "without it"));
+  outcome.results.push_back(at_most(
+      kName,
+      "time from the contact's torque passing a threshold to the detection, report, measured "
+      "joint torques",
+      1000.0 * kDetectionSlack + 0.5,
+      sensed.detectable >= 0.0 && sensed.detected >= 0.0
+          ? 1000.0 * (sensed.detected - sensed.detectable)
+          : kNever,
+      "ms",
+      format("collision.measured_torque: the simulated link-side sensors less g(q); found %.0f ms "
+             "after the first contact (%.0f ms with the torque sent)",
+             1000.0 * delay(sensed), 1000.0 * delay(report))));
   // Isolation: a contact on a link acts on the joints before it only, so the last joint whose
   // residual crossed its threshold is at most the touched link's (earlier where the joints in
   // between cannot feel the force: their axes run along or through it).

@@ -187,6 +187,18 @@ void bind_states(py::module_& m) {
             }
           },
           "Extra nullspace torque tau_0 (n,) [Nm], or None.")
+      .def_property(
+          "measured_torque",
+          [](const ci::RobotState& s) { return optional_array(s.measured_torque); },
+          [](ci::RobotState& s, py::handle v) {
+            if (v.is_none()) {
+              s.measured_torque.resize(0);
+            } else {
+              read_vector(v, "measured_torque", Length{}, s.measured_torque);
+            }
+          },
+          "Joint torques the robot measures (n,) [Nm], link side, gravity included (Franka's "
+          "tau_J), or None; read with collision.measured_torque, which needs gravity too.")
       .def("__repr__", [](const ci::RobotState& s) {
         return "RobotState(q=" + numbers_text(s.q) + ", dq=" + numbers_text(s.dq) +
                ", pose=" + pose_repr(s.pose) + ")";

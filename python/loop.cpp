@@ -364,19 +364,26 @@ void bind_control_loop(py::module_& m) {
           "Raises Error for non-finite values.")
       .def(
           "step",
-          [](Loop& self, ArrayLike q, ArrayLike dq, Real dt) {
+          [](Loop& self, ArrayLike q, ArrayLike dq, Real dt, ArrayLike measured_torque) {
             ci::ControlLoop& loop = self.cycle();
             const int n = loop.num_joints();
             ci::JointVector joints, velocities;
             read_vector(q, "q", Length{n}, joints);
             read_vector(dq, "dq", Length{n}, velocities);
-            return vector_array(loop.step(joints, velocities, read_scalar(dt, "dt")));
+            const double period = read_scalar(dt, "dt");
+            if (measured_torque.is_none())
+              return vector_array(loop.step(joints, velocities, period));
+            ci::JointVector torques;
+            read_vector(measured_torque, "measured_torque", Length{n}, torques);
+            return vector_array(loop.step(joints, velocities, torques, period));
           },
-          py::arg("q"), py::arg("dq"), py::arg("dt"),
-          "One control cycle: q (n,) [rad], dq (n,) [rad/s], dt [s] since the last step. Returns "
-          "the joint torque to command (n,) [Nm] (a new array). Wrong shapes or types raise; "
-          "non-finite values do not: like the C++ cycle it then reports a Status "
-          "(state.controller.status) and ramps the torque toward zero within the rate limit.")
+          py::arg("q"), py::arg("dq"), py::arg("dt"), py::arg("measured_torque") = py::none(),
+          "One control cycle: q (n,) [rad], dq (n,) [rad/s], dt [s] since the last step; "
+          "measured_torque (n,) [Nm]: the joint torques the robot measures (link side, gravity "
+          "included), read with collision.measured_torque. Returns the joint torque to command "
+          "(n,) [Nm] (a new array). Wrong shapes or types raise; non-finite values do not: like "
+          "the C++ cycle it then reports a Status (state.controller.status) and ramps the torque "
+          "toward zero within the rate limit.")
       .def_property_readonly(
           "state", [](Loop& self) { return self.cycle().state(); },
           "A copy of the state after the last step (LoopState; cycle thread).")

@@ -155,7 +155,9 @@ void bind_simulation(py::module_& m) {
       .def_readwrite("actuation_delay", &ci::sim::PlantOptions::actuation_delay,
                      "Time from set_torque() until the torque acts [s] (whole timesteps).")
       .def_readwrite("torque_noise", &ci::sim::PlantOptions::torque_noise,
-                     "Standard deviation [Nm] of white noise on each applied torque.");
+                     "Standard deviation [Nm] of white noise on each applied torque.")
+      .def_readwrite("torque_sensor_noise", &ci::sim::PlantOptions::torque_sensor_noise,
+                     "Standard deviation [Nm] of white noise on each measured joint torque.");
   spread_property(plant, "inertia", &ci::sim::PlantOptions::inertia,
                   "(low, high): each link's mass and inertia scaled by a factor drawn from it.");
   spread_property(plant, "friction", &ci::sim::PlantOptions::friction,
@@ -456,6 +458,11 @@ void bind_simulation(py::module_& m) {
       .def_property_readonly(
           "torque", [](Sim& s) { return vector_array(s.get().torque()); },
           "Applied commanded torque after clipping (n,) [Nm], without gravity compensation.")
+      .def_property_readonly(
+          "measured_torque", [](Sim& s) { return vector_array(s.get().measured_torque()); },
+          "What the joint torque sensors read (n,) [Nm]: link side, gravity included (Franka's "
+          "tau_J), less what friction, damping and the rotors took; late and noisy with the "
+          "plant.")
       .def_property_readonly(
           "torque_lower_limits", [](Sim& s) { return vector_array(s.get().torque_lower_limits()); },
           "(n,) [Nm]; -inf without a limited actuator")

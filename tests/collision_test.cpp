@@ -39,6 +39,21 @@ ci::sim::Simulation panda_simulation(const ci::sim::PlantOptions& plant = {},
   return ci::sim::make_scene(kSource + "/models/panda/panda.xml", boxes, options);
 }
 
+// The Panda's ready pose; DART loads the URDF (MuJoCo the MJCF, whose keyframe is this pose).
+ci::sim::Simulation panda_on(ci::sim::Engine engine, const ci::sim::PlantOptions& plant = {},
+                             const std::vector<ci::sim::Box>& boxes = {}) {
+  ci::sim::SimulationOptions options;
+  options.joint_names = panda_model().joint_names();
+  options.plant = plant;
+  options.engine = engine;
+  options.start_q =
+      (ci::JointVector(7) << 0, -M_PI / 4, 0, -3 * M_PI / 4, 0, M_PI / 2, M_PI / 4).finished();
+  return ci::sim::make_scene(
+      kSource + (engine == ci::sim::Engine::dart ? "/models/panda/panda.urdf"
+                                                 : "/models/panda/panda.xml"),
+      boxes, options);
+}
+
 // The controller's model as the simulation's: the rotors' inertia from the robot file.
 ci::Parameters parameters_for(const ci::sim::Simulation& sim) {
   ci::Parameters p;
@@ -130,6 +145,67 @@ TEST(MomentumObserver, NamesThePushedLink) {
   }
 }
 
+// The observer on the joint torque sensors (collision.measured_torque), on both engines. The
+// joints' Coulomb friction and viscous damping, and the rotors' inertia, act on the drive's side
+// of a link-side sensor, so they leave the estimate; what is left is the integration of a 1 ms
+// step. Free motion along a 25 cm move at the 0.25 m/s cap (nominal plant, the robot file's
+// 0.1 Nm of friction and 0.5 Nm s/rad of damping per joint): the torque sent leaves the friction
+// and damping in the residual (at least 0.1 Nm), the measurement at most 0.03 Nm. Then the
+// push of MatchesAKnownPushOnAKnownLink is matched within 1 % and 0.02 Nm: no friction term.
+class MeasuredTorqueOn : public ::testing::TestWithParam<ci::sim::Engine> {};
+
+TEST_P(MeasuredTorqueOn, TheObserverLeavesOutTheJointsFrictionAndMatchesAKnownPush) {
+  const ci::sim::Engine engine = GetParam();
+  std::string reason;
+  if (!ci::sim::engine_available(engine, &reason)) GTEST_SKIP() << reason;
+  double free_motion[2] = {0.0, 0.0};  // largest |r| in free motion: sent, measured
+  for (const bool measured : {false, true}) {
+    SCOPED_TRACE(measured ? "measured" : "sent");
+    ci::sim::Simulation sim = panda_on(engine);
+    ci::Parameters p = parameters_for(sim);
+    p.safety.max_speed.translation = 0.25;
+    p.collision.measured_torque = measured;
+    ci::ControlLoop loop(panda_model(), p);
+    ci::sim::ClosedLoopRunner runner(sim, loop);
+    runner.start();
+    ci::Pose target = loop.state().controller.pose;
+    target.position.y() += 0.25;
+    loop.set_reference_pose(target);
+    double& largest = free_motion[measured ? 1 : 0];
+    runner.run_for(1.5, [&](std::int64_t steps) {
+      if (steps < 10) return;  // the observer's first cycles start from rest
+      largest = std::max(largest, loop.state().controller.collision.residual.cwiseAbs().maxCoeff());
+    });
+    ASSERT_LE((loop.state().controller.pose.position - target.position).norm(), 0.01)
+        << "the move must be made";
+    if (!measured) continue;
+    ci::Vector6d push;
+    push << 9.0, -12.0, 0.0, 0.6, 0.0, 0.8;
+    sim.push("panda_link4", push, std::numeric_limits<double>::infinity());
+    const double settle = 5.0 / p.collision.observer_gain;
+    double worst = 0.0;
+    runner.run_for(1.5, [&](std::int64_t steps) {
+      if (static_cast<double>(steps) * sim.timestep() < settle) return;
+      const ci::JointVector expected = push_torque(sim.true_q(), "panda_link4", push);
+      const ci::JointVector& r = loop.state().controller.collision.residual;
+      worst =
+          std::max(worst, (r - expected).cwiseAbs().maxCoeff() / (0.01 * expected.norm() + 0.02));
+    });
+    EXPECT_LE(worst, 1.0) << "the estimate left its bound";
+    EXPECT_EQ(loop.state().controller.status, ci::Status::ok);
+  }
+  std::printf("%s free motion, largest |r|: %.3f Nm (torque sent), %.3f Nm (measured)\n",
+              ci::sim::engine_name(engine), free_motion[0], free_motion[1]);
+  EXPECT_GE(free_motion[0], 0.1) << "friction and damping, with the torque sent";
+  EXPECT_LE(free_motion[1], 0.03);
+}
+
+INSTANTIATE_TEST_SUITE_P(Engines, MeasuredTorqueOn,
+                         ::testing::Values(ci::sim::Engine::mujoco, ci::sim::Engine::dart),
+                         [](const auto& info) {
+                           return std::string(ci::sim::engine_name(info.param));
+                         });
+
 namespace {
 
 // The forearm swung into a fixed box: the Panda's end effector sent 30 cm sideways at the speed
@@ -150,26 +226,17 @@ using AfterSwing =
     std::function<void(ci::sim::Simulation&, ci::ControlLoop&, ci::sim::ClosedLoopRunner&)>;
 
 Swing swing_into_box(ci::CollisionReaction reaction, ci::sim::Engine engine,
-                     const AfterSwing& after = {}) {
+                     const AfterSwing& after = {}, bool measured_torque = false) {
   ci::sim::Box box;
   box.center = Eigen::Vector3d(0.05, 0.15, 0.66);
   box.half_size = Eigen::Vector3d(0.05, 0.04, 0.06);
-  ci::sim::SimulationOptions options;
-  options.joint_names = panda_model().joint_names();
-  options.plant = ci::sim::PlantOptions::realistic(3);
-  options.engine = engine;
-  // DART loads the URDF (MuJoCo the MJCF, whose keyframe is this pose): the same kinematics.
-  options.start_q =
-      (ci::JointVector(7) << 0, -M_PI / 4, 0, -3 * M_PI / 4, 0, M_PI / 2, M_PI / 4).finished();
-  ci::sim::Simulation sim =
-      ci::sim::make_scene(kSource + (engine == ci::sim::Engine::dart ? "/models/panda/panda.urdf"
-                                                                     : "/models/panda/panda.xml"),
-                          {box}, options);
+  ci::sim::Simulation sim = panda_on(engine, ci::sim::PlantOptions::realistic(3), {box});
   ci::Parameters p = parameters_for(sim);
   p.safety.max_speed.translation = 0.25;
   p.stiffness.translation.setConstant(1000);
   p.stiffness.rotation.setConstant(100);
   p.collision.reaction = reaction;
+  p.collision.measured_torque = measured_torque;
   ci::ControlLoop loop(panda_model(), p);
   ci::sim::ClosedLoopRunner runner(sim, loop);
   runner.start();
@@ -227,6 +294,15 @@ TEST_P(CollisionReactionOn, EachReactionEndsTheClampingForce) {
       "impulse %.1f N s\n",
       ci::sim::engine_name(engine), static_cast<long long>(report.detected - report.contact),
       report.state.joint + 1, report.impact, report.clamping, report.impulse);
+  // The same swing with the joint torque sensors read: found as soon, named alike.
+  const Swing sensed = swing_into_box(ci::CollisionReaction::report, engine, {}, true);
+  ASSERT_GE(sensed.detected, sensed.contact);
+  EXPECT_LE(sensed.detected - sensed.contact, report.detected - report.contact);
+  EXPECT_GE(sensed.state.joint, 2);
+  EXPECT_LE(sensed.state.joint, 4);
+  std::printf("%s report, measured torque: found %lld ms after contact at joint %d\n",
+              ci::sim::engine_name(engine),
+              static_cast<long long>(sensed.detected - sensed.contact), sensed.state.joint + 1);
   for (const ci::CollisionReaction reaction :
        {ci::CollisionReaction::stop, ci::CollisionReaction::reflex,
         ci::CollisionReaction::retract}) {
@@ -258,39 +334,44 @@ TEST(CollisionMonitor, NoFalseAlarmInFreeMotionAtTheSpeedCap) {
                        kSource + "/models/iiwa14/iiwa14.xml", "iiwa_link_0", "iiwa_link_ee"}};
   for (const Arm& arm : arms) {
     const ci::RobotModel model = ci::RobotModel::from_urdf_file(arm.urdf, arm.base, arm.tip);
-    for (const std::uint64_t seed : {0, 1, 2, 3}) {
-      SCOPED_TRACE(std::string(arm.name) + " seed " + std::to_string(seed));
-      ci::sim::SimulationOptions options;
-      options.joint_names = model.joint_names();
-      if (seed > 0) options.plant = ci::sim::PlantOptions::realistic(seed);
-      ci::sim::Simulation sim = ci::sim::Simulation::from_mjcf_file(arm.mjcf, options);
-      ci::Parameters p = parameters_for(sim);
-      p.safety.max_speed.translation = 0.25;
-      p.safety.max_speed.rotation = 1.0;
-      p.stiffness.translation.setConstant(1000);
-      p.stiffness.rotation.setConstant(100);
-      ci::ControlLoop loop(model, p);
-      ci::sim::ClosedLoopRunner runner(sim, loop);
-      runner.start();
-      const ci::Pose start = loop.state().controller.pose;
-      const Eigen::Vector3d moves[] = {
-          {0, 0.25, 0}, {0, -0.25, 0}, {0.1, 0, -0.2}, {-0.1, 0.1, 0.1}};
-      double share = 0.0;
+    // The observer reading the torque sent, then the joint torque sensors.
+    for (const bool measured : {false, true}) {
+      for (const std::uint64_t seed : {0, 1, 2, 3}) {
+        SCOPED_TRACE(std::string(arm.name) + " seed " + std::to_string(seed) +
+                     (measured ? ", measured" : ""));
+        ci::sim::SimulationOptions options;
+        options.joint_names = model.joint_names();
+        if (seed > 0) options.plant = ci::sim::PlantOptions::realistic(seed);
+        ci::sim::Simulation sim = ci::sim::Simulation::from_mjcf_file(arm.mjcf, options);
+        ci::Parameters p = parameters_for(sim);
+        p.safety.max_speed.translation = 0.25;
+        p.safety.max_speed.rotation = 1.0;
+        p.stiffness.translation.setConstant(1000);
+        p.stiffness.rotation.setConstant(100);
+        p.collision.measured_torque = measured;
+        ci::ControlLoop loop(model, p);
+        ci::sim::ClosedLoopRunner runner(sim, loop);
+        runner.start();
+        const ci::Pose start = loop.state().controller.pose;
+        const Eigen::Vector3d moves[] = {
+            {0, 0.25, 0}, {0, -0.25, 0}, {0.1, 0, -0.2}, {-0.1, 0.1, 0.1}};
+        double share = 0.0;
 
-      for (int move = 0; move < 8; ++move) {
-        ci::Pose target = start;
-        target.position += moves[move % 4];
-        loop.set_reference_pose(target);
-        runner.run_for(1.5, [&](std::int64_t) {
-          const ci::CollisionState& c = loop.state().controller.collision;
-          share =
-              std::max(share, (c.unexpected.cwiseAbs().array() / c.threshold.array()).maxCoeff());
-        });
+        for (int move = 0; move < 8; ++move) {
+          ci::Pose target = start;
+          target.position += moves[move % 4];
+          loop.set_reference_pose(target);
+          runner.run_for(1.5, [&](std::int64_t) {
+            const ci::CollisionState& c = loop.state().controller.collision;
+            share =
+                std::max(share, (c.unexpected.cwiseAbs().array() / c.threshold.array()).maxCoeff());
+          });
+        }
+        EXPECT_EQ(loop.state().controller.collision.collisions, 0);
+        EXPECT_EQ(loop.state().controller.status, ci::Status::ok);
+        std::printf("%s seed %llu, %s: largest share of a threshold %.2f\n", arm.name,
+                    static_cast<unsigned long long>(seed), measured ? "measured" : "sent", share);
       }
-      EXPECT_EQ(loop.state().controller.collision.collisions, 0);
-      EXPECT_EQ(loop.state().controller.status, ci::Status::ok);
-      std::printf("%s seed %llu: largest share of a threshold %.2f\n", arm.name,
-                  static_cast<unsigned long long>(seed), share);
     }
   }
 }

@@ -352,6 +352,51 @@ TEST(FailClosed, TheCycleAndStartReportTheSameFaultOfAMeasurement) {
   EXPECT_FALSE(ci::Error("file 'x' cannot be read").fault());
 }
 
+// collision.measured_torque needs the robot's joint torques every cycle: a cycle without them,
+// or with a wrongly sized or non-finite one, fails closed naming measured_torque (the torque
+// ramps toward zero by the rate limit), and the next cycle that brings them resumes, its
+// observer started over: the gap is no collision.
+TEST(FailClosed, AMissingOrBadMeasuredTorqueFailsClosedNamingIt) {
+  const ci::RobotModel model = panda();
+  ci::Parameters p = Pulling::parameters();
+  p.collision.measured_torque = true;
+  ci::ControlLoop loop(model, p);
+  model_simulation::Simulation sim(model, panda_ready());
+  loop.start(sim.q, sim.dq);
+  const auto run = [&](int steps) {
+    for (int k = 0; k < steps; ++k) {
+      sim.step(loop.step(sim.q, sim.dq, sim.measured_torque, kDt), kDt);
+    }
+  };
+  run(200);
+  ASSERT_EQ(loop.state().controller.status, ci::Status::ok);
+  const auto fails = [&](const ci::JointVector* measured, ci::Status status, int index) {
+    const ci::JointVector before = loop.state().controller.tau;
+    const ci::JointVector& tau = measured == nullptr ? loop.step(sim.q, sim.dq, kDt)
+                                                     : loop.step(sim.q, sim.dq, *measured, kDt);
+    expect_failed_closed(loop.state(), before, status, "measured_torque", index, kDt);
+    sim.step(tau, kDt);
+  };
+  fails(nullptr, ci::Status::missing_dynamics, -1);
+  EXPECT_NE(ci::to_string(loop.state().controller.fault).find("collision.measured_torque"),
+            std::string::npos)
+      << ci::to_string(loop.state().controller.fault);
+  ci::JointVector bad = sim.measured_torque;
+  bad[3] = kNan;
+  fails(&bad, ci::Status::invalid_robot_state, 3);
+  EXPECT_EQ(ci::to_string(loop.state().controller.fault), "measured_torque[3] = nan is not finite");
+  const ci::JointVector short_one = sim.measured_torque.head(6);
+  fails(&short_one, ci::Status::invalid_robot_state, -1);
+  run(300);
+  EXPECT_EQ(loop.state().controller.status, ci::Status::ok);
+  EXPECT_EQ(loop.state().controller.collision.collisions, 0);
+  // Off, the measurement is not read: a NaN in it changes nothing.
+  ci::ControlLoop unmeasured(model, Pulling::parameters());
+  unmeasured.start(sim.q, sim.dq);
+  unmeasured.step(sim.q, sim.dq, bad, kDt);
+  EXPECT_EQ(unmeasured.state().controller.status, ci::Status::ok);
+}
+
 // Finding 10: the ROS node dropped commands when the inbox was full. A sender may now wait for
 // room (LoopCapacity::send_timeout) in its own thread while the cycle drains the inbox; a loop
 // that does not step makes it throw QueueFull, which a caller can tell from a bad command.

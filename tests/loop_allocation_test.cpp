@@ -154,40 +154,49 @@ TEST(LoopAllocation, CyclesUnderAPolicyAndItsObservationAllocateNothing) {
 // The collision monitor allocates nothing from the observer through detection, each reaction
 // and the hold, to the Resume command (queued outside the counted steps): a push of 30 Nm on
 // joint 2 of the model's own Panda (support/model_simulation.hpp, the firmware compensating
-// gravity), well past the default thresholds.
+// gravity), well past the default thresholds; the observer reading the torque sent, and the
+// joint torques measured.
 TEST(LoopAllocation, TheCollisionMonitorAllocatesNothingFromDetectionToResume) {
   const ci::RobotModel model = ci::RobotModel::from_urdf_file(
       std::string(CARTESIAN_IMPEDANCE_SOURCE_DIR) + "/models/panda/panda.urdf", "panda_link0",
       "panda_link8");
   ci::JointVector q(7);
   q << 0, -M_PI / 4, 0, -3 * M_PI / 4, 0, M_PI / 2, M_PI / 4;
-  for (const ci::CollisionReaction reaction :
-       {ci::CollisionReaction::report, ci::CollisionReaction::stop, ci::CollisionReaction::reflex,
-        ci::CollisionReaction::retract}) {
-    SCOPED_TRACE(std::string(ci::reaction_name(reaction)));
-    ci::Parameters parameters;
-    parameters.collision.reaction = reaction;
-    ci::ControlLoop loop(model, parameters);
-    model_simulation::Simulation sim(model, q);
-    loop.start(sim.q, sim.dq);
-    long allocations = 0;
-    const auto run = [&](int steps) {
-      allocation_counter::Scope scope;
-      for (int k = 0; k < steps; ++k) sim.step(loop.step(sim.q, sim.dq, 0.001), 0.001);
-      allocations += scope.allocations();
-    };
-    run(300);
-    sim.external[1] = 30.0;
-    run(50);
-    EXPECT_TRUE(loop.state().controller.collision.detected);
-    EXPECT_EQ(loop.state().controller.collision.joint, 1);
-    sim.external[1] = 0.0;
-    run(1000);  // the reflex lets the arm coast: to rest before it is held again
-    loop.resume();
-    run(300);
-    EXPECT_EQ(allocations, 0);
-    EXPECT_EQ(loop.state().controller.collision.collisions, 1);
-    EXPECT_FALSE(loop.state().controller.collision.detected);
-    EXPECT_EQ(loop.state().controller.status, ci::Status::ok);
+  // With the torque sent, and with the joint torques measured (collision.measured_torque).
+  for (const bool measured : {false, true}) {
+    for (const ci::CollisionReaction reaction :
+         {ci::CollisionReaction::report, ci::CollisionReaction::stop, ci::CollisionReaction::reflex,
+          ci::CollisionReaction::retract}) {
+      SCOPED_TRACE(std::string(ci::reaction_name(reaction)) + (measured ? ", measured" : ""));
+      ci::Parameters parameters;
+      parameters.collision.reaction = reaction;
+      parameters.collision.measured_torque = measured;
+      ci::ControlLoop loop(model, parameters);
+      model_simulation::Simulation sim(model, q);
+      loop.start(sim.q, sim.dq);
+      long allocations = 0;
+      const auto run = [&](int steps) {
+        allocation_counter::Scope scope;
+        for (int k = 0; k < steps; ++k) {
+          sim.step(measured ? loop.step(sim.q, sim.dq, sim.measured_torque, 0.001)
+                            : loop.step(sim.q, sim.dq, 0.001),
+                   0.001);
+        }
+        allocations += scope.allocations();
+      };
+      run(300);
+      sim.external[1] = 30.0;
+      run(50);
+      EXPECT_TRUE(loop.state().controller.collision.detected);
+      EXPECT_EQ(loop.state().controller.collision.joint, 1);
+      sim.external[1] = 0.0;
+      run(1000);  // the reflex lets the arm coast: to rest before it is held again
+      loop.resume();
+      run(300);
+      EXPECT_EQ(allocations, 0);
+      EXPECT_EQ(loop.state().controller.collision.collisions, 1);
+      EXPECT_FALSE(loop.state().controller.collision.detected);
+      EXPECT_EQ(loop.state().controller.status, ci::Status::ok);
+    }
   }
 }

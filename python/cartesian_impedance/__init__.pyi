@@ -227,8 +227,8 @@ class ControlLoop:
     @property
     def state(self) -> LoopState:
         """A copy of the state after the last step (LoopState; cycle thread)."""
-    def step(self, q: numpy.typing.ArrayLike, dq: numpy.typing.ArrayLike, dt: float) -> numpy.typing.NDArray[numpy.float64]:
-        """One control cycle: q (n,) [rad], dq (n,) [rad/s], dt [s] since the last step. Returns the joint torque to command (n,) [Nm] (a new array). Wrong shapes or types raise; non-finite values do not: like the C++ cycle it then reports a Status (state.controller.status) and ramps the torque toward zero within the rate limit."""
+    def step(self, q: numpy.typing.ArrayLike, dq: numpy.typing.ArrayLike, dt: float, measured_torque: numpy.typing.ArrayLike = ...) -> numpy.typing.NDArray[numpy.float64]:
+        """One control cycle: q (n,) [rad], dq (n,) [rad/s], dt [s] since the last step; measured_torque (n,) [Nm]: the joint torques the robot measures (link side, gravity included), read with collision.measured_torque. Returns the joint torque to command (n,) [Nm] (a new array). Wrong shapes or types raise; non-finite values do not: like the C++ cycle it then reports a Status (state.controller.status) and ramps the torque toward zero within the rate limit."""
     @property
     def torque(self) -> numpy.typing.NDArray[numpy.float64]:
         """Torque of the last step (n,) [Nm]."""
@@ -660,6 +660,11 @@ class RobotState:
         """Mass matrix M(q) (n, n) [kg m^2], or None."""
     @mass.setter
     def mass(self, value: object) -> None: ...
+    @property
+    def measured_torque(self) -> object:
+        """Joint torques the robot measures (n,) [Nm], link side, gravity included (Franka's tau_J), or None; read with collision.measured_torque, which needs gravity too."""
+    @measured_torque.setter
+    def measured_torque(self, value: object) -> None: ...
     @property
     def pose(self) -> Pose:
         """End-effector pose T_base_ee (quaternion x, y, z, w)."""

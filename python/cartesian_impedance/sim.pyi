@@ -209,6 +209,11 @@ class Plant:
     @torque_noise.setter
     def torque_noise(self, value: float) -> None: ...
     @property
+    def torque_sensor_noise(self) -> float:
+        """Standard deviation [Nm] of white noise on each measured joint torque."""
+    @torque_sensor_noise.setter
+    def torque_sensor_noise(self, value: float) -> None: ...
+    @property
     def velocity_noise(self) -> float:
         """Standard deviation [rad/s] of white noise on each velocity read."""
     @velocity_noise.setter
@@ -281,6 +286,9 @@ class Simulation:
     @property
     def joint_names(self) -> List[str]:
         """Joint names in the order q, dq and tau are exchanged."""
+    @property
+    def measured_torque(self) -> numpy.typing.NDArray[numpy.float64]:
+        """What the joint torque sensors read (n,) [Nm]: link side, gravity included (Franka's tau_J), less what friction, damping and the rotors took; late and noisy with the plant."""
     @property
     def measurement_age(self) -> float:
         """[s] how old q and dq are when read: the plant's measurement delay in whole timesteps (0 for the nominal plant)."""

@@ -185,6 +185,9 @@ class SimulatedRobot {
         published = measured.sequence;
         message.position.assign(measured.q.data(), measured.q.data() + measured.q.size());
         message.velocity.assign(measured.dq.data(), measured.dq.data() + measured.dq.size());
+        // The joint torque sensors (link side, gravity included), for collision.measured_torque.
+        message.effort.assign(measured.effort.data(),
+                              measured.effort.data() + measured.effort.size());
         // ROS time (the wall clock here) now, less the reading's age.
         message.header.stamp =
             ros::Time::now() -

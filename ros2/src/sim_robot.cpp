@@ -127,14 +127,18 @@ std::vector<std::string> parse_robot_options(const std::vector<std::string>& arg
 class JointStateArray {
  public:
   explicit JointStateArray(const std::vector<std::string>& names)
-      : names_(names), position_(names.size()), velocity_(names.size()) {
+      : names_(names), position_(names.size()), velocity_(names.size()), effort_(names.size()) {
     for (std::string& name : names_) pointers_.push_back(name.data());
     const auto n = static_cast<std::uint32_t>(names.size());
     message_.name._buffer = pointers_.data();
     message_.position._buffer = position_.data();
     message_.velocity._buffer = velocity_.data();
-    message_.name._length = message_.position._length = message_.velocity._length = n;
-    message_.name._maximum = message_.position._maximum = message_.velocity._maximum = n;
+    // The joint torque sensors (link side, gravity included), for collision.measured_torque.
+    message_.effort._buffer = effort_.data();
+    message_.name._length = message_.position._length = message_.velocity._length =
+        message_.effort._length = n;
+    message_.name._maximum = message_.position._maximum = message_.velocity._maximum =
+        message_.effort._maximum = n;
     message_.header.frame_id = empty_.data();
   }
 
@@ -143,6 +147,9 @@ class JointStateArray {
     for (std::size_t i = 0; i < position_.size(); ++i) {
       position_[i] = measured.q[static_cast<Eigen::Index>(i)];
       velocity_[i] = measured.dq[static_cast<Eigen::Index>(i)];
+      effort_[i] = measured.effort.size() == measured.q.size()
+                       ? measured.effort[static_cast<Eigen::Index>(i)]
+                       : 0.0;
     }
     // The stamp is ROS time (the system clock): now on it, less the reading's age.
     const auto age = std::chrono::duration_cast<std::chrono::nanoseconds>(now - measured.sampled);
@@ -158,7 +165,7 @@ class JointStateArray {
  private:
   std::vector<std::string> names_;
   std::vector<char*> pointers_;
-  std::vector<double> position_, velocity_;
+  std::vector<double> position_, velocity_, effort_;
   std::string empty_;
   JointStateMessage message_{};
 };

@@ -221,10 +221,14 @@ TEST(Ros2Wire, ACommandedForcePressesOnATableWithThatForce) {
 
 // A collision reaction holds until ~/resume: with collision.reaction stop, a reference 3 cm into
 // a table 3 cm under the flange is a collision; the arm stops on the table and a reference back
-// up is not followed; after an empty message on ~/resume the next reference is.
+// up is not followed; after an empty message on ~/resume the next reference is. The observer
+// reads the simulated robot's joint torque sensors, the effort of its joint_states
+// (collision.measured_torque): without them every cycle would fail closed.
 TEST(Ros2Wire, ACollisionStopsTheArmUntilResume) {
   Wire wire({"--table-under-flange", "0.03"},
-            topics_params_file("wire_topics_panda_stop.yaml", "    collision.reaction: stop\n"));
+            topics_params_file("wire_topics_panda_stop.yaml",
+                               "    collision.reaction: stop\n"
+                               "    collision.measured_torque: true\n"));
   const State start = wire.client.running();
   ASSERT_FALSE(start.collision_detected);
   wire.client.pose(start.position - Eigen::Vector3d(0, 0, 0.06), start.orientation);

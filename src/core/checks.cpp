@@ -131,6 +131,9 @@ Fault kinematics(const RobotState& robot, int num_joints) noexcept {
   if (robot.secondary_torque.size() != 0 && robot.secondary_torque.size() != n) {
     return size_fault("secondary_torque", robot.secondary_torque.size(), n);
   }
+  if (robot.measured_torque.size() != 0 && robot.measured_torque.size() != n) {
+    return size_fault("measured_torque", robot.measured_torque.size(), n);
+  }
   // The joint-limit bounds may be infinite (a free joint), never NaN.
   for (const auto& [bound, name] : {std::pair{&robot.joint_limit_ceiling, "joint_limit_ceiling"},
                                     std::pair{&robot.joint_limit_floor, "joint_limit_floor"}}) {
@@ -139,11 +142,13 @@ Fault kinematics(const RobotState& robot, int num_joints) noexcept {
       if (std::isnan((*bound)[i])) return Fault{name, i, (*bound)[i], "is not a number"};
     }
   }
-  const double optional_sum = robot.mass.sum() + robot.gravity.sum() + robot.secondary_torque.sum();
+  const double optional_sum = robot.mass.sum() + robot.gravity.sum() +
+                              robot.secondary_torque.sum() + robot.measured_torque.sum();
   if (!std::isfinite(optional_sum)) {
     for (const Fault& fault :
          {first_non_finite(robot.mass, "mass"), first_non_finite(robot.gravity, "gravity"),
-          first_non_finite(robot.secondary_torque, "secondary_torque")}) {
+          first_non_finite(robot.secondary_torque, "secondary_torque"),
+          first_non_finite(robot.measured_torque, "measured_torque")}) {
       if (fault) return fault;
     }
     return Fault{"robot state", -1, optional_sum, "overflows"};

@@ -18,6 +18,12 @@
 // does; either way the drive's torque less tau_gravity is what moves the model beside gravity.
 // tau_gravity also holds the declared payload's compensation: the payload's weight is then
 // expected, and a payload declared wrongly shows as a contact on the last link.
+//
+// Or what was measured (collision.measured_torque): the joint torque sensors of the link side
+// read, each cycle, what the drives passed to the links, gravity included. Less the model's g(q)
+// and the payload's compensation, that is what moved the links; the drive's delay, its noise,
+// the joints' friction and the rotors' inertia are then out of the residual, and only the
+// model's error of the links is left in it.
 
 #include <algorithm>
 #include <cmath>
@@ -72,8 +78,29 @@ void CartesianImpedanceController::observe_collision(const RobotState& robot, do
     if (!collision_latched()) collision.detected = false;
     return;
   }
-  const JointVector momentum = robot.mass * robot.dq;
-  const JointVector applied = state_.tau - state_.tau_gravity;
+  // A measured torque is the link side's: the rotors' inertia (dynamics.armature, which the loop
+  // adds to M) is behind the sensor, so the momentum it changes is the links' alone.
+  const bool measured = parameters.measured_torque;
+  JointVector momentum = robot.mass * robot.dq;
+  JointVector applied;
+  if (measured) {
+    const JointVector& armature = parameters_.dynamics.armature;
+    for (int i = 0; i < n; ++i) {
+      momentum[i] -= armature[armature.size() == 1 ? 0 : i] * robot.dq[i];
+    }
+    applied = robot.measured_torque - robot.gravity - law_->tau_payload;
+  } else {
+    applied = state_.tau - state_.tau_gravity;
+  }
+  // The model's error grows with the torque it predicts the links take. With a measurement its
+  // g(q) is part of that prediction (a firmware that compensates gravity keeps its own model's
+  // error out of the torque sent, not out of a measured one), so the threshold scales with all
+  // of it.
+  const JointVector& predicted = measured ? robot.measured_torque : applied;
+  if (measured != observer_measured_) {
+    observer_measured_ = measured;
+    observer_running_ = false;
+  }
   // The filters' factors change only with dt and the gain: two exponentials saved per cycle.
   if (dt != observer_dt_ || parameters.observer_gain != observer_gain_) {
     observer_dt_ = dt;
@@ -87,13 +114,13 @@ void CartesianImpedanceController::observe_collision(const RobotState& robot, do
     // thresholds at the torque applied now.
     observer_running_ = true;
     collision.residual.setZero(n);
-    observer_applied_filtered_ = applied.cwiseAbs();
+    observer_applied_filtered_ = predicted.cwiseAbs();
     observer_wrench_filtered_ = -state_.tau_wrench;
     motion_direction_.setZero();
   } else {
     collision.residual += follow * ((momentum - observer_momentum_) / dt - applied -
                                     robot.coriolis_transposed - collision.residual);
-    observer_applied_filtered_ += follow * (applied.cwiseAbs() - observer_applied_filtered_);
+    observer_applied_filtered_ += follow * (predicted.cwiseAbs() - observer_applied_filtered_);
     observer_wrench_filtered_ += follow * (-state_.tau_wrench - observer_wrench_filtered_);
   }
   observer_momentum_ = momentum;

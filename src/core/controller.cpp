@@ -675,6 +675,19 @@ Status CartesianImpedanceController::cycle(const RobotState& robot, double dt,
                              "", Fault::Form::statement},
                        dt);
   }
+  if (parameters_.collision.detection && parameters_.collision.measured_torque) {
+    const bool torque = robot.measured_torque.size() != num_joints_;
+    if (torque || robot.gravity.size() != num_joints_) {
+      return fail_closed(
+          Status::missing_dynamics,
+          Fault{torque ? "measured_torque" : "gravity", -1,
+                static_cast<double>(torque ? robot.measured_torque.size() : robot.gravity.size()),
+                torque ? "is missing (collision.measured_torque needs the robot's joint torques)"
+                       : "is missing (collision.measured_torque subtracts g(q) from them)",
+                0.0, false, "", Fault::Form::statement},
+          dt);
+    }
+  }
   last_valid_dt_ = dt;
   in_episode_ = false;
   if (halted_) {

@@ -297,6 +297,11 @@ std::vector<ParameterInfo> make_table() {
       {"collision.retract_distance", "m", 0, 1, false,
        "how far the retract reaction moves the end effector away from the contact",
        [](Parameters& p) { return field_of(&p.collision.retract_distance); }},
+      {"collision.measured_torque", "", 0, 0, false,
+       "the observer uses the joint torques the robot measures (link side, gravity included, as "
+       "Franka's tau_J; the effort of joint_states) instead of the torque sent: the drive's "
+       "delay, noise and friction leave the estimate; every cycle must bring them",
+       [](Parameters& p) { return field_of(&p.collision.measured_torque); }},
   };
 }
 

@@ -560,6 +560,16 @@ void ControlLoop::joint_limit_torque() noexcept {
 
 const JointVector& ControlLoop::step(const JointVector& q, const JointVector& dq,
                                      double dt) noexcept {
+  return cycle(q, dq, nullptr, dt);
+}
+
+const JointVector& ControlLoop::step(const JointVector& q, const JointVector& dq,
+                                     const JointVector& measured_torque, double dt) noexcept {
+  return cycle(q, dq, &measured_torque, dt);
+}
+
+const JointVector& ControlLoop::cycle(const JointVector& q, const JointVector& dq,
+                                      const JointVector* measured_torque, double dt) noexcept {
   apply_messages(kCommandsPerCycle);
   const Parameters& parameters = controller_.parameters();
   const DynamicsParameters& dynamics = parameters.dynamics;
@@ -574,7 +584,9 @@ const JointVector& ControlLoop::step(const JointVector& q, const JointVector& dq
   // The collision monitor's momentum observer needs M(q) and C^T dq.
   const bool need_collision = parameters.collision.detection;
   const bool need_mass = need_mass_for_options || need_collision;
-  const bool need_gravity = dynamics.gravity_compensation;
+  // A measured torque is read by the observer less g(q).
+  const bool need_measured = need_collision && parameters.collision.measured_torque;
+  const bool need_gravity = dynamics.gravity_compensation || need_measured;
   const ModelTerms terms = (need_mass ? ModelTerms::mass : ModelTerms::none) |
                            (need_gravity ? ModelTerms::gravity : ModelTerms::none) |
                            (need_collision ? ModelTerms::coriolis_transposed : ModelTerms::none);
@@ -613,6 +625,11 @@ const JointVector& ControlLoop::step(const JointVector& q, const JointVector& dq
       robot_.coriolis_transposed = kinematics_.coriolis_transposed;
     } else {
       robot_.coriolis_transposed.resize(0);
+    }
+    if (need_measured && measured_torque != nullptr) {
+      robot_.measured_torque = *measured_torque;
+    } else {
+      robot_.measured_torque.resize(0);
     }
     joint_limit_torque();
     controller_.update_measured(robot_, dt);

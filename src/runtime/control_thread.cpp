@@ -90,8 +90,11 @@ class RobotCycle final : public Cycle {
           std::chrono::duration_cast<std::chrono::nanoseconds>(time.now - measurement_.sampled)
               .count());
     }
-    const JointVector& tau = fresh ? loop_.step(measurement_.q, measurement_.dq, time.dt)
-                                   : loop_.step(invalid_, invalid_, time.dt);
+    // The effort the robot reported is its measured joint torque, which the loop reads only with
+    // collision.measured_torque.
+    const JointVector& tau =
+        fresh ? loop_.step(measurement_.q, measurement_.dq, measurement_.effort, time.dt)
+              : loop_.step(invalid_, invalid_, time.dt);
     if (sink_ != nullptr) sink_->write(tau, loop_.state().cycle);
     return fresh ? Freshness::fresh : Freshness::stale;
   }

@@ -37,7 +37,8 @@ ClosedLoopRunner::ClosedLoopRunner(Simulation& simulation, const std::vector<Con
       names.push_back(prefixes.empty() ? joint : prefixes[i] + joint);
     }
     const int n = loop->num_joints();
-    parts_.push_back({loop, offset, JointVector::Zero(n), JointVector::Zero(n)});
+    parts_.push_back(
+        {loop, offset, JointVector::Zero(n), JointVector::Zero(n), JointVector::Zero(n)});
     offset += n;
   }
   if (names != simulation.joint_names()) {
@@ -60,13 +61,15 @@ void ClosedLoopRunner::start() {
 const JointVector& ClosedLoopRunner::step() noexcept {
   const double dt = simulation_.timestep();
   if (parts_.size() == 1) {
-    tau_ = parts_.front().loop->step(simulation_.q(), simulation_.dq(), dt);
+    tau_ = parts_.front().loop->step(simulation_.q(), simulation_.dq(),
+                                     simulation_.measured_torque(), dt);
   } else {
     for (Part& part : parts_) {
       const Eigen::Index n = part.q.size();
       part.q = simulation_.q().segment(part.offset, n);
       part.dq = simulation_.dq().segment(part.offset, n);
-      tau_.segment(part.offset, n) = part.loop->step(part.q, part.dq, dt);
+      part.measured_torque = simulation_.measured_torque().segment(part.offset, n);
+      tau_.segment(part.offset, n) = part.loop->step(part.q, part.dq, part.measured_torque, dt);
     }
   }
   if (torque_hook_) torque_hook_(tau_);

@@ -435,6 +435,10 @@ void DartPhysics::step(Simulation::Impl& impl) noexcept {
                                                 gravity_moment(*joint.joint, *body, gravity));
     }
   }
+  for (std::size_t k = 0; k < exchanged_.size(); ++k) {
+    const JointLink& joint = exchanged_[k];
+    impl.true_torque[static_cast<Eigen::Index>(k)] = joint.skeleton->getForce(joint.index);
+  }
   impl.expire_pushes();
   for (const Push& push : impl.pushes) {
     dd::BodyNode* body = bodies_[static_cast<std::size_t>(push.body)];
@@ -447,6 +451,18 @@ void DartPhysics::step(Simulation::Impl& impl) noexcept {
   }
   world_->step();  // clears the forces it was given
   contacts_valid_ = true;
+  // The links' side of each joint: the drive's force less the Coulomb friction (the impulse of
+  // the joint's own constraint, which also holds a joint limit's), the damping (implicit: at the
+  // new velocity) and what turned the rotor.
+  const double h = world_->getTimeStep();
+  for (std::size_t k = 0; k < exchanged_.size(); ++k) {
+    const JointLink& joint = exchanged_[k];
+    const auto i = static_cast<Eigen::Index>(k);
+    const double velocity = joint.skeleton->getVelocity(joint.index);
+    impl.true_torque[i] += joint.joint->getConstraintImpulse(0) / h -
+                           joint.joint->getDampingCoefficient(0) * velocity -
+                           m->dof_armature[joint.dof] * (velocity - impl.true_dq[i]) / h;
+  }
   for (const JointLink& joint : joints_) {
     d->qpos[joint.qpos] = joint.skeleton->getPosition(joint.index);
     d->qvel[joint.dof] = joint.skeleton->getVelocity(joint.index);

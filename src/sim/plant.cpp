@@ -27,6 +27,7 @@ PlantOptions PlantOptions::realistic(std::uint64_t seed) {
   plant.position_resolution = 2.0 * M_PI / 524288.0;  // a 19-bit encoder
   plant.actuation_delay = 0.001;
   plant.torque_noise = 0.05;
+  plant.torque_sensor_noise = 0.05;
   return plant;
 }
 
@@ -46,7 +47,7 @@ bool changes_model(const PlantOptions& plant) noexcept {
 bool PlantOptions::nominal() const noexcept {
   return !detail::changes_model(*this) && measurement_delay == 0.0 && position_noise == 0.0 &&
          velocity_noise == 0.0 && position_resolution == 0.0 && actuation_delay == 0.0 &&
-         torque_noise == 0.0;
+         torque_noise == 0.0 && torque_sensor_noise == 0.0;
 }
 
 PlantOptions plant_from_name(const std::string& name, std::uint64_t seed) {
@@ -94,6 +95,7 @@ void check_plant(const PlantOptions& plant) {
   check_amount(plant.velocity_noise, 10.0, "velocity_noise", "rad/s");
   check_amount(plant.position_resolution, 0.1, "position_resolution", "rad");
   check_amount(plant.torque_noise, 100.0, "torque_noise", "Nm");
+  check_amount(plant.torque_sensor_noise, 100.0, "torque_sensor_noise", "Nm");
 }
 
 std::vector<int> perturb_model(mjModel* m, const std::vector<int>& joint_ids,
@@ -146,36 +148,51 @@ void PlantState::configure(const PlantOptions& plant, double timestep, int joint
   measurement_steps_ = steps_of(plant.measurement_delay, timestep);
   actuation_steps_ = steps_of(plant.actuation_delay, timestep);
   senses_ = measurement_steps_ > 0 || plant.position_noise > 0.0 || plant.velocity_noise > 0.0 ||
-            plant.position_resolution > 0.0;
+            plant.position_resolution > 0.0 || plant.torque_sensor_noise > 0.0;
   actuates_ = actuation_steps_ > 0 || plant.torque_noise > 0.0;
   q_ring_.assign(static_cast<std::size_t>(measurement_steps_ + 1), JointVector::Zero(joints));
   dq_ring_ = q_ring_;
+  sensed_ring_ = q_ring_;
   tau_ring_.assign(static_cast<std::size_t>(actuation_steps_ + 1), JointVector::Zero(joints));
 }
 
-void PlantState::restart(const JointVector& q, const JointVector& dq, bool reseed) {
+void PlantState::restart(const JointVector& q, const JointVector& dq, const JointVector& sensed,
+                         bool reseed) {
   for (JointVector& entry : q_ring_) entry = q;
   for (JointVector& entry : dq_ring_) entry = dq;
+  for (JointVector& entry : sensed_ring_) entry = sensed;
   for (JointVector& entry : tau_ring_) entry.setZero();
   q_head_ = 0;
   tau_head_ = 0;
-  if (reseed) random_.seed(plant_.seed ^ 0x9e3779b97f4a7c15ULL);
+  if (reseed) {
+    random_.seed(plant_.seed ^ 0x9e3779b97f4a7c15ULL);
+    sensor_random_.seed(plant_.seed ^ 0x5851f42d4c957f2dULL);
+  }
   normal_.reset();
+  sensor_normal_.reset();
 }
 
-void PlantState::measure(const JointVector& true_q, const JointVector& true_dq, JointVector& q,
-                         JointVector& dq) noexcept {
+void PlantState::measure(const JointVector& true_q, const JointVector& true_dq,
+                         const JointVector& true_torque, JointVector& q, JointVector& dq,
+                         JointVector& torque) noexcept {
   if (!senses_) {
     q = true_q;
     dq = true_dq;
+    torque = true_torque;
     return;
   }
   // The ring holds the last measurement_steps_ + 1 states; the oldest is read.
   q_ring_[q_head_] = true_q;
   dq_ring_[q_head_] = true_dq;
+  sensed_ring_[q_head_] = true_torque;
   q_head_ = (q_head_ + 1) % q_ring_.size();
   q = q_ring_[q_head_];
   dq = dq_ring_[q_head_];
+  torque = sensed_ring_[q_head_];
+  // Its own generator: the torque sensors leave the other readings' noise as it was.
+  for (Eigen::Index i = 0; i < torque.size(); ++i) {
+    torque[i] += plant_.torque_sensor_noise * sensor_normal_(sensor_random_);
+  }
   for (Eigen::Index i = 0; i < q.size(); ++i) {
     q[i] += plant_.position_noise * normal_(random_);
     dq[i] += plant_.velocity_noise * normal_(random_);

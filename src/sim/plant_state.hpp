@@ -31,11 +31,14 @@ std::vector<int> perturb_model(mjModel* m, const std::vector<int>& joint_ids,
 class PlantState {
  public:
   void configure(const PlantOptions& plant, double timestep, int joints);
-  /// Every delayed reading becomes (q, dq), no torque is pending; `reseed` restarts the noise.
-  void restart(const JointVector& q, const JointVector& dq, bool reseed);
-  /// Takes in the state after a step; q and dq receive the reading.
-  void measure(const JointVector& true_q, const JointVector& true_dq, JointVector& q,
-               JointVector& dq) noexcept;
+  /// Every delayed reading becomes (q, dq, sensed torque), no torque is pending; `reseed`
+  /// restarts the noise.
+  void restart(const JointVector& q, const JointVector& dq, const JointVector& sensed, bool reseed);
+  /// Takes in the state after a step and the torque the joints' sensors saw in it; q, dq and
+  /// torque receive the reading.
+  void measure(const JointVector& true_q, const JointVector& true_dq,
+               const JointVector& true_torque, JointVector& q, JointVector& dq,
+               JointVector& torque) noexcept;
   /// Takes in this step's command; tau receives what acts in this step.
   void actuate(const JointVector& command, JointVector& tau) noexcept;
   /// Whether actuate() changes anything (else the command acts as it is, at once).
@@ -50,10 +53,12 @@ class PlantState {
   int actuation_steps_ = 0;
   bool senses_ = false;
   bool actuates_ = false;
-  std::vector<JointVector> q_ring_, dq_ring_, tau_ring_;
+  std::vector<JointVector> q_ring_, dq_ring_, sensed_ring_, tau_ring_;
   std::size_t q_head_ = 0, tau_head_ = 0;
   std::mt19937_64 random_;
   std::normal_distribution<double> normal_{0.0, 1.0};
+  std::mt19937_64 sensor_random_;
+  std::normal_distribution<double> sensor_normal_{0.0, 1.0};
 };
 
 }  // namespace cartesian_impedance::sim::detail

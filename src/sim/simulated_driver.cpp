@@ -57,8 +57,7 @@ class SimulatedDriver::Tick final : public runtime::Cycle {
             std::chrono::duration<double>(simulation.measurement_age()))),
         zero_(JointVector::Zero(simulation.num_joints())) {
     incoming_.tau = zero_;
-    measurement_.q = measurement_.dq = zero_;
-    measurement_.effort.resize(0);  // the simulated arm has no torque sensors
+    measurement_.q = measurement_.dq = measurement_.effort = zero_;
     reset();
   }
 
@@ -135,6 +134,7 @@ class SimulatedDriver::Tick final : public runtime::Cycle {
     measurement_.sampled = now - sensing_delay_;
     measurement_.q = simulation_.q();
     measurement_.dq = simulation_.dq();
+    measurement_.effort = simulation_.measured_torque();  // its joint torque sensors
     measurements_.publish(measurement_);
     ++counts_.measurements;
   }

@@ -315,6 +315,7 @@ Simulation load_simulation(const std::string& path, const mjVFS* vfs, const std:
   impl->options = std::move(options);
   impl->pushes.reserve(16);
   impl->q = impl->dq = impl->true_q = impl->true_dq = JointVector::Zero(n);
+  impl->measured_torque = impl->true_torque = JointVector::Zero(n);
   impl->tau = impl->tau_command = JointVector::Zero(n);
   impl->reset();
   if (impl->options.engine == Engine::dart) impl->physics = make_dart_physics(*urdf_scene, *impl);
@@ -346,16 +347,6 @@ void Simulation::Impl::reset() {
   kinematics_current = true;
   if (physics) physics->set_state(*this);
   read_state(true);
-}
-
-void Simulation::Impl::read_state(bool restart, bool reseed) noexcept {
-  const mjData* d = data.get();
-  for (std::size_t i = 0; i < joint_ids.size(); ++i) {
-    true_q[static_cast<Eigen::Index>(i)] = d->qpos[qpos_address[i]];
-    true_dq[static_cast<Eigen::Index>(i)] = d->qvel[dof_address[i]];
-  }
-  if (restart) plant.restart(true_q, true_dq, reseed);
-  plant.measure(true_q, true_dq, q, dq);
 }
 
 void Simulation::Impl::update_kinematics() const noexcept {
@@ -608,6 +599,8 @@ void Simulation::step() noexcept {
   Impl& s = *impl_;
   const mjModel* m = s.model.get();
   mjData* d = s.data.get();
+  // The state's own copy is what the last step left (true_dq is not written until read_state).
+  const JointVector& dq_before = s.true_dq;
   if (s.plant.actuates()) {
     s.plant.actuate(s.tau_command, s.tau);
     s.tau = s.tau.cwiseMax(s.tau_lower).cwiseMin(s.tau_upper);
@@ -628,6 +621,7 @@ void Simulation::step() noexcept {
     s.apply_inputs();
     mj_step2(m, d);
   }
+  if (!s.physics) s.sense_torque(dq_before);
   s.kinematics_current = false;
   s.read_state();
   if (s.tracked_body >= 0) {

@@ -142,7 +142,8 @@ class Physics {
   /// Takes over qpos and qvel of every joint from `impl.data`; no contacts until the next step.
   virtual void set_state(const Simulation::Impl& impl) = 0;
   /// Applies the commanded torque, gravity compensation and pushes of `impl`, advances by one
-  /// timestep and writes the new state into impl.data (qpos, qvel, time).
+  /// timestep and writes the new state into impl.data (qpos, qvel, time) and the torque the
+  /// links took from their joints into impl.true_torque.
   virtual void step(Simulation::Impl& impl) noexcept = 0;
   /// Pose of MuJoCo body `body` (an id) in the world.
   virtual Pose body_pose(int body) const = 0;
@@ -181,8 +182,12 @@ struct Simulation::Impl {
   std::vector<int> actuator_ids;  // -1: torque through qfrc_applied
   JointVector ctrl_per_torque;    // ctrl = tau * ctrl_per_torque for actuated joints
 
-  JointVector q, dq;                  // what the sensors read (the plant's delay and noise)
-  JointVector true_q, true_dq;        // the engine's state
+  JointVector q, dq;            // what the sensors read (the plant's delay and noise)
+  JointVector true_q, true_dq;  // the engine's state
+  JointVector measured_torque;  // what the joint torque sensors read (measured_torque())
+  // What the link side of each joint took in the last step (Physics::step writes it): the
+  // drive's torque and the firmware's compensation, less friction, damping and rotor inertia.
+  JointVector true_torque;
   JointVector tau;                    // torque acting in the next step (after clipping)
   JointVector tau_command;            // what set_torque() was given last (after clipping)
   JointVector tau_lower, tau_upper;   // joint torque range
@@ -212,7 +217,9 @@ struct Simulation::Impl {
   // The engine's state into true_q, true_dq and through the plant into q, dq; `restart`: every
   // delayed reading becomes this state (reset, set_state), `reseed`: the noise starts over.
   void read_state(bool restart = false, bool reseed = true) noexcept;
-  void apply_inputs() noexcept;   // needs kinematics and subtree_com of the current qpos
+  void apply_inputs() noexcept;  // needs kinematics and subtree_com of the current qpos
+  // true_torque after MuJoCo's own step, `dq_before` the velocities it started from.
+  void sense_torque(const JointVector& dq_before) noexcept;
   void expire_pushes() noexcept;  // drops the pushes that end before the next step
   void update_kinematics() const noexcept;
   int find_body(const std::string& name) const;  // throws Error naming the body

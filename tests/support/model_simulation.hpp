@@ -37,6 +37,10 @@ class Simulation {
     ci::JointMatrix inertia = kinematics_.mass;
     inertia.diagonal().array() += armature_;
     const ci::JointVector ddq = inertia.llt().solve(force);
+    // A link-side torque sensor: the drive's torque with the firmware's gravity, less what the
+    // damping and the rotor took (gravity included, as Franka's tau_J).
+    measured_torque = tau - joint_damping_ * dq - armature_ * ddq;
+    if (firmware_gravity_) measured_torque += kinematics_.gravity;
     dq += ddq * dt;
     if (blocked_joint >= 0) dq[blocked_joint] = 0.0;
     q += dq * dt;
@@ -54,7 +58,9 @@ class Simulation {
 
   ci::JointVector q, dq;
   ci::JointVector external;  ///< external joint torque [Nm], e.g. J^T F of a push
-  int blocked_joint = -1;    ///< a joint held still, as by an obstacle
+  /// What link-side joint torque sensors read in the last step [Nm] (zero before the first).
+  ci::JointVector measured_torque = ci::JointVector::Zero(q.size());
+  int blocked_joint = -1;  ///< a joint held still, as by an obstacle
 
  private:
   bool firmware_gravity_;

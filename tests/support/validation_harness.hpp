@@ -316,6 +316,7 @@ inline ci::Parameters other_valid_parameters() {
   p.collision.contact_force = 5.0;
   p.collision.contact_torque = 0.5;
   p.collision.retract_distance = 0.04;
+  p.collision.measured_torque = true;
   return p;
 }
 

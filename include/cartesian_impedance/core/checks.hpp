@@ -48,7 +48,7 @@ Fault measurement(const JointVector& q, const JointVector& dq, int num_joints,
 
 /// What the law reads of a RobotState besides q and dq: a 6 x n Jacobian, a finite pose with a
 /// unit quaternion (within kQuaternionNormTolerance), and the optional terms (mass, gravity,
-/// secondary_torque) either absent or complete and finite.
+/// secondary_torque, measured_torque) either absent or complete and finite.
 Fault kinematics(const RobotState& robot, int num_joints) noexcept;
 
 /// measurement() of q and dq against `speed`, then kinematics(): everything the law reads.

@@ -615,7 +615,8 @@ class CartesianImpedanceController : public CommandSetters<CartesianImpedanceCon
   // the drives applied (for the thresholds) and the commanded wrench's reaction as the estimate
   // would show it; the end effector's filtered velocity (where it came from).
   bool observer_running_ = false;
-  bool resume_pending_ = false;  // a Resume command, carried out with the next measurement
+  bool observer_measured_ = false;  // whether the running observer reads measured torques
+  bool resume_pending_ = false;     // a Resume command, carried out with the next measurement
   JointVector observer_momentum_;
   JointVector observer_applied_filtered_;
   JointVector observer_wrench_filtered_;

@@ -241,6 +241,11 @@ struct CollisionParameters {
   double contact_force = 0.0;
   double contact_torque = 0.0;
   double retract_distance = 0.05;  ///< [m] for CollisionReaction::retract
+  /// The observer takes the joint torques the robot measures (RobotState::measured_torque: link
+  /// side, gravity included, as Franka's tau_J) less the model's g(q), instead of the torque
+  /// sent less tau_gravity: the drive's delay, noise, friction and rotor inertia then stay out
+  /// of the estimate. Every cycle must bring the measurement (else it fails closed, naming it).
+  bool measured_torque = false;
 };
 
 /// The body region a contact with a person may reach, for power and force limiting after

@@ -55,6 +55,10 @@ struct RobotState {
   /// C(q, dq)^T dq [Nm], for the collision monitor's momentum observer (collision.detection);
   /// without it (or without mass) the monitor does not run.
   JointVector coriolis_transposed;
+  /// The joint torques the robot measures [Nm or N]: on the link side of each drive, gravity
+  /// included (Franka's tau_J, KUKA's measured torque). Read by the momentum observer only with
+  /// collision.measured_torque, which then needs `gravity` too; empty: not measured.
+  JointVector measured_torque;
   /// Torque of a secondary task [Nm] (e.g. joint-limit avoidance), added to the nullspace
   /// torque tau_0 before the projection, so it acts only in the nullspace.
   JointVector secondary_torque;

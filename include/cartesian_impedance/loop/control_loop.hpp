@@ -128,6 +128,12 @@ class ControlLoop : public CommandSetters<ControlLoop> {
   /// faster than plausibility.joint_velocity, a dt outside plausibility.dt, and a model that
   /// cannot be evaluated at q. The next good cycle resumes.
   const JointVector& step(const JointVector& q, const JointVector& dq, double dt) noexcept;
+  /// The same with the joint torques the robot measures [Nm or N] (link side, gravity included;
+  /// Franka's tau_J): read only with collision.measured_torque, which then needs them every cycle
+  /// (a step without them, or with a wrongly sized or non-finite one, fails closed naming
+  /// measured_torque).
+  const JointVector& step(const JointVector& q, const JointVector& dq,
+                          const JointVector& measured_torque, double dt) noexcept;
 
   /// True once start() has succeeded.
   bool started() const noexcept { return controller_.started(); }
@@ -170,6 +176,9 @@ class ControlLoop : public CommandSetters<ControlLoop> {
  private:
   friend class CommandSetters<ControlLoop>;
   void submit_command(const Command& command) { send(command); }
+
+  const JointVector& cycle(const JointVector& q, const JointVector& dq,
+                           const JointVector* measured_torque, double dt) noexcept;
 
   struct Slot;
   struct TrajectorySlot;

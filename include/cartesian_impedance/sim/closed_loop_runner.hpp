@@ -62,7 +62,9 @@ class ClosedLoopRunner final : public runtime::Cycle {
   /// Set once before running (not while a thread runs the runner); an empty hook removes it.
   void set_torque_hook(TorqueHook hook) { torque_hook_ = std::move(hook); }
 
-  /// One closed-loop step: tau_i = loop_i.step(q_i, dq_i, simulation.timestep()) for each loop,
+  /// One closed-loop step: tau_i = loop_i.step(q_i, dq_i, measured torque_i,
+  /// simulation.timestep()) for each loop (the torque sensors' reading is used with
+  /// collision.measured_torque),
   /// the torque hook, simulation.set_torque(tau), simulation.step(). Returns the torque
   /// commanded (before the simulation clips it to its actuators' ranges) [Nm or N]. noexcept, no
   /// allocation, no lock. A loop that was not started fails closed (ControlLoop::step).
@@ -98,6 +100,7 @@ class ClosedLoopRunner final : public runtime::Cycle {
     int offset;     // first joint in the simulation's order
     JointVector q;  // this loop's slice of the measured state
     JointVector dq;
+    JointVector measured_torque;
   };
 
   Simulation& simulation_;

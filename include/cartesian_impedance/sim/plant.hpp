@@ -48,11 +48,14 @@ struct PlantOptions {
   double actuation_delay = 0.0;
   /// Standard deviation of white noise on each applied torque [Nm or N], drawn every step.
   double torque_noise = 0.0;
+  /// Standard deviation of white noise on each measured joint torque [Nm or N]
+  /// (Simulation::measured_torque(), which is read with measurement_delay like q and dq).
+  double torque_sensor_noise = 0.0;
 
   /// A plant of the kind users meet: link inertias x U(0.7, 1.3), centres of mass moved up to
   /// 1 cm, friction x U(0.5, 1.5), damping and armature x U(0.8, 1.2); readings 1 ms old with
   /// 1e-5 rad and 0.005 rad/s of noise and a 2^-19-turn encoder; torques acting 1 ms late with
-  /// 0.05 Nm of noise.
+  /// 0.05 Nm of noise; joint torque sensors with 0.05 Nm of noise.
   static PlantOptions realistic(std::uint64_t seed = 1);
 
   /// Nothing differs: the simulation is the model, read at once and exactly.

@@ -184,6 +184,13 @@ class Simulation {
   /// (it acts from the next step); with them, what acted in the last step (the torque set that
   /// many steps before, with its noise).
   const JointVector& torque() const noexcept;
+  /// What a joint torque sensor on the link side of each drive reads [Nm or N], as Franka's
+  /// tau_J: the drive's torque and the firmware's gravity compensation less what the joint's
+  /// friction, damping and rotor inertia took in the last step; so gravity's part is in it, and
+  /// a contact shows through the links' motion. With the plant's measurement_delay and
+  /// torque_sensor_noise, like q() and dq(). After reset() or set_state(): what holds the arm
+  /// there. ControlLoop::step() takes it for collision.measured_torque.
+  const JointVector& measured_torque() const noexcept;
   /// Torque range per joint [Nm or N]; -inf/+inf where the joint has no limited actuator.
   const JointVector& torque_lower_limits() const noexcept;
   const JointVector& torque_upper_limits() const noexcept;
