@@ -32,8 +32,10 @@ ci::JointVector ready() {
 // while its angle stays the same, which a measurement where only one joint moves would flatter.
 constexpr double kDrift = 1e-7;
 
+// `measured`: the joint torques the robot measures, given to every step.
 void run_loop(benchmark::State& state, const ci::Parameters& parameters,
-              ci::ModelBackend backend = ci::ModelBackend::native) {
+              ci::ModelBackend backend = ci::ModelBackend::native,
+              const ci::JointVector* measured = nullptr) {
   ci::ControlLoop loop(panda().with_backend(backend), parameters);
   ci::JointVector q = ready(), dq = ci::JointVector::Constant(7, 0.01);
   loop.start(q, dq);
@@ -43,7 +45,8 @@ void run_loop(benchmark::State& state, const ci::Parameters& parameters,
   allocation_counter::Scope allocations;
   for (auto _ : state) {
     q.array() += kDrift;
-    benchmark::DoNotOptimize(loop.step(q, dq, 0.001).data());
+    benchmark::DoNotOptimize(
+        (measured ? loop.step(q, dq, *measured, 0.001) : loop.step(q, dq, 0.001)).data());
   }
   state.counters["allocs_per_step"] =
       static_cast<double>(allocations.allocations()) / static_cast<double>(state.iterations());
@@ -69,6 +72,20 @@ void BM_LoopStepWithoutCollisionMonitor(benchmark::State& state) {
   run_loop(state, parameters);
 }
 BENCHMARK(BM_LoopStepWithoutCollisionMonitor);
+
+// The defaults with the observer on measured joint torques (collision.measured_torque): the
+// model adds g(q) for it. Compare with BM_LoopStep/native.
+void BM_LoopStepWithMeasuredTorque(benchmark::State& state) {
+  ci::Parameters parameters;
+  parameters.collision.measured_torque = true;
+  const ci::RobotModel model = panda();
+  ci::ModelWorkspace workspace(model);
+  ci::Kinematics kinematics = workspace.make_kinematics();
+  workspace.compute(ready(), ci::JointVector::Zero(7), kinematics, true);
+  const ci::JointVector holding = kinematics.gravity;  // what holds the arm at rest
+  run_loop(state, parameters, ci::ModelBackend::native, &holding);
+}
+BENCHMARK(BM_LoopStepWithMeasuredTorque);
 
 // The same step with every part of the safety layer acting every cycle (support/safety_caps.hpp:
 // the speed caps far below the flange's speed, so the reference is held back, the push along

@@ -296,3 +296,30 @@ def test_the_collision_monitor_reports_and_resume_ends_a_reaction(panda, ready):
     loop.resume()
     loop.step(ready, np.zeros(7), 0.001)
     assert not loop.state.controller.collision.detected
+
+
+def test_the_collision_monitor_reads_measured_joint_torques(panda, ready):
+    """With collision.measured_torque the observer reads the torques step() is given: a cycle
+    without them fails closed naming them; given the torque that holds the arm at rest (g(q)), the
+    residual stays at zero; 20 Nm more on joint 2 than the model explains is a collision there."""
+    loop = ci.ControlLoop(panda, {"collision.measured_torque": True})
+    loop.start(ready, np.zeros(7))
+    loop.step(ready, np.zeros(7), 0.001)
+    assert loop.state.controller.status == ci.Status.missing_dynamics
+    assert "measured_torque" in str(loop.state.controller.fault)
+    holding = panda.compute(ready, np.zeros(7), dynamics=True).gravity
+    for _ in range(20):
+        loop.step(ready, np.zeros(7), 0.001, measured_torque=holding)
+    collision = loop.state.controller.collision
+    assert loop.state.controller.status == ci.Status.ok
+    assert np.max(np.abs(collision.residual)) < 1e-9 and not collision.detected
+    pressed = holding.copy()
+    pressed[1] += 20.0  # the drive holds 20 Nm the model does not: something presses on link 2
+    for _ in range(50):
+        loop.step(ready, np.zeros(7), 0.001, measured_torque=pressed)
+    collision = loop.state.controller.collision
+    assert collision.detected and collision.joint == 1
+    # The observer follows the torque with its first-order filter: 50 ms at K_O = 100 is 99 %.
+    assert collision.residual[1] == pytest.approx(-20.0, rel=0.02)
+    with pytest.raises(ValueError, match="measured_torque must have shape"):
+        loop.step(ready, np.zeros(7), 0.001, measured_torque=np.zeros(6))
