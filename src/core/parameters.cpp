@@ -281,7 +281,8 @@ std::vector<ParameterInfo> make_table() {
        [](Parameters& p) { return field_of(&p.collision.threshold); }},
       {"collision.threshold_fraction", "-", 0, 10, false,
        "added to the threshold per unit of the torque the joint's drive applies (filtered like "
-       "the estimate): the model's error grows with it",
+       "the estimate; with collision.measured_torque, per unit of the measured torque): the "
+       "model's error grows with it",
        [](Parameters& p) { return field_of(&p.collision.threshold_fraction); }},
       {"collision.velocity_noise", "rad/s", 0, 1, false,
        "standard deviation of the measured joint velocities: the observer passes it on as "

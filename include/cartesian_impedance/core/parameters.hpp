@@ -225,7 +225,8 @@ std::string_view reaction_name(CollisionReaction reaction);
 /// joint whose |r| leaves what is expected (the commanded wrench's reaction, a declared contact)
 /// by more than its threshold is a collision; the last such joint names the link. The threshold
 /// of joint i is `threshold` + `threshold_fraction` |tau_i| (the model's error grows with the
-/// torque its drive applies, filtered like r) + kCollisionNoiseSigmas K_O M_ii
+/// torque its drive applies, filtered like r; with `measured_torque`, the measured torque,
+/// gravity's part included) + kCollisionNoiseSigmas K_O M_ii
 /// `velocity_noise` (r carries the noise of the measured velocity through M dq, as much as
 /// the observer's gain lets through).
 struct CollisionParameters {
