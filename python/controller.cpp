@@ -108,11 +108,31 @@ void bind_enums_and_pose(py::module_& m) {
           }));
 }
 
+namespace {
+
+// A per-joint vector of RobotState that may be absent: None reads and writes it empty.
+void optional_vector_property(py::class_<ci::RobotState>& robot_state, const char* name,
+                              ci::JointVector ci::RobotState::*member, const char* doc) {
+  robot_state.def_property(
+      name, [member](const ci::RobotState& s) { return optional_array(s.*member); },
+      [member, name](ci::RobotState& s, py::handle v) {
+        if (v.is_none()) {
+          (s.*member).resize(0);
+        } else {
+          read_vector(v, name, Length{}, s.*member);
+        }
+      },
+      doc);
+}
+
+}  // namespace
+
 void bind_states(py::module_& m) {
   // ---- states ----
-  py::class_<ci::RobotState>(
+  py::class_<ci::RobotState> robot_state(
       m, "RobotState",
-      "What the controller reads each cycle: measured joints and the kinematics at them.")
+      "What the controller reads each cycle: measured joints and the kinematics at them.");
+  robot_state
       .def(py::init([](ArrayLike q, ArrayLike dq, PoseLike pose, ArrayLike jacobian, ArrayLike mass,
                        ArrayLike gravity, ArrayLike secondary_torque) {
              ci::RobotState state;
@@ -165,44 +185,19 @@ void bind_states(py::module_& m) {
               read_matrix(v, "mass", Length{}, Length{}, s.mass, true);
             }
           },
-          "Mass matrix M(q) (n, n) [kg m^2], or None.")
-      .def_property(
-          "gravity", [](const ci::RobotState& s) { return optional_array(s.gravity); },
-          [](ci::RobotState& s, py::handle v) {
-            if (v.is_none()) {
-              s.gravity.resize(0);
-            } else {
-              read_vector(v, "gravity", Length{}, s.gravity);
-            }
-          },
-          "Gravity torques g(q) (n,) [Nm], or None.")
-      .def_property(
-          "secondary_torque",
-          [](const ci::RobotState& s) { return optional_array(s.secondary_torque); },
-          [](ci::RobotState& s, py::handle v) {
-            if (v.is_none()) {
-              s.secondary_torque.resize(0);
-            } else {
-              read_vector(v, "secondary_torque", Length{}, s.secondary_torque);
-            }
-          },
-          "Extra nullspace torque tau_0 (n,) [Nm], or None.")
-      .def_property(
-          "measured_torque",
-          [](const ci::RobotState& s) { return optional_array(s.measured_torque); },
-          [](ci::RobotState& s, py::handle v) {
-            if (v.is_none()) {
-              s.measured_torque.resize(0);
-            } else {
-              read_vector(v, "measured_torque", Length{}, s.measured_torque);
-            }
-          },
-          "Joint torques the robot measures (n,) [Nm], link side, gravity included (Franka's "
-          "tau_J), or None; read with collision.measured_torque, which needs gravity too.")
-      .def("__repr__", [](const ci::RobotState& s) {
-        return "RobotState(q=" + numbers_text(s.q) + ", dq=" + numbers_text(s.dq) +
-               ", pose=" + pose_repr(s.pose) + ")";
-      });
+          "Mass matrix M(q) (n, n) [kg m^2], or None.");
+  optional_vector_property(robot_state, "gravity", &ci::RobotState::gravity,
+                           "Gravity torques g(q) (n,) [Nm], or None.");
+  optional_vector_property(robot_state, "secondary_torque", &ci::RobotState::secondary_torque,
+                           "Extra nullspace torque tau_0 (n,) [Nm], or None.");
+  optional_vector_property(
+      robot_state, "measured_torque", &ci::RobotState::measured_torque,
+      "Joint torques the robot measures (n,) [Nm], link side, gravity included (Franka's "
+      "tau_J), or None; read with collision.measured_torque, which needs gravity too.");
+  robot_state.def("__repr__", [](const ci::RobotState& s) {
+    return "RobotState(q=" + numbers_text(s.q) + ", dq=" + numbers_text(s.dq) +
+           ", pose=" + pose_repr(s.pose) + ")";
+  });
   m.def(
       "make_robot_state",
       [](int num_joints) {

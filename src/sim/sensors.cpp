@@ -38,10 +38,14 @@ void Simulation::Impl::sense_torque(const JointVector& dq_before) noexcept {
     const int dof = dof_address[k];
     true_torque[i] = d->qfrc_applied[dof] + d->qfrc_actuator[dof] + d->qfrc_passive[dof] -
                      m->dof_armature[dof] * (d->qvel[dof] - dq_before[i]) / h;
-    for (int row = 0; row < d->nefc; ++row) {
-      if (d->efc_type[row] == mjCNSTR_FRICTION_DOF && d->efc_id[row] == dof) {
-        true_torque[i] += d->efc_force[row];
-      }
+  }
+  // One pass over the constraint rows (a contact adds many): only the friction rows look up
+  // their joint.
+  for (int row = 0; row < d->nefc; ++row) {
+    if (d->efc_type[row] != mjCNSTR_FRICTION_DOF) continue;
+    for (std::size_t k = 0; k < joint_ids.size(); ++k) {
+      if (dof_address[k] == d->efc_id[row])
+        true_torque[static_cast<Eigen::Index>(k)] += d->efc_force[row];
     }
   }
 }
